@@ -1,0 +1,47 @@
+# vei: every target sets itself up on a fresh machine (python3 >= 3.11 and the package registries).
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed-stamp
+# Separate tool environment for the ASAM Quality Checker (it pins numpy < 2).
+QC_VENV  := .tools/qc
+QC_STAMP := $(QC_VENV)/.installed-stamp
+DEMO_OUT ?= demo-out
+
+.PHONY: demo test bench lint format venv qc-tools clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[all,bench,dev]'
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+$(QC_STAMP):
+	$(PYTHON) -m venv $(QC_VENV)
+	$(QC_VENV)/bin/python -m pip install --quiet --upgrade pip
+	$(QC_VENV)/bin/python -m pip install --quiet 'asam-qc-openscenarioxml==1.0.0' 'asam-qc-opendrive==1.0.0'
+	touch $(QC_STAMP)
+
+qc-tools: $(QC_STAMP)
+
+demo: $(STAMP)
+	MPLBACKEND=Agg $(VENV)/bin/vei demo --out $(DEMO_OUT)
+
+test: $(STAMP) $(QC_STAMP)
+	MPLBACKEND=Agg VEI_QC_BIN=$(CURDIR)/$(QC_VENV)/bin $(VENV)/bin/pytest -q
+
+bench: $(STAMP)
+	MPLBACKEND=Agg $(PY) -m benchmarks
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check src tests benchmarks
+	$(VENV)/bin/ruff format --check src tests benchmarks
+
+format: $(STAMP)
+	$(VENV)/bin/ruff check --fix src tests benchmarks
+	$(VENV)/bin/ruff format src tests benchmarks
+
+clean:
+	rm -rf $(VENV) .tools $(DEMO_OUT) .pytest_cache .ruff_cache

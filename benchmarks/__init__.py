@@ -1,0 +1,1 @@
+"""vei benchmarks: `make bench` (= `python -m benchmarks`) runs every bench_*.py module."""

@@ -1,0 +1,82 @@
+"""The ``vei`` console script: one typer app; command modules register themselves.
+
+User errors (:class:`vei.errors.VeiError`) print one clear message and exit with code 2,
+without a traceback. Heavy dependencies are imported inside the commands, so ``vei --help``
+stays fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+import typer
+from rich.console import Console
+
+from vei import __version__
+from vei.errors import VeiError
+
+#: Modules under vei.cli that define ``register(app)``; each owns its commands.
+COMMAND_MODULES: tuple[str, ...] = (
+    "datasets_cmd",
+    "reconstruct_cmd",
+    "maps_cmd",
+    "sim_cmd",
+    "export_cmd",
+    "sweep_cmd",
+)
+
+app = typer.Typer(
+    name="vei",
+    help="Vehicle-e-scooter interactions: reconstruct recordings, make them critical, "
+    "close the loop with a collision-avoidance planner, and score every run.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+def _version_callback(value: bool) -> None:
+    if value:
+        typer.echo(f"vei {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(
+        False, "--version", callback=_version_callback, is_eager=True, help="Print the version and exit."
+    ),
+) -> None:
+    """vei command-line interface."""
+
+
+for _name in COMMAND_MODULES:
+    importlib.import_module(f"vei.cli.{_name}").register(app)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the console script; returns the exit code."""
+    err = Console(stderr=True)
+    try:
+        app(args=argv, standalone_mode=False)
+    except VeiError as exc:
+        err.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+        return 2
+    except typer.Abort:
+        err.print("aborted")
+        return 130
+    except SystemExit as exc:  # typer.Exit / --help
+        return int(exc.code or 0)
+    except Exception as exc:  # click usage errors arrive here in non-standalone mode
+        import click
+
+        if isinstance(exc, click.ClickException):
+            exc.show()
+            return 2
+        raise
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

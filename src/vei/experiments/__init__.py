@@ -1,0 +1,1 @@
+"""vei.experiments."""
