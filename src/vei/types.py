@@ -161,3 +161,63 @@ class Scenario:
         """Trajectory rows of one agent, sorted by t_s."""
         df = self.trajectories
         return df[df["agent_id"] == agent_id].sort_values("t_s").reset_index(drop=True)
+
+
+#: Columns of a run's long-format time series (what every backend produces, one row per
+#: agent per step): see Trace for the array form metrics consume.
+TIMESERIES_COLUMNS: tuple[str, ...] = (
+    "config",  # str: configuration name (e.g. 'normal-cap')
+    "variant",  # int: variant index within the batch (0 for single runs)
+    "t_s",  # float [s]
+    "agent_id",  # str
+    "category",  # 'ego' or one of CATEGORIES
+    "x_m",  # float [m], plane x east
+    "y_m",  # float [m], plane y north
+    "yaw_rad",  # float [rad], CCW from +x
+    "speed_mps",  # float [m/s], >= 0
+    "accel_mps2",  # float [m/s^2], longitudinal (ego) or along-velocity (others)
+    "active",  # bool: agent present in the scene at this step
+    "collided",  # bool: this agent has collided with the ego at or before this step
+    "cap_state",  # str: ego CAP state ('CRUISE', 'BRAKE', 'RECOVER'; '' if no CAP / not ego)
+)
+
+
+@dataclass(frozen=True)
+class Trace:
+    """Ego and one other road user over time, for B runs: the input every metric takes.
+
+    All arrays share T time steps (uniform, ``dt_s`` apart). Positions in the plane [m].
+
+    Attributes:
+        t_s: [T] time [s].
+        ego_xy_m: [B, T, 2]; ego_yaw_rad: [B, T]; ego_speed_mps: [B, T]; ego_accel_mps2: [B, T].
+        other_xy_m: [B, T, 2]; other_yaw_rad: [B, T]; other_speed_mps: [B, T];
+        other_vel_mps: [B, T, 2] velocity vector of the other road user [m/s].
+        other_active: [B, T] bool, the other road user is present (the "interaction" span).
+        collided: [B, T] bool, ego and other have collided at or before this step.
+        ego_length_m, ego_width_m, other_length_m, other_width_m: footprints [m].
+    """
+
+    t_s: object
+    ego_xy_m: object
+    ego_yaw_rad: object
+    ego_speed_mps: object
+    ego_accel_mps2: object
+    other_xy_m: object
+    other_yaw_rad: object
+    other_speed_mps: object
+    other_vel_mps: object
+    other_active: object
+    collided: object
+    ego_length_m: float
+    ego_width_m: float
+    other_length_m: float
+    other_width_m: float
+
+    @property
+    def dt_s(self) -> float:
+        """Time step [s] (uniform grid)."""
+        import numpy as np
+
+        t = np.asarray(self.t_s)
+        return float(t[1] - t[0]) if t.size > 1 else 0.0
