@@ -70,7 +70,9 @@ def test_proj_string_round_trip_and_rejects_other_projections():
 
 
 def test_wrap_angle():
-    assert wrap_angle(np.array([3 * math.pi, -math.pi, 0.5])) == pytest.approx([math.pi, math.pi, 0.5])
+    assert wrap_angle(np.array([3 * math.pi, -math.pi, 0.5])) == pytest.approx(
+        [math.pi, math.pi, 0.5]
+    )
 
 
 def test_bounds_margin():

@@ -1,7 +1,181 @@
-"""CLI commands (being written; see issues)."""
+"""``vei import trafficmonitoring`` and ``vei datasets download trafficmonitoring``.
+
+- ``vei import trafficmonitoring --root DIR --scenario NAME --out DIR [--rate-hz 1]``
+  writes an interaction folder (format vei.interaction/1) from the public TrafficMonitoring
+  dataset and prints a summary (tracks per category, durations, time offsets, and how well
+  the car's own camera track agrees with its INS); ``--list`` lists the scenarios of a root.
+- ``vei datasets download trafficmonitoring [--dest DIR] [--scenario NAME ...]``
+  fetches only the files the importer needs (resumable).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
 
 import typer
 
+#: Default destination of the download, so that VEI_DATA_DIR=data finds it.
+DEFAULT_DOWNLOAD_DEST = Path("data") / "trafficmonitoring"
+
+
+def _import_trafficmonitoring(
+    root: Annotated[
+        Path,
+        typer.Option(
+            "--root",
+            help="Dataset root: the folder that holds data/measurements "
+            "(e.g. what `vei datasets download trafficmonitoring` wrote).",
+        ),
+    ],
+    scenario: Annotated[
+        str | None,
+        typer.Option(
+            "--scenario", help="Scenario name (see --list), e.g. stadtmitte_12_audi_geradeaus_03."
+        ),
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Interaction folder to write (replaced if it exists)."),
+    ] = None,
+    rate_hz: Annotated[
+        float,
+        typer.Option(
+            "--rate-hz", help="Annotation rate in Hz (the paper annotates at 1 FPS); at most 30."
+        ),
+    ] = 1.0,
+    list_: Annotated[
+        bool,
+        typer.Option("--list", help="List the scenarios found under --root and exit."),
+    ] = False,
+    include_ego_track: Annotated[
+        bool,
+        typer.Option(
+            "--include-ego-track",
+            help="Also annotate the car's own camera track (category 'vehicle'): a check of time sync and geodesy.",
+        ),
+    ] = False,
+    full_ins: Annotated[
+        bool,
+        typer.Option(
+            "--full-ins",
+            help="Keep the whole INS record as the ego track (default: cut to the span the camera covers).",
+        ),
+    ] = False,
+) -> None:
+    """Import a TrafficMonitoring scenario (Ingolstadt) as an interaction folder."""
+    from vei.datasets.trafficmonitoring import import_scenario_with_summary, list_scenarios
+    from vei.errors import InputError
+
+    if list_:
+        for name in list_scenarios(root):
+            typer.echo(name)
+        return
+    if scenario is None or out is None:
+        raise InputError(
+            "--scenario and --out are required (or use --list)",
+            field="--scenario" if scenario is None else "--out",
+        )
+    s = import_scenario_with_summary(
+        root, scenario, out, rate_hz=rate_hz, include_ego_track=include_ego_track, full_ins=full_ins
+    )
+    from vei.io.interaction import read_interaction
+
+    it = read_interaction(s.out)
+    ann = it.annotations
+    typer.echo(f"wrote {s.out}")
+    typer.echo(
+        f"  ego: {len(it.ego)} fixes at 10 Hz over {s.ego_duration_s:.1f} s from "
+        f"{s.ins_start_utc.isoformat(timespec='milliseconds')}"
+    )
+    typer.echo(
+        f"  video frame 0 at {s.video_start_utc.isoformat(timespec='milliseconds')} ({s.video_offset_s:+.3f} s)"
+    )
+    for cat in sorted(set(ann["category"])):
+        sub = ann[ann["category"] == cat]
+        spans = sub.groupby("track_id")["t_s"].agg(lambda t: t.max() - t.min())
+        typer.echo(
+            f"  {cat}: {sub['track_id'].nunique()} track(s), {len(sub)} annotations at {rate_hz:g} Hz, "
+            f"seen {spans.min():.1f}-{spans.max():.1f} s"
+        )
+    if s.own_track_median_m is not None:
+        typer.echo(
+            f"  car's own camera track vs INS: median {s.own_track_median_m:.2f} m, p95 {s.own_track_p95_m:.2f} m"
+        )
+
+
+def _download_trafficmonitoring(
+    dest: Annotated[
+        Path,
+        typer.Option(
+            "--dest",
+            help="Dataset root to create or complete (files land in DEST/data/measurements).",
+        ),
+    ] = DEFAULT_DOWNLOAD_DEST,
+    scenario: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--scenario",
+            help="Scenario to fetch (repeatable); default: the three vei's tests use. Any scenario of the "
+            "repository with a matching file works.",
+        ),
+    ] = None,
+    base_url: Annotated[
+        str | None,
+        typer.Option(
+            "--base-url",
+            help="Serve the repository's files from here instead of GitHub (a mirror).",
+        ),
+    ] = None,
+    timeout_s: Annotated[
+        float, typer.Option("--timeout-s", help="Network timeout per attempt, in seconds.")
+    ] = 30.0,
+    retries: Annotated[
+        int, typer.Option("--retries", help="Retries per file on transient errors.")
+    ] = 3,
+    list_known: Annotated[
+        bool,
+        typer.Option(
+            "--list-known", help="List the scenarios known to have matching files and exit."
+        ),
+    ] = False,
+) -> None:
+    """Download the TrafficMonitoring files vei's importer needs (resumes; skips complete files)."""
+    from vei.datasets.download import (
+        TRAFFICMONITORING_BASE_URL,
+        TRAFFICMONITORING_SCENARIOS,
+        download_trafficmonitoring,
+    )
+    from vei.errors import ConfigError
+
+    if list_known:
+        for name in TRAFFICMONITORING_SCENARIOS:
+            typer.echo(name)
+        return
+    if timeout_s <= 0 or retries < 0:
+        raise ConfigError(
+            f"--timeout-s must be > 0 and --retries >= 0 (got {timeout_s}, {retries})"
+        )
+    root = download_trafficmonitoring(
+        dest,
+        base_url=base_url or TRAFFICMONITORING_BASE_URL,
+        scenarios=scenario or None,
+        timeout_s=timeout_s,
+        retries=retries,
+        progress=typer.echo,
+    )
+    typer.echo(f"dataset root: {root}  (vei import trafficmonitoring --root {root} --list)")
+
 
 def register(app: typer.Typer) -> None:
-    """Add this module's commands to the app."""
+    """Add the ``import`` and ``datasets`` command groups to the app."""
+    import_app = typer.Typer(
+        help="Import public datasets as interaction folders.", no_args_is_help=True
+    )
+    import_app.command("trafficmonitoring")(_import_trafficmonitoring)
+    datasets_app = typer.Typer(help="Fetch public datasets.", no_args_is_help=True)
+    download_app = typer.Typer(help="Download a public dataset.", no_args_is_help=True)
+    download_app.command("trafficmonitoring")(_download_trafficmonitoring)
+    datasets_app.add_typer(download_app, name="download")
+    app.add_typer(import_app, name="import")
+    app.add_typer(datasets_app, name="datasets")

@@ -1,7 +1,218 @@
-"""CLI commands (being written; see issues)."""
+"""``vei export openscenario`` and ``vei export check``: standard scenario files out of vei.
+
+``vei export openscenario SCENARIO --out DIR`` writes ``DIR/<scenario id>.xosc`` and a copy
+of the scenario's OpenDRIVE map; without ``--config`` the recorded (replayed) trajectories,
+with ``--config NAME`` the run of that configuration on the built-in engine.
+``vei export check FILE.xosc`` validates a file against the official XSD of its version and
+runs the ASAM Quality Checker on it.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Annotated
 
 import typer
+from rich.console import Console
+
+
+def _safe_stem(text: str) -> str:
+    stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("._")
+    return stem or "vei_scenario"
+
+
+def export_scenario(
+    scenario_dir: Path,
+    out_dir: Path,
+    *,
+    config: str | None = None,
+    time_shift: str | None = None,
+    osc_version: str = "1.2",
+    ego_controller: str = "trajectory",
+    vertex_rate_hz: float | None = 10.0,
+) -> Path:
+    """Export a scenario folder's replay (config None) or a simulated run; returns the .xosc.
+
+    Args:
+        scenario_dir: scenario folder (scenario.json + trajectories.parquet [+ map]).
+        out_dir: output folder.
+        config: None (recorded trajectories) or a configuration name / file, run with the
+            built-in engine exactly as ``vei run`` does.
+        time_shift: 'auto' or seconds, for ``config`` runs; None: the run file's, else 'auto'.
+        osc_version, ego_controller, vertex_rate_hz: see export_openscenario.
+    """
+    from vei.export.openscenario import export_openscenario, timeseries_to_trajectories
+    from vei.io.scenario import read_scenario
+
+    scenario = read_scenario(scenario_dir)
+    xodr = None
+    if "opendrive" in scenario.maps:
+        base = scenario.root if scenario.root is not None else Path(scenario_dir)
+        xodr = base / scenario.maps["opendrive"]
+    if config is None:
+        traj = scenario.trajectories
+        label = "replay of the recorded trajectories"
+        name = _safe_stem(scenario.id)
+    else:
+        # the same configuration loading and engine run as `vei run`
+        from vei.cli.sim_cmd import _load_case
+        from vei.experiments.casestudy import run_casestudy
+
+        case, run_cfg = _load_case(config)
+        sim = run_cfg.sim if run_cfg is not None else None
+        if time_shift is None:
+            time_shift = run_cfg.time_shift if run_cfg is not None else "auto"
+        result = run_casestudy(scenario, cases=[case], time_shift=time_shift, backend="builtin", sim=sim)
+        config_name = case.name
+        traj = timeseries_to_trajectories(result.frame, config=config_name)
+        label = f"vei run of configuration '{config_name}', rider time shift {result.time_shift_s:+.2f} s"
+        name = _safe_stem(f"{scenario.id}_{config_name}")
+    return export_openscenario(
+        traj,
+        list(scenario.agents),
+        out_dir,
+        xodr=xodr,
+        osc_version=osc_version,
+        ego_controller=ego_controller,  # type: ignore[arg-type]
+        name=name,
+        description=f"vei scenario {scenario.id}: {label}",
+        creation_date=scenario.start_time_utc,
+        vertex_rate_hz=vertex_rate_hz,
+    )
 
 
 def register(app: typer.Typer) -> None:
-    """Add this module's commands to the app."""
+    """Add ``vei export openscenario`` and ``vei export check``."""
+    export_app = typer.Typer(
+        name="export",
+        help="Export scenarios to standard formats (OpenSCENARIO 1.x + OpenDRIVE) and check them.",
+        no_args_is_help=True,
+    )
+
+    @export_app.command("openscenario")
+    def openscenario_cmd(
+        scenario: Annotated[
+            Path,
+            typer.Argument(
+                help="Scenario folder (scenario.json + trajectories.parquet, map if any)."
+            ),
+        ],
+        out: Annotated[
+            Path, typer.Option("--out", help="Output folder for the .xosc and the map copy.")
+        ],
+        config: Annotated[
+            str | None,
+            typer.Option(
+                "--config",
+                help="Configuration to simulate with the built-in engine before exporting "
+                "(replay, normal, aggressive, normal-cap, aggressive-cap, replay-speed, or a "
+                "config file). Omit to export the recorded (replayed) trajectories.",
+            ),
+        ] = None,
+        time_shift: Annotated[
+            str,
+            typer.Option(
+                "--time-shift", help="Rider time shift for --config runs: 'auto' or seconds."
+            ),
+        ] = "auto",
+        osc_version: Annotated[
+            str,
+            typer.Option(
+                "--osc-version",
+                help="OpenSCENARIO version: 1.0, 1.1, 1.2 or 1.3. CARLA ScenarioRunner reads 1.0 only; "
+                "the ASAM checker's reference checks apply from 1.2 on.",
+            ),
+        ] = "1.2",
+        ego_controller: Annotated[
+            str,
+            typer.Option(
+                "--ego-controller",
+                help="'trajectory': the ego follows its timed trajectory; 'simulator': only its initial "
+                "position and speed are set and the simulator (or the system under test) drives it.",
+            ),
+        ] = "trajectory",
+        vertex_rate_hz: Annotated[
+            float,
+            typer.Option(
+                "--vertex-rate-hz",
+                help="Base rate of trajectory vertices [Hz] (refined where the polyline would be off "
+                "by > 5 cm or 0.05 rad); 0 keeps every sample.",
+            ),
+        ] = 10.0,
+        check: Annotated[
+            bool,
+            typer.Option(
+                "--check", help="Validate the result (XSD + ASAM Quality Checker) after writing."
+            ),
+        ] = False,
+    ) -> None:
+        """Write SCENARIO as OpenSCENARIO (.xosc) + OpenDRIVE (.xodr) into --out."""
+        from vei.errors import ConfigError
+
+        if vertex_rate_hz < 0:
+            raise ConfigError(f"--vertex-rate-hz must be >= 0, got {vertex_rate_hz}")
+        path = export_scenario(
+            scenario,
+            out,
+            config=config,
+            time_shift=time_shift,
+            osc_version=osc_version,
+            ego_controller=ego_controller,
+            vertex_rate_hz=vertex_rate_hz if vertex_rate_hz > 0 else None,
+        )
+        typer.echo(f"wrote {path}")
+        if check:
+            code = _check(path, qc_bin=None, run_qc=True)
+            if code:
+                raise SystemExit(code)  # typer.Exit is swallowed by main() (standalone_mode=False)
+
+    @export_app.command("check")
+    def check_cmd(
+        file: Annotated[Path, typer.Argument(help="The .xosc file to check.")],
+        qc_bin: Annotated[
+            Path | None,
+            typer.Option(
+                "--qc-bin",
+                help="qc_openscenario executable or its folder (default: $VEI_QC_BIN, PATH, .tools/qc/bin).",
+            ),
+        ] = None,
+        qc: Annotated[
+            bool,
+            typer.Option(
+                "--qc/--no-qc", help="Run the ASAM Quality Checker (besides the XSD validation)."
+            ),
+        ] = True,
+    ) -> None:
+        """Validate FILE against the official OpenSCENARIO XSD and the ASAM Quality Checker.
+
+        Exit code 0: no issue; 1: issues found (listed); 2: the file or the checker is missing.
+        """
+        code = _check(file, qc_bin=qc_bin, run_qc=qc)
+        if code:
+            raise SystemExit(code)  # typer.Exit is swallowed by main() (standalone_mode=False)
+
+    app.add_typer(export_app, name="export")
+
+
+def _check(path: Path, *, qc_bin: Path | None, run_qc: bool) -> int:
+    from vei.errors import InputError
+    from vei.export.validate import declared_version, validate_openscenario
+
+    out = Console()
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    version = declared_version(path)
+    errors = validate_openscenario(path)
+    out.print(f"XSD (OpenSCENARIO {version}): {len(errors)} error(s)", highlight=False)
+    for e in errors:
+        out.print(f"  {e}", highlight=False, soft_wrap=True)
+    ok = not errors
+    if run_qc:
+        from vei.export.qc import run_qc_openscenario
+
+        report = run_qc_openscenario(path, qc_bin=qc_bin)
+        out.print(f"ASAM Quality Checker: {report.summary()}", highlight=False, soft_wrap=True)
+        out.print(f"result: {report.result_file}", highlight=False)
+        ok = ok and report.ok
+    return 0 if ok else 1

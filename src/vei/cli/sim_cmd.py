@@ -1,7 +1,349 @@
-"""CLI commands (being written; see issues)."""
+"""Simulation commands: ``vei run``, ``vei casestudy`` and ``vei demo``.
+
+- ``vei run SCENARIO --config NAME|FILE --out DIR``: one configuration; writes
+  timeseries.parquet, metrics.json and the figures.
+- ``vei casestudy SCENARIO --out DIR``: the paper's five configurations with one time
+  shift; writes summary.json / summary.csv / timeseries.parquet / figures and prints the
+  summary table.
+- ``vei demo [--out DIR] [--real]``: the built-in synthetic example (or the real
+  trafficmonitoring scenario) through the whole pipeline: interaction -> reconstruct ->
+  time shift -> five configurations -> table and figures.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+from typing import Annotated, Any
 
 import typer
 
+#: The real scenario of ``vei demo --real`` (a cyclist crosses the car's path, two e-scooters nearby).
+REAL_DEMO_SCENARIO = "stadtmitte_12_audi_geradeaus_03"
+
+_TIME_SHIFT_HELP = (
+    "Time shift of the primary rider in seconds (positive: it comes later), or 'auto': the "
+    "shift that makes the replayed paths meet in space-time (computed under replay's ego motion)."
+)
+_BACKEND_HELP = "Simulation backend: 'builtin' (the embedded engine) or 'carla' (needs vei.sim.backends.carla and a server)."
+
+
+def _console():
+    from rich.console import Console
+
+    return Console(soft_wrap=True) if sys.stdout.isatty() else Console(width=160)
+
+
+def _fmt(value: Any, fmt: str = ".2f") -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        if value != value:  # NaN
+            return "-"
+        if value in (float("inf"), float("-inf")):
+            return "inf"
+        return format(value, fmt)
+    return str(value)
+
+
+def print_summary(result, out: Path | None = None, console=None) -> None:
+    """Print the case-study table (one row per configuration) and where it was written."""
+    from rich.table import Table
+
+    from vei.metrics import summary_records
+
+    console = console or _console()
+    ts = result.time_shift_s
+    table = Table(
+        title=f"case study: {result.scenario.id} (time shift {ts:+.2f} s, {result.time_shift.get('mode')}; backend {result.backend})"
+    )
+    cols = [
+        ("config", "name", None),
+        ("collision", "collision", None),
+        ("t collision [s]", "collision_time_s", ".2f"),
+        ("safety index", "safety_index", ".3f"),
+        ("min gap [m]", "min_gap_m", ".2f"),
+        ("min TTC [s]", "min_ttc_s", ".2f"),
+        ("min TTC rel [s]", "min_ttc_rel_s", ".2f"),
+        ("PET [s]", "pet_s", ".2f"),
+        ("max DRAC [m/s2]", "max_drac_mps2", ".2f"),
+        ("peak decel [m/s2]", "peak_decel_mps2", ".2f"),
+        ("speed std [m/s]", "ego_speed_std_mps", ".3f"),
+    ]
+    for head, _, _ in cols:
+        table.add_column(head, justify="left" if head == "config" else "right")
+    for rec in summary_records(result.summary):
+        table.add_row(
+            *[_fmt(rec[key], fmt or "") if fmt else _fmt(rec[key]) for _, key, fmt in cols]
+        )
+    console.print(table)
+    outcome = result.paper_outcome()
+    if outcome["reproduced"] is not None:
+        verdict = "reproduced" if outcome["reproduced"] else "NOT reproduced"
+        bad = [n for n, v in outcome["per_config"].items() if not v["ok"]]
+        console.print(
+            f"paper outcome (replay/normal/aggressive collide, the CAP runs keep safety index 1): {verdict}"
+            + (f" (differs: {', '.join(bad)})" if bad else "")
+        )
+    if out is not None:
+        console.print(f"output folder: {out.resolve()}")
+
+
+def _load_case(config: str):
+    """A configuration name (preset) or a YAML/JSON file of a CaseConfig or RunConfig."""
+    from vei.config import CASE_PRESETS, CaseConfig, RunConfig, load_config
+    from vei.errors import ConfigError
+
+    if config in CASE_PRESETS:
+        from vei.config import case_preset
+
+        return case_preset(config), None
+    path = Path(config)
+    if path.suffix.lower() not in (".yaml", ".yml", ".json"):
+        raise ConfigError(
+            f"--config {config!r} is neither a configuration name ({', '.join(CASE_PRESETS)}) nor a .yaml/.yml/.json file"
+        )
+    if not path.is_file():
+        raise ConfigError(f"{path}: configuration file not found")
+    import json
+
+    import yaml
+
+    text = path.read_text(encoding="utf-8")
+    try:
+        raw = json.loads(text) if path.suffix.lower() == ".json" else yaml.safe_load(text)
+    except Exception as exc:  # noqa: BLE001 - parse errors of either format
+        raise ConfigError(f"{path}: cannot parse: {exc}") from None
+    if isinstance(raw, dict) and "case" in raw:
+        run_cfg = load_config(path, RunConfig)
+        return run_cfg.case, run_cfg
+    return load_config(path, CaseConfig), None
+
+
+def _read_scenario(folder: Path):
+    from vei.io.scenario import read_scenario
+
+    return read_scenario(folder)
+
 
 def register(app: typer.Typer) -> None:
-    """Add this module's commands to the app."""
+    """Add ``vei run``, ``vei casestudy`` and ``vei demo`` to the app."""
+
+    @app.command("run")
+    def run_cmd(
+        scenario: Annotated[
+            Path,
+            typer.Argument(
+                help="Scenario folder (scenario.json + trajectories.parquet), as written by 'vei reconstruct'."
+            ),
+        ],
+        config: Annotated[
+            str,
+            typer.Option(
+                "--config",
+                "-c",
+                help="Configuration: one of replay, normal, aggressive, normal-cap, aggressive-cap "
+                "(or replay-speed), or a YAML/JSON file of a configuration (keys name, rider, sfm, "
+                "ego_mode, ego, cap; 'preset' starts from a named one) or of a run (keys case, sim, time_shift).",
+            ),
+        ],
+        out: Annotated[
+            Path,
+            typer.Option(
+                "--out", "-o", help="Output folder (timeseries.parquet, metrics.json, figures)."
+            ),
+        ],
+        time_shift: Annotated[
+            str | None,
+            typer.Option(
+                "--time-shift",
+                help=_TIME_SHIFT_HELP + " Default: the run file's time_shift, else auto.",
+            ),
+        ] = None,
+        backend: Annotated[str, typer.Option("--backend", help=_BACKEND_HELP)] = "builtin",
+        figures: Annotated[
+            bool, typer.Option("--figures/--no-figures", help="Write the figures.")
+        ] = True,
+    ) -> None:
+        """Run one configuration on a scenario and score it."""
+        from vei.experiments.casestudy import run_casestudy, summary_document, write_casestudy
+        from vei.io.atomic import write_json
+
+        case, run_cfg = _load_case(config)
+        shift = (
+            time_shift
+            if time_shift is not None
+            else (run_cfg.time_shift if run_cfg is not None else "auto")
+        )
+        sim = run_cfg.sim if run_cfg is not None else None
+        scen = _read_scenario(scenario)
+        result = run_casestudy(scen, cases=[case], time_shift=shift, backend=backend, sim=sim)
+        paths = write_casestudy(result, out, figures=figures)
+        doc = summary_document(result)
+        metrics_doc = {
+            "scenario_id": doc["scenario_id"],
+            "config": case.name,
+            "primary_threat": doc["primary_threat"],
+            "time_shift_s": doc["time_shift_s"],
+            "time_shift": doc["time_shift"],
+            "backend": doc["backend"],
+            "metrics_config": doc["metrics_config"],
+            "metrics": doc["configs"][0],
+            "case_config": doc["case_configs"][case.name],
+        }
+        write_json(out / "metrics.json", metrics_doc)
+        for key in ("summary_json", "summary_csv"):
+            paths.pop(key).unlink(missing_ok=True)
+        print_summary(result, out)
+
+    @app.command("casestudy")
+    def casestudy_cmd(
+        scenario: Annotated[
+            Path, typer.Argument(help="Scenario folder (scenario.json + trajectories.parquet).")
+        ],
+        out: Annotated[
+            Path,
+            typer.Option(
+                "--out",
+                "-o",
+                help="Output folder (summary.json, summary.csv, timeseries.parquet, figures).",
+            ),
+        ],
+        time_shift: Annotated[str, typer.Option("--time-shift", help=_TIME_SHIFT_HELP)] = "auto",
+        backend: Annotated[str, typer.Option("--backend", help=_BACKEND_HELP)] = "builtin",
+        figures: Annotated[
+            bool, typer.Option("--figures/--no-figures", help="Write the figures.")
+        ] = True,
+    ) -> None:
+        """Run the paper's five configurations (replay, normal, aggressive, normal-cap, aggressive-cap) and print the summary."""
+        from vei.experiments.casestudy import run_casestudy, write_casestudy
+
+        scen = _read_scenario(scenario)
+        result = run_casestudy(scen, time_shift=time_shift, backend=backend)
+        write_casestudy(result, out, figures=figures)
+        print_summary(result, out)
+
+    @app.command("demo")
+    def demo_cmd(
+        out: Annotated[
+            Path,
+            typer.Option(
+                "--out",
+                "-o",
+                help="Output folder (interaction/, scenario/, the case-study files and figures).",
+            ),
+        ] = Path("demo-out"),
+        real: Annotated[
+            bool,
+            typer.Option(
+                "--real",
+                help=f"Use the real trafficmonitoring scenario {REAL_DEMO_SCENARIO} (imported from the "
+                "dataset) instead of the built-in synthetic example.",
+            ),
+        ] = False,
+        data_dir: Annotated[
+            Path | None,
+            typer.Option(
+                "--data-dir",
+                help="With --real: folder holding trafficmonitoring/ (default: $VEI_DATA_DIR, else ../shared/data).",
+            ),
+        ] = None,
+        time_shift: Annotated[str, typer.Option("--time-shift", help=_TIME_SHIFT_HELP)] = "auto",
+        interp: Annotated[
+            str,
+            typer.Option(
+                "--interp",
+                help="Reconstruction interpolation: cubic (the paper's), linear or smoothing.",
+            ),
+        ] = "cubic",
+    ) -> None:
+        """The whole pipeline on a built-in SYNTHETIC example shaped like the paper's case study (or --real data)."""
+        run_demo(out=out, real=real, data_dir=data_dir, time_shift=time_shift, interp=interp)
+
+
+def find_trafficmonitoring_root(data_dir: Path | None) -> Path:
+    """The trafficmonitoring dataset root from --data-dir, $VEI_DATA_DIR or ../shared/data."""
+    from vei.errors import InputError
+
+    tried = []
+    if data_dir is not None:
+        candidates = [data_dir]
+    elif os.environ.get("VEI_DATA_DIR"):
+        candidates = [Path(os.environ["VEI_DATA_DIR"])]
+    else:
+        candidates = [
+            Path.cwd().parent / "shared" / "data",
+            Path(__file__).resolve().parents[3].parent / "shared" / "data",
+        ]
+    for base in candidates:
+        for root in (base / "trafficmonitoring", base):
+            tried.append(str(root))
+            if (root / "data" / "measurements").is_dir():
+                return root
+    raise InputError(
+        "the trafficmonitoring data set was not found (looked for data/measurements under "
+        + ", ".join(tried)
+        + "); pass --data-dir, set VEI_DATA_DIR, or fetch it with 'vei datasets download trafficmonitoring'",
+        path=candidates[0],
+    )
+
+
+def run_demo(
+    *,
+    out: Path,
+    real: bool = False,
+    data_dir: Path | None = None,
+    time_shift: str = "auto",
+    interp: str = "cubic",
+    console=None,
+):
+    """What ``vei demo`` does; returns the CaseStudyResult.
+
+    Writes ``out/interaction`` (the input, synthetic or imported), ``out/scenario`` (the
+    reconstruction) and the case study files into ``out``.
+    """
+    from vei.experiments.casestudy import run_casestudy, write_casestudy
+    from vei.io.interaction import read_interaction
+    from vei.io.scenario import write_scenario
+    from vei.recon.pipeline import ReconstructionConfig, reconstruct
+
+    console = console or _console()
+    out = Path(out)
+    inter_dir, scen_dir = out / "interaction", out / "scenario"
+    with console.status("preparing the interaction ...") if console.is_terminal else _nullcontext():
+        if real:
+            from vei.datasets.trafficmonitoring import import_scenario
+
+            root = find_trafficmonitoring_root(data_dir)
+            import_scenario(root, REAL_DEMO_SCENARIO, inter_dir, rate_hz=1.0)
+            console.print(
+                f"imported the real trafficmonitoring scenario {REAL_DEMO_SCENARIO} from {root}"
+            )
+        else:
+            from vei.experiments.demo_data import write_demo_interaction
+
+            write_demo_interaction(inter_dir)
+            console.print(
+                "generated the built-in SYNTHETIC demo interaction (not a recording): "
+                + str(inter_dir)
+            )
+    scenario = reconstruct(read_interaction(inter_dir), ReconstructionConfig(interp=interp))
+    write_scenario(scenario, scen_dir)
+    console.print(
+        f"reconstructed {scenario.id}: primary threat {scenario.primary_threat}, {scenario.rate_hz:g} Hz -> {scen_dir}"
+    )
+    result = run_casestudy(scenario, time_shift=time_shift)
+    write_casestudy(result, out)
+    print_summary(result, out, console=console)
+    return result
+
+
+class _nullcontext:
+    def __enter__(self):
+        return None
+
+    def __exit__(self, *exc):
+        return False

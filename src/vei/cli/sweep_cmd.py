@@ -1,7 +1,148 @@
-"""CLI commands (being written; see issues)."""
+"""``vei sweep``: batched variant sweeps (grid / random / LHS) and critical-boundary search."""
+
+from __future__ import annotations
+
+from pathlib import Path
 
 import typer
 
+from vei.errors import ConfigError
+
+
+def _pair(text: str | None, name: str, cast: type = float) -> tuple | None:
+    if text is None:
+        return None
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != 2:
+        raise ConfigError(f"{name} expects two comma-separated values, got {text!r}")
+    try:
+        return tuple(cast(p) for p in parts)
+    except ValueError:
+        raise ConfigError(f"{name} expects two {cast.__name__} values, got {text!r}") from None
+
+
+def sweep(
+    scenario: Path = typer.Argument(
+        ..., help="A scenario folder (scenario.json) or a folder of scenario folders."
+    ),
+    spec: Path = typer.Option(
+        ..., "--spec", help="Sweep spec (YAML): design, n_samples, seed, base, parameters (docs/sweeps.md)."
+    ),
+    out: Path = typer.Option(..., "--out", help="Output folder; running again with the same spec resumes."),
+    engine: str = typer.Option(
+        "local", "--engine", help="local (this machine; --workers processes) or ray (ray.init(num_cpus=workers))."
+    ),
+    workers: int = typer.Option(1, "--workers", help="Parallel workers (processes or Ray CPUs), >= 1."),
+    chunk_size: int = typer.Option(
+        2048, "--chunk-size", help="Variants per engine batch; bounds memory (one chunk per worker)."
+    ),
+    max_chunks: int | None = typer.Option(
+        None, "--max-chunks", help="Stop after this many chunks (the sweep stays resumable)."
+    ),
+    x: str | None = typer.Option(
+        None, "--x", help="Boundary search: parameter on the x axis (e.g. time_shift_s). Needs --y."
+    ),
+    y: str | None = typer.Option(
+        None, "--y", help="Boundary search: parameter on the y axis (e.g. ego.cruise_speed_mps)."
+    ),
+    x_range: str | None = typer.Option(
+        None, "--x-range", help="Boundary search: MIN,MAX of x (default: its min/max in the spec)."
+    ),
+    y_range: str | None = typer.Option(
+        None, "--y-range", help="Boundary search: MIN,MAX of y (default: its min/max in the spec)."
+    ),
+    coarse: str = typer.Option("9,9", "--coarse", help="Boundary search: coarse grid points NX,NY (>= 2)."),
+    levels: int = typer.Option(
+        4, "--levels", help="Boundary search: refinement levels (finest step = coarse step / 2^levels)."
+    ),
+    critical: int = typer.Option(20, "--critical", help="How many most-critical variants to list (>= 1)."),
+    progress: bool | None = typer.Option(
+        None, "--progress/--no-progress", help="Progress bar (default: when stderr is a terminal)."
+    ),
+) -> None:
+    """Run many variants of recorded scenarios and find where collisions begin.
+
+    Without --x/--y: a sweep (results.parquet, one row per variant; critical.csv/json;
+    configs/ with a `vei run --config` file per critical variant; riskmap.png). With
+    --x and --y: an adaptive critical-boundary search in that plane, every other parameter
+    fixed by the spec (samples.parquet, boundary.json/csv, riskmap.png, critical.*, configs/).
+    """
+    from rich.console import Console
+    from rich.table import Table
+
+    from vei.experiments.sweep import find_scenarios, read_results, run_sweep
+    from vei.experiments.sweep_spec import load_spec
+
+    console = Console()
+    sweep_spec = load_spec(spec)
+    if critical < 1:
+        raise ConfigError(f"--critical must be >= 1, got {critical}")
+    if (x is None) != (y is None):
+        raise ConfigError("boundary search needs both --x and --y")
+    if x is not None and y is not None:
+        from vei.experiments.boundary import search_boundary
+
+        nxy = _pair(coarse, "--coarse", int)
+        dirs = find_scenarios(scenario)
+        table = Table(title="critical boundary")
+        for col in ("scenario", "evaluated", "grid of same resolution", "collisions", "boundary points", "folder"):
+            table.add_column(col)
+        for d in dirs:
+            target = Path(out) if len(dirs) == 1 else Path(out) / d.name
+            res = search_boundary(
+                d,
+                sweep_spec,
+                x,
+                y,
+                target,
+                x_range=_pair(x_range, "--x-range"),
+                y_range=_pair(y_range, "--y-range"),
+                coarse=nxy,  # type: ignore[arg-type]
+                levels=levels,
+                k_critical=critical,
+                progress=progress,
+            )
+            table.add_row(
+                d.name,
+                str(res.n_evaluations),
+                str(res.grid_evaluations),
+                str(int(res.samples["collision"].sum())),
+                str(len(res.crossings)),
+                str(target),
+            )
+        console.print(table)
+        return
+    if x_range or y_range:
+        raise ConfigError("--x-range / --y-range need --x and --y (boundary search)")
+    result = run_sweep(
+        scenario,
+        sweep_spec,
+        out,
+        engine=engine,
+        workers=workers,
+        chunk_size=chunk_size,
+        progress=progress,
+        max_chunks=max_chunks,
+    )
+    table = Table(title="sweep")
+    table.add_column("quantity")
+    table.add_column("value")
+    table.add_row("variants", str(result.n_variants))
+    table.add_row("run now", str(result.n_run))
+    table.add_row("done before (resumed)", str(result.n_skipped))
+    table.add_row("seconds", f"{result.seconds:.1f}")
+    if result.n_run + result.n_skipped >= result.n_variants:
+        res = read_results(out)
+        if "collision" in res:
+            table.add_row("collisions", f"{int(res['collision'].sum())} ({res['collision'].mean():.1%})")
+        if "safety_index" in res:
+            table.add_row("mean safety index", f"{res['safety_index'].mean():.3f}")
+        table.add_row("results", str(result.results))
+    else:
+        table.add_row("status", "incomplete: run the same command again to resume")
+    console.print(table)
+
 
 def register(app: typer.Typer) -> None:
-    """Add this module's commands to the app."""
+    """Add ``vei sweep`` to the app."""
+    app.command("sweep")(sweep)

@@ -1,1 +1,47 @@
-"""vei.metrics."""
+"""Safety metrics of runs: the paper's TTC zones and safety index, plus TTC with relative
+velocity, minimum gap, PET, DRAC, peak deceleration and ego speed statistics.
+
+Every metric scores a :class:`vei.types.Trace` (ego + one road user, B runs) and never
+depends on a simulation backend. Use ``get_metric(name).compute(trace, cfg)`` or
+``summarize(trace)``.
+"""
+
+from vei.metrics.config import PAPER_METRICS, MetricsConfig
+from vei.metrics.registry import METRICS, SCALAR_METRICS, SERIES_METRICS, Metric, get_metric
+from vei.metrics.summary import summarize, summary_records
+from vei.metrics.timeseries import trace_from_timeseries
+from vei.metrics.ttc import (
+    ZONE_ALERT,
+    ZONE_ATTENTION,
+    ZONE_COLLISION,
+    ZONE_INACTIVE,
+    ZONE_NAMES,
+    ZONE_SAFE,
+    paper_ttc,
+    relative_ttc,
+    safety_index,
+    ttc_zones,
+)
+
+__all__ = [
+    "METRICS",
+    "PAPER_METRICS",
+    "SCALAR_METRICS",
+    "SERIES_METRICS",
+    "ZONE_ALERT",
+    "ZONE_ATTENTION",
+    "ZONE_COLLISION",
+    "ZONE_INACTIVE",
+    "ZONE_NAMES",
+    "ZONE_SAFE",
+    "Metric",
+    "MetricsConfig",
+    "get_metric",
+    "paper_ttc",
+    "relative_ttc",
+    "safety_index",
+    "summarize",
+    "summary_records",
+    "trace_from_timeseries",
+    "ttc_zones",
+]

@@ -1,0 +1,511 @@
+"""Frozen configuration dataclasses for the models and the simulation, with named presets.
+
+Every tunable of the rider model (social forces), the ego vehicle (path following, PID,
+actuator), the collision-avoidance planner (CAP) and the engine lives here, with units in
+the field names and the paper's values as defaults. Values the paper does not give are
+chosen here and justified in the field documentation. Every class validates itself on
+construction and raises :class:`vei.errors.ConfigError`.
+
+Files (YAML or JSON) are loaded with :func:`load_config`; unknown keys are an error, and a
+key ``preset`` selects a named preset as the base that the other keys override.
+
+Imports nothing of vei but errors (see DESIGN.md, dependency direction).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any, Literal, TypeVar
+
+from vei.errors import ConfigError
+
+T = TypeVar("T")
+
+DesiredVelocityForm = Literal["normalised", "paper"]
+InfluentialPoint = Literal["closest_box_point", "front_bumper"]
+BrakingLaw = Literal["gap", "paper_per_step"]
+RiderModel = Literal["replay", "sfm"]
+EgoMode = Literal["replay-speed", "pid", "cap"]
+
+#: The paper's case-study cruise speed v_d [m/s] (Section IV-A/B).
+PAPER_CRUISE_SPEED_MPS = 5.6
+#: Sentinel of EgoConfig.cruise_speed_mps: use the recording's median moving speed.
+MEDIAN_MOVING = "median-moving"
+
+
+def _finite(name: str, value: Any, *, positive: bool = False, nonneg: bool = False) -> None:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ConfigError(f"{name} must be a number, got {value!r}")
+    if not math.isfinite(value):
+        raise ConfigError(f"{name} must be finite, got {value!r}")
+    if positive and value <= 0:
+        raise ConfigError(f"{name} must be > 0, got {value!r}")
+    if nonneg and value < 0:
+        raise ConfigError(f"{name} must be >= 0, got {value!r}")
+
+
+def _choice(name: str, value: Any, allowed: tuple[str, ...]) -> None:
+    if value not in allowed:
+        raise ConfigError(f"{name} must be one of {', '.join(allowed)}; got {value!r}")
+
+
+def _bool(name: str, value: Any) -> None:
+    if not isinstance(value, bool):
+        raise ConfigError(f"{name} must be true or false, got {value!r}")
+
+
+# --------------------------------------------------------------------------------------
+# E-scooter rider: social force model
+# --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SFMConfig:
+    """Social-force e-scooter rider (paper Section III-C, DESIGN.md "Models").
+
+    ``m a = f_des + f_veh`` on a point mass, semi-implicit Euler at the engine step.
+
+    Attributes:
+        k_des_nspm: destination gain k_des [N s/m]; paper (Normal): 100.
+        k_des_factor: multiplier on k_des [-]; 1 for Normal. The effective gain is
+            ``k_des_nspm * k_des_factor``. The Aggressive preset uses 2.0: the paper says
+            the aggressive rider's "force magnitudes [are] amplified" without a number;
+            doubling the gain halves the rider's speed-relaxation time m/k_des (0.95 s ->
+            0.475 s at 95 kg), i.e. it holds its course and speed twice as stubbornly.
+        a_veh_n: vehicle repulsion amplitude A [N]; paper: 100.
+        b_veh_per_m: repulsion decay rate b [1/m]; paper: 3.5.
+        v0_mps: nominal desired speed v0 [m/s]; paper: 5.0.
+        mass_kg: rider + e-scooter mass [kg]. The paper omits it; 95 kg = an adult rider
+            (~80 kg) plus a typical shared e-scooter (~15 kg).
+        sigma_m: regulariser sigma_des of the desired velocity [m]. The paper omits it;
+            1.0 m makes the normalised form give ~v0 at the look-ahead distance (5 m:
+            0.98 v0) and slow down only within about a metre of the final point.
+        desired_velocity: 'normalised' (default): ``v0 (s_des - s) / sqrt(|.|^2 + sigma^2)``;
+            'paper': the paper's literal ``v0 (s_des - s) / (|.|^2 + sigma^2)`` (wrong
+            dimensions, speed depends on the distance to the goal; kept as an option).
+        lookahead_m: the goal s_des is the point this far [m] ahead along the rider's own
+            recorded path (arc length) from its current progress; the final point near the
+            end. 5 m is about one second of riding at v0.
+        arrive_radius_m: the SFM rider leaves the scene (inactive) once it is this close
+            [m] to the final point of its recorded path, like the recording ends.
+        influential_point: point of the ego that repels: 'closest_box_point' (default) of
+            the ego's oriented box, or 'front_bumper' (centre of the front edge).
+        use_vehicle_force: include f_veh (Normal: true; Aggressive: false, paper III-C).
+        max_speed_mps: optional cap on the rider's speed [m/s]; None = no cap (paper).
+        max_accel_mps2: optional cap on |f_total| / m [m/s^2]; None = no cap (paper).
+    """
+
+    k_des_nspm: float = 100.0
+    k_des_factor: float = 1.0
+    a_veh_n: float = 100.0
+    b_veh_per_m: float = 3.5
+    v0_mps: float = 5.0
+    mass_kg: float = 95.0
+    sigma_m: float = 1.0
+    desired_velocity: DesiredVelocityForm = "normalised"
+    lookahead_m: float = 5.0
+    arrive_radius_m: float = 0.5
+    influential_point: InfluentialPoint = "closest_box_point"
+    use_vehicle_force: bool = True
+    max_speed_mps: float | None = None
+    max_accel_mps2: float | None = None
+
+    def __post_init__(self) -> None:
+        _finite("k_des_nspm", self.k_des_nspm, positive=True)
+        _finite("k_des_factor", self.k_des_factor, positive=True)
+        _finite("a_veh_n", self.a_veh_n, nonneg=True)
+        _finite("b_veh_per_m", self.b_veh_per_m, nonneg=True)
+        _finite("v0_mps", self.v0_mps, nonneg=True)
+        _finite("mass_kg", self.mass_kg, positive=True)
+        _finite("sigma_m", self.sigma_m, positive=True)
+        _choice("desired_velocity", self.desired_velocity, ("normalised", "paper"))
+        _finite("lookahead_m", self.lookahead_m, positive=True)
+        _finite("arrive_radius_m", self.arrive_radius_m, positive=True)
+        _choice("influential_point", self.influential_point, ("closest_box_point", "front_bumper"))
+        _bool("use_vehicle_force", self.use_vehicle_force)
+        if self.max_speed_mps is not None:
+            _finite("max_speed_mps", self.max_speed_mps, positive=True)
+        if self.max_accel_mps2 is not None:
+            _finite("max_accel_mps2", self.max_accel_mps2, positive=True)
+
+    @property
+    def k_des_effective_nspm(self) -> float:
+        """Effective destination gain k_des * k_des_factor [N s/m]."""
+        return self.k_des_nspm * self.k_des_factor
+
+
+#: Amplification of k_des of the Aggressive preset (see SFMConfig.k_des_factor).
+AGGRESSIVE_K_DES_FACTOR = 2.0
+
+SFM_PRESETS: dict[str, SFMConfig] = {
+    "normal": SFMConfig(),
+    "aggressive": SFMConfig(use_vehicle_force=False, k_des_factor=AGGRESSIVE_K_DES_FACTOR),
+}
+
+
+# --------------------------------------------------------------------------------------
+# Ego vehicle: path following, PID, actuator
+# --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class EgoConfig:
+    """Ego vehicle: follows its recorded path; PID speed control; actuator model.
+
+    The PID produces a command u in [-1, 1] like CARLA's VehicleControl (u >= 0: throttle
+    u; u < 0: brake -u). The engine maps it to a longitudinal acceleration
+    ``u * max_accel_mps2`` (throttle) or ``u * max_decel_mps2`` (brake), passed through a
+    first-order lag with time constant ``actuator_lag_s``.
+
+    Attributes:
+        cruise_speed_mps: v_d [m/s], or 'median-moving' (default): the recorded ego's
+            median speed over the samples where it moves (> ``moving_threshold_mps``), see
+            :func:`vei.models.ego.median_moving_speed_mps`. The paper's case uses 5.6.
+        moving_threshold_mps: a recorded ego sample counts as moving above this [m/s].
+        initial_speed: 'cruise' (default; the paper's ego drives at the constant desired
+            velocity from the start) or 'recorded' (the recording's speed at t = 0).
+        kp, ki, kd: PID gains on the speed error [1/(m/s)], [1/m], [s/m]; paper: 0.05 each.
+        integral_limit: anti-windup: |ki * integral| is clamped to this [-] (the command
+            share the integral may hold); 1.0 = the full command range.
+        max_accel_mps2: acceleration at full throttle [m/s^2]. The paper omits it; 3.0 is
+            a mid-size sedan's low-speed full-throttle acceleration (0-100 km/h in ~9 s).
+        max_decel_mps2: deceleration at full brake [m/s^2] (positive number). 8.0 =
+            ~0.8 g, full braking on dry asphalt. Must be >= |CAPConfig.a_min_mps2| so that
+            the CAP's saturated demand is reachable.
+        actuator_lag_s: time constant of the first-order lag between commanded and actual
+            acceleration [s]; 0.2 s is a typical brake/powertrain response. 0 = no lag
+            (explicit, allowed).
+    """
+
+    cruise_speed_mps: float | str = MEDIAN_MOVING
+    moving_threshold_mps: float = 0.5
+    initial_speed: Literal["cruise", "recorded"] = "cruise"
+    kp: float = 0.05
+    ki: float = 0.05
+    kd: float = 0.05
+    integral_limit: float = 1.0
+    max_accel_mps2: float = 3.0
+    max_decel_mps2: float = 8.0
+    actuator_lag_s: float = 0.2
+
+    def __post_init__(self) -> None:
+        if isinstance(self.cruise_speed_mps, str):
+            _choice("cruise_speed_mps", self.cruise_speed_mps, (MEDIAN_MOVING,))
+        else:
+            _finite("cruise_speed_mps", self.cruise_speed_mps, positive=True)
+        _finite("moving_threshold_mps", self.moving_threshold_mps, nonneg=True)
+        _choice("initial_speed", self.initial_speed, ("cruise", "recorded"))
+        for name in ("kp", "ki", "kd"):
+            _finite(name, getattr(self, name), nonneg=True)
+        _finite("integral_limit", self.integral_limit, positive=True)
+        _finite("max_accel_mps2", self.max_accel_mps2, positive=True)
+        _finite("max_decel_mps2", self.max_decel_mps2, positive=True)
+        _finite("actuator_lag_s", self.actuator_lag_s, nonneg=True)
+
+
+# --------------------------------------------------------------------------------------
+# Collision-avoidance planner
+# --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class CAPConfig:
+    """Collision-avoidance planner: a CRUISE / BRAKE / RECOVER finite-state machine.
+
+    ``d_safe = max(v^2 / (2 |a_min|), T_safe v) + d_buf``. CRUISE -> BRAKE when the rider
+    is ahead in the ego's path corridor and the gap d < d_safe. In BRAKE the demanded
+    acceleration follows ``braking_law``, saturated at a_min. BRAKE -> RECOVER when the
+    rider is no longer ahead in the corridor (or inactive), or d > d_safe +
+    ``release_margin_m``. RECOVER = PID back to the cruise speed (integral reset on entry),
+    -> CRUISE once |v - v_d| <= ``recover_tolerance_mps``; RECOVER -> BRAKE as CRUISE.
+
+    Attributes:
+        t_safe_s: time headway T_safe [s]; the case study's value 2.0 (the text of III-D
+            also says 5 s: configurable).
+        d_buf_m: standstill buffer d_buf [m]; paper 3.0.
+        a_min_mps2: maximum braking deceleration a_min [m/s^2] (< 0). The paper omits it;
+            -6.0 is an emergency-braking level a passenger car reaches on dry asphalt with
+            margin (full ABS braking ~ -8 to -9), the order of Euro NCAP AEB peak
+            decelerations.
+        corridor_half_width_m: the rider counts as "in front of the vehicle" when its
+            centre lies ahead of the ego's front bumper and within this lateral distance
+            [m] of the ego's path (measured across the path at the rider's along-path
+            position). 3.5 m = one lane width each side of the ego's centre line: the ego's
+            lane and half of each neighbouring lane, so a crossing rider is seen when it
+            enters the carriageway ahead, not only once it is already in the car's swept
+            width (1.2 m), where no brake can help at urban speed.
+        detection_range_m: the rider is only considered within this along-path distance
+            ahead [m] (sensor range).
+        braking_law: 'gap' (default): a = -v^2 / (2 (d - d_buf)) recomputed each step in
+            BRAKE with the current gap d, which equals the paper's command at the trigger
+            instant (d = d_safe) and stops the car d_buf short of a standing obstacle;
+            'paper_per_step': the paper's a = -v^2 / (2 (d_safe(v) - d_buf)) recomputed
+            every step (at urban speeds -v / (2 T_safe): it hits a standing obstacle).
+        release_margin_m: BRAKE is released when d > d_safe + this [m] (hysteresis).
+        recover_tolerance_mps: RECOVER -> CRUISE when |v - v_d| <= this [m/s].
+        perception_delay_s: the CAP sees the rider's state this much late [s] (rounded to
+            whole engine steps); 0 = no delay.
+    """
+
+    t_safe_s: float = 2.0
+    d_buf_m: float = 3.0
+    a_min_mps2: float = -6.0
+    corridor_half_width_m: float = 3.5
+    detection_range_m: float = 60.0
+    braking_law: BrakingLaw = "gap"
+    release_margin_m: float = 2.0
+    recover_tolerance_mps: float = 0.2
+    perception_delay_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        _finite("t_safe_s", self.t_safe_s, nonneg=True)
+        _finite("d_buf_m", self.d_buf_m, nonneg=True)
+        _finite("a_min_mps2", self.a_min_mps2)
+        if self.a_min_mps2 >= 0:
+            raise ConfigError(f"a_min_mps2 must be < 0 (a deceleration), got {self.a_min_mps2}")
+        _finite("corridor_half_width_m", self.corridor_half_width_m, positive=True)
+        _finite("detection_range_m", self.detection_range_m, positive=True)
+        _choice("braking_law", self.braking_law, ("gap", "paper_per_step"))
+        _finite("release_margin_m", self.release_margin_m, nonneg=True)
+        _finite("recover_tolerance_mps", self.recover_tolerance_mps, positive=True)
+        _finite("perception_delay_s", self.perception_delay_s, nonneg=True)
+
+
+# --------------------------------------------------------------------------------------
+# Engine
+# --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SimConfig:
+    """Built-in engine settings.
+
+    Attributes:
+        dt_s: fixed step [s]; 0.05 (20 Hz, CARLA's usual synchronous step).
+        duration_s: simulated span [s] from t = 0; None = the scenario's span (last
+            trajectory time). Explicit, never 0.
+        ego_length_m, ego_width_m, rider_length_m, rider_width_m: collision footprints
+            [m]; None = the scenario's agent dimensions.
+        stop_on_collision: after an ego / primary-rider collision both stop and the run
+            keeps recording (paper Fig. 5); false = record the contact only.
+    """
+
+    dt_s: float = 0.05
+    duration_s: float | None = None
+    ego_length_m: float | None = None
+    ego_width_m: float | None = None
+    rider_length_m: float | None = None
+    rider_width_m: float | None = None
+    stop_on_collision: bool = True
+
+    def __post_init__(self) -> None:
+        _finite("dt_s", self.dt_s, positive=True)
+        if self.dt_s > 1.0:
+            raise ConfigError(f"dt_s must be <= 1 s, got {self.dt_s}")
+        for name in ("duration_s", "ego_length_m", "ego_width_m", "rider_length_m", "rider_width_m"):
+            v = getattr(self, name)
+            if v is not None:
+                _finite(name, v, positive=True)
+        _bool("stop_on_collision", self.stop_on_collision)
+
+
+# --------------------------------------------------------------------------------------
+# The paper's five configurations (+ replay-speed)
+# --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class CaseConfig:
+    """One simulation configuration: rider model + ego mode and their parameters.
+
+    Attributes:
+        name: label written into results ('replay', 'normal-cap', ...).
+        rider: 'replay' (kinematic replay of the time-shifted recording) or 'sfm'.
+        sfm: the social-force parameters (used when rider == 'sfm').
+        ego_mode: 'replay-speed' (the recorded speed profile along the recorded path),
+            'pid' (PID cruise at v_d, no avoidance), 'cap' (PID + CAP).
+        ego: ego / PID / actuator parameters.
+        cap: CAP parameters (used when ego_mode == 'cap').
+    """
+
+    name: str
+    rider: RiderModel = "replay"
+    sfm: SFMConfig = field(default_factory=SFMConfig)
+    ego_mode: EgoMode = "pid"
+    ego: EgoConfig = field(default_factory=EgoConfig)
+    cap: CAPConfig = field(default_factory=CAPConfig)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ConfigError(f"name must be a non-empty string, got {self.name!r}")
+        _choice("rider", self.rider, ("replay", "sfm"))
+        _choice("ego_mode", self.ego_mode, ("replay-speed", "pid", "cap"))
+        for name, cls in (("sfm", SFMConfig), ("ego", EgoConfig), ("cap", CAPConfig)):
+            if not isinstance(getattr(self, name), cls):
+                raise ConfigError(f"{name} must be a {cls.__name__}")
+        if self.ego_mode == "cap" and self.ego.max_decel_mps2 < -self.cap.a_min_mps2:
+            raise ConfigError(
+                f"ego.max_decel_mps2 ({self.ego.max_decel_mps2}) must be >= |cap.a_min_mps2| "
+                f"({-self.cap.a_min_mps2}) so that the CAP's demand is reachable"
+            )
+
+
+#: Names of the paper's five configurations, in the paper's order (DESIGN.md table).
+PAPER_CASES: tuple[str, ...] = ("replay", "normal", "aggressive", "normal-cap", "aggressive-cap")
+
+CASE_PRESETS: dict[str, CaseConfig] = {
+    "replay": CaseConfig(name="replay", rider="replay", ego_mode="pid"),
+    "normal": CaseConfig(name="normal", rider="sfm", sfm=SFM_PRESETS["normal"], ego_mode="pid"),
+    "aggressive": CaseConfig(
+        name="aggressive", rider="sfm", sfm=SFM_PRESETS["aggressive"], ego_mode="pid"
+    ),
+    "normal-cap": CaseConfig(
+        name="normal-cap", rider="sfm", sfm=SFM_PRESETS["normal"], ego_mode="cap"
+    ),
+    "aggressive-cap": CaseConfig(
+        name="aggressive-cap", rider="sfm", sfm=SFM_PRESETS["aggressive"], ego_mode="cap"
+    ),
+    # Extra (not one of the paper's five): ego replays its recorded speed profile.
+    "replay-speed": CaseConfig(name="replay-speed", rider="replay", ego_mode="replay-speed"),
+}
+
+
+def case_preset(name: str, **overrides: Any) -> CaseConfig:
+    """The named configuration (one of CASE_PRESETS), optionally with fields replaced.
+
+    Example: ``case_preset("normal-cap", ego=EgoConfig(cruise_speed_mps=5.6))``.
+    """
+    if name not in CASE_PRESETS:
+        raise ConfigError(f"unknown configuration {name!r}; expected one of {', '.join(CASE_PRESETS)}")
+    base = CASE_PRESETS[name]
+    return replace(base, **overrides) if overrides else base
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """A run: one configuration, engine settings and the rider's time shift.
+
+    Attributes:
+        case: the configuration.
+        sim: engine settings.
+        time_shift: the primary rider's time shift [s] (positive = the rider comes later),
+            or 'auto' (:func:`vei.experiments.timeshift.find_time_shift`).
+    """
+
+    case: CaseConfig
+    sim: SimConfig = field(default_factory=SimConfig)
+    time_shift: float | str = "auto"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.case, CaseConfig):
+            raise ConfigError("case must be a CaseConfig")
+        if not isinstance(self.sim, SimConfig):
+            raise ConfigError("sim must be a SimConfig")
+        if isinstance(self.time_shift, str):
+            _choice("time_shift", self.time_shift, ("auto",))
+        else:
+            _finite("time_shift", self.time_shift)
+
+
+_PRESETS_OF: dict[type, Mapping[str, Any]] = {SFMConfig: SFM_PRESETS, CaseConfig: CASE_PRESETS}
+
+
+# --------------------------------------------------------------------------------------
+# Loading
+# --------------------------------------------------------------------------------------
+def _build(cls: type[T], raw: Any, where: str) -> T:
+    if isinstance(raw, cls):
+        return raw
+    if isinstance(raw, str) and cls in _PRESETS_OF:
+        raw = {"preset": raw}
+    if not isinstance(raw, Mapping):
+        raise ConfigError(f"{where}: expected a mapping for {cls.__name__}, got {type(raw).__name__}")
+    raw = dict(raw)
+    base: Any = None
+    if "preset" in raw:
+        presets = _PRESETS_OF.get(cls)
+        name = raw.pop("preset")
+        if presets is None:
+            raise ConfigError(f"{where}: {cls.__name__} has no presets (key 'preset')")
+        if name not in presets:
+            raise ConfigError(
+                f"{where}: unknown preset {name!r} for {cls.__name__}; expected one of {', '.join(presets)}"
+            )
+        base = presets[name]
+    known = {f.name: f for f in fields(cls)}  # type: ignore[arg-type]
+    unknown = sorted(set(raw) - set(known))
+    if unknown:
+        raise ConfigError(
+            f"{where}: unknown key(s) {', '.join(unknown)} for {cls.__name__}; "
+            f"expected some of {', '.join(known)}"
+        )
+    kwargs: dict[str, Any] = {}
+    nested = {"sfm": SFMConfig, "ego": EgoConfig, "cap": CAPConfig, "case": CaseConfig, "sim": SimConfig}
+    for key, value in raw.items():
+        sub = nested.get(key)
+        if sub is not None:
+            if base is not None and isinstance(value, Mapping) and "preset" not in value:
+                value = _override(getattr(base, key), value, f"{where}.{key}")
+            kwargs[key] = _build(sub, value, f"{where}.{key}")
+        else:
+            if isinstance(value, int) and not isinstance(value, bool) and key.endswith(
+                ("_s", "_m", "_mps", "_mps2", "_n", "_kg", "_nspm", "_per_m", "factor", "kp", "ki", "kd", "limit")
+            ):
+                value = float(value)
+            kwargs[key] = value
+    try:
+        return replace(base, **kwargs) if base is not None else cls(**kwargs)
+    except TypeError as exc:  # missing required field
+        raise ConfigError(f"{where}: {exc}") from None
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+
+
+def _override(base_obj: Any, overrides: Mapping[str, Any], where: str) -> Any:
+    cls = type(base_obj)
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {', '.join(unknown)} for {cls.__name__}")
+    current = {f.name: getattr(base_obj, f.name) for f in fields(cls)}
+    merged = {**current, **overrides}
+    return _build(cls, merged, where)
+
+
+def load_config(source: str | Path | Mapping[str, Any], cls: type[T]) -> T:
+    """Load a configuration of class ``cls`` from a YAML/JSON file or a mapping.
+
+    Unknown keys (at any nesting level) raise ConfigError naming the key and the file. A
+    key ``preset`` (for SFMConfig and CaseConfig) starts from that named preset; the other
+    keys override it, nested sections key by key. A bare string for a CaseConfig/SFMConfig
+    section names a preset.
+
+    Args:
+        source: path to a .yaml/.yml/.json file, or an already parsed mapping.
+        cls: SFMConfig, EgoConfig, CAPConfig, SimConfig, CaseConfig or RunConfig.
+    Returns:
+        The validated, frozen configuration.
+    """
+    where = "config"
+    if isinstance(source, str | Path):
+        path = Path(source)
+        where = str(path)
+        if not path.is_file():
+            raise ConfigError(f"{path}: configuration file not found")
+        text = path.read_text(encoding="utf-8")
+        try:
+            if path.suffix.lower() == ".json":
+                raw = json.loads(text)
+            else:
+                import yaml
+
+                raw = yaml.safe_load(text)
+        except (ValueError, ImportError) as exc:  # yaml.YAMLError subclasses Exception
+            raise ConfigError(f"{path}: cannot parse: {exc}") from None
+        except Exception as exc:  # noqa: BLE001 - yaml errors
+            raise ConfigError(f"{path}: cannot parse: {exc}") from None
+    else:
+        raw = source
+    if not dataclasses.is_dataclass(cls):
+        raise ConfigError(f"{cls!r} is not a configuration class")
+    return _build(cls, raw, where)
+
+
+def config_to_dict(cfg: Any) -> dict[str, Any]:
+    """A configuration as a plain (JSON-serialisable) dict; ``load_config`` reads it back."""
+    return dataclasses.asdict(cfg)

@@ -1,0 +1,745 @@
+"""Importer for the public TrafficMonitoring dataset (Ingolstadt, 2021-02-09).
+
+Source: github.com/jul095/TrafficMonitoring (Apache-2.0), folder ``data/measurements``:
+
+- ``car_data/<prefix>INSSOL.csv``: the instrumented car's dGPS/INS at 100 Hz. ``pos_x`` /
+  ``pos_y`` = longitude / latitude [rad], ``rpy_z`` = heading [rad, clockwise from true
+  north], ``vel_x`` / ``vel_y`` = north / east velocity [m/s], time = GPS ``week`` +
+  ``gps_tow`` [s] (GPS time, 18 leap seconds ahead of UTC in 2021).
+- ``videos/trajectory_output/<scenario>_trajectories.csv``: every road user tracked by a
+  roadside camera at 30 frames/s; ``coordinate_world_x_opt`` / ``_y_opt`` are UTM zone 32N
+  (EPSG:32632) easting / northing [m]; ``class_id`` is a detector label that can flicker.
+- ``matching/<scenario>_matching.csv``: ``start_timestamp`` of the video (local time, CET =
+  UTC+1), ``measurement_prefix`` of the INS record, and ``relevant_track_id`` = the
+  instrumented car's own track in the camera data. Frame ``k`` is at start + k / 30 s (the
+  dataset authors' own evaluation uses this convention).
+
+:func:`import_scenario` writes an interaction (format ``vei.interaction/1``) shaped like
+the paper's data: ego GPS from the INS at 10 Hz, every e-scooter and cyclist track of the
+camera as ego-relative annotations (x forward, y left) at ``rate_hz`` (1 FPS default), and
+the camera's full-rate world tracks as ground truth.
+
+Geodesy: camera positions are converted from UTM to WGS84 latitude/longitude first; the
+ego-relative offsets are computed on the ellipsoid (geodesic inverse from the ego to the
+object: distance and true azimuth, turned by the INS true heading). UTM offsets are never
+rotated by a true heading: grid north differs from true north by the meridian convergence
+(about 1.8 deg at Ingolstadt), 0.6 m of error at 20 m range.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta, timezone
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from vei.errors import InputError
+from vei.geo.frame import LocalFrame
+from vei.types import Interaction, InteractionMeta
+
+#: Path of the measurements inside the dataset root.
+MEASUREMENTS_DIR = Path("data") / "measurements"
+CAR_DATA_DIR = MEASUREMENTS_DIR / "car_data"
+MATCHING_DIR = MEASUREMENTS_DIR / "matching"
+TRAJECTORIES_DIR = MEASUREMENTS_DIR / "videos" / "trajectory_output"
+MATCHING_SUFFIX = "_matching.csv"
+TRAJECTORIES_SUFFIX = "_trajectories.csv"
+INS_SUFFIX = "INSSOL.csv"
+
+#: Repository and commit the importer was written against.
+DATASET_REPO = "jul095/TrafficMonitoring"
+DATASET_COMMIT = "641075e8d42337a46e8825fc3947f0b49b405b3b"
+
+GPS_EPOCH = datetime(1980, 1, 6, tzinfo=UTC)
+#: GPS - UTC in 2021 [s] (unchanged since 2017-01-01).
+GPS_UTC_LEAP_S = 18
+SECONDS_PER_WEEK = 604_800
+#: Camera frame rate [frames/s].
+CAMERA_FPS = 30.0
+#: Timezone of the matching files' start_timestamp (CET, no DST in February).
+CAMERA_TIMEZONE = timezone(timedelta(hours=1), "CET")
+#: CRS of coordinate_world_x_opt / coordinate_world_y_opt.
+CAMERA_CRS = "EPSG:32632"
+#: Rate of the ego GPS written to ego.csv [Hz] (decimated from the 100 Hz INS).
+EGO_RATE_HZ = 10.0
+#: An INS sample is used for a 10 Hz grid point if it lies this close to it [s].
+_EGO_GRID_TOLERANCE_S = 0.005
+#: An annotation uses the track's camera frame nearest to t = k / rate_hz if it lies this
+#: close [s] (3 frames: the tracker misses single frames; the frame's own time is written).
+ANNOTATION_MAX_GAP_S = 0.1
+#: Half-window of the camera samples used to estimate a road user's direction [s].
+YAW_WINDOW_S = 0.5
+#: Below this speed [m/s] a road user "does not move" and gets no yaw (NaN).
+YAW_MIN_SPEED_MPS = 0.5
+
+#: Detector labels -> vei categories (labels not listed are not imported).
+CLASS_TO_CATEGORY: dict[str, str] = {
+    "scooter": "escooter",
+    "e-scooter": "escooter",
+    "escooter": "escooter",
+    "cyclist": "cyclist",
+    "bicycle": "cyclist",
+    "pedestrian": "pedestrian",
+    "person": "pedestrian",
+    "car": "vehicle",
+    "bus": "vehicle",
+    "truck": "vehicle",
+    "transporter": "vehicle",
+    "car-transporter": "vehicle",
+    "van": "vehicle",
+    "motorcycle": "vehicle",
+    "trailer": "vehicle",
+    "tram": "vehicle",
+}
+#: Categories turned into annotations (the paper annotates e-scooters; cyclists are riders too).
+ANNOTATED_CATEGORIES: tuple[str, ...] = ("escooter", "cyclist")
+
+_INS_COLUMNS = ("week", "gps_tow", "rpy_z", "vel_x", "vel_y", "pos_x", "pos_y")
+_CAMERA_COLUMNS = (
+    "frame_id",
+    "class_id",
+    "track_id",
+    "coordinate_world_x_opt",
+    "coordinate_world_y_opt",
+)
+_MATCHING_COLUMNS = ("start_timestamp", "measurement_prefix", "relevant_track_id")
+
+
+# ----------------------------------------------------------------------------- time
+
+
+def gps_to_utc(week: int, tow_s: float) -> datetime:
+    """GPS week + time of week [s] -> aware UTC datetime (18 leap seconds, microsecond resolution)."""
+    return GPS_EPOCH + timedelta(weeks=int(week), seconds=float(tow_s) - GPS_UTC_LEAP_S)
+
+
+# ----------------------------------------------------------------------------- files
+
+
+def _measurements(root: str | Path) -> Path:
+    root = Path(root)
+    meas = root / MEASUREMENTS_DIR
+    if not meas.is_dir():
+        raise InputError(
+            f"not a TrafficMonitoring dataset root: {MEASUREMENTS_DIR} not found below it "
+            "(give the folder that holds data/measurements; `vei datasets download "
+            "trafficmonitoring` fetches it)",
+            path=root,
+        )
+    return meas
+
+
+def list_scenarios(root: str | Path) -> list[str]:
+    """Scenario names of a dataset root: the ``<name>_matching.csv`` files, sorted."""
+    _measurements(root)
+    folder = Path(root) / MATCHING_DIR
+    if not folder.is_dir():
+        raise InputError("matching folder not found", path=folder)
+    return sorted(p.name[: -len(MATCHING_SUFFIX)] for p in folder.glob(f"*{MATCHING_SUFFIX}"))
+
+
+@dataclass(frozen=True)
+class Matching:
+    """Contents of ``<scenario>_matching.csv``.
+
+    Attributes:
+        scenario: scenario name.
+        start_local: video start (aware, CET).
+        measurement_prefix: INS record prefix (the INS file is ``<prefix>INSSOL.csv``).
+        relevant_track_id: the instrumented car's track id in the camera data (str).
+        path: the matching file.
+    """
+
+    scenario: str
+    start_local: datetime
+    measurement_prefix: str
+    relevant_track_id: str
+    path: Path
+
+    @property
+    def start_utc(self) -> datetime:
+        """Video start in UTC."""
+        return self.start_local.astimezone(UTC)
+
+    @property
+    def ins_file_name(self) -> str:
+        """File name of the INS record (apostrophes included)."""
+        return f"{self.measurement_prefix}{INS_SUFFIX}"
+
+
+def _read_table(path: Path, columns: tuple[str, ...]) -> pd.DataFrame:
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    try:
+        df = pd.read_csv(path)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise InputError(f"not a readable CSV file: {exc}", path=path) from None
+    for col in columns:
+        if col not in df.columns:
+            raise InputError(
+                f"missing column (found: {', '.join(map(str, df.columns))})", path=path, field=col
+            )
+    if df.empty:
+        raise InputError("no data rows", path=path)
+    return df
+
+
+def read_matching(root: str | Path, scenario: str) -> Matching:
+    """Read ``<scenario>_matching.csv``; an unknown scenario lists the known ones."""
+    meas = _measurements(root)
+    path = meas / "matching" / f"{scenario}{MATCHING_SUFFIX}"
+    if not path.is_file():
+        known = list_scenarios(root)
+        raise InputError(
+            f"unknown scenario {scenario!r}; known scenarios: {', '.join(known) or 'none'}",
+            path=path,
+        )
+    df = _read_table(path, _MATCHING_COLUMNS)
+    row = df.iloc[0]
+    try:
+        naive = datetime.strptime(str(row["start_timestamp"]).strip(), "%Y-%m-%d %H:%M:%S.%f")
+    except ValueError:
+        raise InputError(
+            f"expected 'YYYY-MM-DD HH:MM:SS.ff' (local time, CET), got {row['start_timestamp']!r}",
+            path=path,
+            row=1,
+            field="start_timestamp",
+        ) from None
+    try:
+        track = str(int(row["relevant_track_id"]))
+    except (TypeError, ValueError):
+        raise InputError(
+            f"expected an integer track id, got {row['relevant_track_id']!r}",
+            path=path,
+            row=1,
+            field="relevant_track_id",
+        ) from None
+    return Matching(
+        scenario=scenario,
+        start_local=naive.replace(tzinfo=CAMERA_TIMEZONE),
+        measurement_prefix=str(row["measurement_prefix"]).strip(),
+        relevant_track_id=track,
+        path=path,
+    )
+
+
+@dataclass(frozen=True)
+class InsRecord:
+    """The car's INS record, times relative to its first sample.
+
+    Attributes:
+        start_utc: UTC time of the first sample.
+        t_s: [N] seconds since start_utc (strictly increasing).
+        lat_deg, lon_deg: [N] position [deg].
+        heading_deg: [N] true heading [deg clockwise from north, [0, 360)].
+        speed_mps: [N] horizontal speed from the velocity (north, east) [m/s].
+        path: the INSSOL file.
+    """
+
+    start_utc: datetime
+    t_s: np.ndarray
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    heading_deg: np.ndarray
+    speed_mps: np.ndarray
+    path: Path
+
+    def at(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(lat_deg, lon_deg, heading_deg) at times t_s [s] (any shape), linear between samples.
+
+        Linear interpolation of degrees over 10 ms (< 0.2 m) is exact to well under a
+        millimetre; the heading is unwrapped first.
+        """
+        t = np.asarray(t_s, dtype=np.float64)
+        lat = np.interp(t, self.t_s, self.lat_deg)
+        lon = np.interp(t, self.t_s, self.lon_deg)
+        unwrapped = np.degrees(np.unwrap(np.radians(self.heading_deg)))
+        heading = np.mod(np.interp(t, self.t_s, unwrapped), 360.0)
+        return lat, lon, heading
+
+
+def read_ins(path: Path) -> InsRecord:
+    """Read an ``INSSOL.csv`` (100 Hz) into an :class:`InsRecord`."""
+    df = _read_table(path, _INS_COLUMNS)
+    values = df[list(_INS_COLUMNS)].apply(pd.to_numeric, errors="coerce")
+    bad = values.isna().any(axis=1).to_numpy()
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        col = next(c for c in _INS_COLUMNS if pd.isna(values[c].iloc[i]))
+        raise InputError("missing or non-numeric value", path=path, row=i + 1, field=col)
+    week = values["week"].to_numpy(dtype=np.int64)
+    tow = values["gps_tow"].to_numpy(dtype=np.float64)
+    # GPS time of week has microsecond resolution: round away float noise of the difference
+    t = np.round((week - week[0]).astype(np.float64) * SECONDS_PER_WEEK + (tow - tow[0]), 6)
+    dt = np.diff(t)
+    if (dt <= 0).any():
+        i = int(np.flatnonzero(dt <= 0)[0]) + 1
+        raise InputError("GPS time does not increase", path=path, row=i + 1, field="gps_tow")
+    lat = np.degrees(values["pos_y"].to_numpy(dtype=np.float64))
+    lon = np.degrees(values["pos_x"].to_numpy(dtype=np.float64))
+    if np.abs(lat).max() > 90 or np.abs(lon).max() > 180:
+        raise InputError(
+            "position out of range: expected pos_x/pos_y as longitude/latitude in radians",
+            path=path,
+            field="pos_y",
+        )
+    vn = values["vel_x"].to_numpy(dtype=np.float64)
+    ve = values["vel_y"].to_numpy(dtype=np.float64)
+    return InsRecord(
+        start_utc=gps_to_utc(int(week[0]), float(tow[0])),
+        t_s=t,
+        lat_deg=lat,
+        lon_deg=lon,
+        heading_deg=np.mod(np.degrees(values["rpy_z"].to_numpy(dtype=np.float64)), 360.0),
+        speed_mps=np.hypot(vn, ve),
+        path=path,
+    )
+
+
+def read_camera(path: Path, start_s: float) -> pd.DataFrame:
+    """Read ``<scenario>_trajectories.csv``.
+
+    Args:
+        path: the trajectories file.
+        start_s: time of frame 0 relative to the chosen time origin [s].
+    Returns:
+        DataFrame [N rows]: t_s [s] (= start_s + frame_id / 30), frame_id (int), track_id
+        (str), class_id (raw label), lat_deg, lon_deg (WGS84, from UTM 32N); sorted by
+        (track_id, frame_id).
+    """
+    from pyproj import Transformer
+
+    df = _read_table(path, _CAMERA_COLUMNS)
+    num = df[["frame_id", "coordinate_world_x_opt", "coordinate_world_y_opt"]].apply(
+        pd.to_numeric, errors="coerce"
+    )
+    bad = num.isna().any(axis=1).to_numpy() | df["track_id"].isna().to_numpy()
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        col = next(
+            (
+                c
+                for c in ("frame_id", "coordinate_world_x_opt", "coordinate_world_y_opt")
+                if pd.isna(num[c].iloc[i])
+            ),
+            "track_id",
+        )
+        raise InputError("missing or non-numeric value", path=path, row=i + 1, field=col)
+    to_wgs84 = Transformer.from_crs(CAMERA_CRS, "EPSG:4326", always_xy=True)
+    lon, lat = to_wgs84.transform(
+        num["coordinate_world_x_opt"].to_numpy(dtype=np.float64),
+        num["coordinate_world_y_opt"].to_numpy(dtype=np.float64),
+    )
+    frame = num["frame_id"].to_numpy(dtype=np.int64)
+    out = pd.DataFrame(
+        {
+            "t_s": np.round(start_s + frame / CAMERA_FPS, 9),
+            "frame_id": frame,
+            "track_id": df["track_id"].astype(str).str.strip().str.replace(r"\.0$", "", regex=True),
+            "class_id": df["class_id"].astype(str).str.strip(),
+            "lat_deg": np.asarray(lat),
+            "lon_deg": np.asarray(lon),
+        }
+    )
+    dup = out.duplicated(["track_id", "frame_id"]).to_numpy()
+    if dup.any():
+        i = int(np.flatnonzero(dup)[0])
+        raise InputError(
+            f"track {out['track_id'].iloc[i]!r} appears twice in frame {out['frame_id'].iloc[i]}",
+            path=path,
+            row=i + 1,
+            field="frame_id",
+        )
+    return out.sort_values(["track_id", "frame_id"], kind="stable").reset_index(drop=True)
+
+
+def majority_category(labels: pd.Series) -> str | None:
+    """The most frequent vei category among a track's detector labels (ties: alphabetical).
+
+    Labels are mapped through CLASS_TO_CATEGORY first (so 'car' and 'transporter' vote
+    together for 'vehicle'); unknown labels do not vote. None if no label is known.
+    """
+    cats = labels.map(CLASS_TO_CATEGORY).dropna()
+    if cats.empty:
+        return None
+    counts = cats.value_counts()
+    best = counts.max()
+    return sorted(counts[counts == best].index)[0]
+
+
+def majority_categories(camera: pd.DataFrame) -> pd.Series:
+    """Majority category per track of a camera table (see :func:`majority_category`).
+
+    Args:
+        camera: rows with 'track_id' and 'class_id' (as from :func:`read_camera`).
+    Returns:
+        Series indexed by track_id (sorted), values a category or None.
+    """
+    cats = camera["class_id"].map(CLASS_TO_CATEGORY)
+    counts = (
+        pd.DataFrame({"track_id": camera["track_id"], "category": cats})
+        .dropna()
+        .groupby(["track_id", "category"])
+        .size()
+        .reset_index(name="n")
+        .sort_values(["track_id", "n", "category"], ascending=[True, False, True], kind="stable")
+    )
+    best = counts.drop_duplicates("track_id").set_index("track_id")["category"]
+    tracks = pd.Index(sorted(camera["track_id"].unique()), name="track_id")
+    return best.reindex(tracks).astype(object).where(lambda s: s.notna(), None)
+
+
+# ----------------------------------------------------------------------------- geometry
+
+
+def ego_relative(
+    ego_lat_deg: np.ndarray,
+    ego_lon_deg: np.ndarray,
+    ego_heading_deg: np.ndarray,
+    lat_deg: np.ndarray,
+    lon_deg: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """World points -> ego-relative (x forward, y left) [m], on the ellipsoid.
+
+    All inputs broadcast to one shape [N]: the ego's position [deg] and true heading [deg
+    clockwise from north], the object's position [deg]. The geodesic inverse from ego to
+    object gives distance d and true azimuth az; with r = az - heading:
+    x = d cos r, y_left = -d sin r. This is the exact inverse of
+    vei.geo.frame.LocalFrame.ego_relative_to_world.
+    """
+    from pyproj import Geod
+
+    a = np.broadcast_arrays(
+        *(
+            np.asarray(v, dtype=np.float64)
+            for v in (ego_lat_deg, ego_lon_deg, ego_heading_deg, lat_deg, lon_deg)
+        )
+    )
+    az, _, dist = Geod(ellps="WGS84").inv(a[1], a[0], a[4], a[3])
+    rel = np.radians(np.asarray(az) - a[2])
+    d = np.asarray(dist)
+    return d * np.cos(rel), -d * np.sin(rel)
+
+
+def _wrap180(deg: np.ndarray) -> np.ndarray:
+    return (np.asarray(deg) + 180.0) % 360.0 - 180.0
+
+
+def _track_bearing_deg(track: pd.DataFrame, t_s: np.ndarray, frame: LocalFrame) -> np.ndarray:
+    """True bearing [deg] of a road user's motion at t_s ([K]), NaN where it does not move.
+
+    Velocity from a least-squares line through the camera samples within +-YAW_WINDOW_S,
+    fitted in the local tmerc plane ``frame``; the plane direction is turned into a true
+    bearing with the exact meridian-convergence correction of LocalFrame.yaw_to_bearing.
+    """
+    tt = track["t_s"].to_numpy()
+    x, y = frame.to_xy(track["lat_deg"].to_numpy(), track["lon_deg"].to_numpy())
+    yaw = np.full(len(t_s), np.nan)
+    at = np.zeros(len(t_s), dtype=np.int64)
+    for k, t in enumerate(t_s):
+        sel = np.abs(tt - t) <= YAW_WINDOW_S + 1e-9
+        at[k] = int(np.argmin(np.abs(tt - t)))
+        if sel.sum() < 3 or np.ptp(tt[sel]) < YAW_WINDOW_S:
+            continue
+        tc = tt[sel] - tt[sel].mean()
+        vx = float(np.dot(tc, x[sel] - x[sel].mean()) / np.dot(tc, tc))
+        vy = float(np.dot(tc, y[sel] - y[sel].mean()) / np.dot(tc, tc))
+        if math.hypot(vx, vy) >= YAW_MIN_SPEED_MPS:
+            yaw[k] = math.atan2(vy, vx)
+    out = np.full(len(t_s), np.nan)
+    ok = np.isfinite(yaw)
+    if ok.any():
+        out[ok] = frame.yaw_to_bearing(yaw[ok], x[at[ok]], y[at[ok]])
+    return out
+
+
+# ----------------------------------------------------------------------------- importer
+
+
+@dataclass(frozen=True)
+class ImportSummary:
+    """What :func:`import_scenario` did (for the CLI and the notes).
+
+    Attributes:
+        scenario, out: scenario name and interaction folder.
+        ins_start_utc: time of t_s = 0 (first INS sample).
+        video_start_utc: camera frame 0.
+        video_offset_s: video_start - ins_start [s].
+        ego_duration_s: span of the ego track [s].
+        tracks: {category: number of annotated tracks}.
+        annotations: number of annotation rows.
+        own_track_median_m, own_track_p95_m: distance between the car's own camera track
+            and its INS position at the camera frames inside the INS span [m].
+    """
+
+    scenario: str
+    out: Path
+    ins_start_utc: datetime
+    video_start_utc: datetime
+    video_offset_s: float
+    ego_duration_s: float
+    tracks: dict[str, int]
+    annotations: int
+    own_track_median_m: float | None
+    own_track_p95_m: float | None
+
+
+def _trim_ins(ins: InsRecord, t_lo: float, t_hi: float) -> InsRecord:
+    """The INS cut to [t_lo, t_hi] plus one 10 Hz step each side, re-zeroed at its first sample."""
+    pad = 1.0 / EGO_RATE_HZ
+    keep = (ins.t_s >= t_lo - pad - 1e-9) & (ins.t_s <= t_hi + pad + 1e-9)
+    if keep.sum() < 2:
+        raise InputError(
+            f"the camera span [{t_lo:.2f}, {t_hi:.2f}] s does not overlap the INS record [0, {ins.t_s[-1]:.2f}] s",
+            path=ins.path,
+        )
+    t0 = float(ins.t_s[keep][0])
+    start = ins.start_utc + timedelta(seconds=t0)
+    shift = (start - ins.start_utc).total_seconds()
+    return InsRecord(
+        start_utc=start,
+        t_s=np.round(ins.t_s[keep] - shift, 6),
+        lat_deg=ins.lat_deg[keep],
+        lon_deg=ins.lon_deg[keep],
+        heading_deg=ins.heading_deg[keep],
+        speed_mps=ins.speed_mps[keep],
+        path=ins.path,
+    )
+
+
+def _ego_10hz(ins: InsRecord) -> pd.DataFrame:
+    grid = np.arange(0.0, ins.t_s[-1] + 1e-9, 1.0 / EGO_RATE_HZ)
+    idx = np.clip(np.searchsorted(ins.t_s, grid), 1, len(ins.t_s) - 1)
+    idx = np.where(np.abs(ins.t_s[idx - 1] - grid) <= np.abs(ins.t_s[idx] - grid), idx - 1, idx)
+    keep = np.abs(ins.t_s[idx] - grid) <= _EGO_GRID_TOLERANCE_S
+    idx = np.unique(idx[keep])
+    return pd.DataFrame(
+        {
+            "t_s": ins.t_s[idx],
+            "lat_deg": ins.lat_deg[idx],
+            "lon_deg": ins.lon_deg[idx],
+            "heading_deg": ins.heading_deg[idx],
+            "speed_mps": ins.speed_mps[idx],
+        }
+    )
+
+
+def _sample_track(track: pd.DataFrame, rate_hz: float, t_end: float) -> pd.DataFrame:
+    """Camera frames of one track nearest to the grid k / rate_hz (within
+    ANNOTATION_MAX_GAP_S, as the tracker misses frames), inside [0, t_end]."""
+    tt = track["t_s"].to_numpy()
+    lo, hi = max(tt[0], 0.0), min(tt[-1], t_end)
+    if hi < lo:
+        return track.iloc[:0]
+    grid = np.arange(math.ceil(lo * rate_hz - 1e-9), math.floor(hi * rate_hz + 1e-9) + 1) / rate_hz
+    if grid.size == 0:
+        return track.iloc[:0]
+    idx = (
+        np.clip(np.searchsorted(tt, grid), 1, len(tt) - 1)
+        if len(tt) > 1
+        else np.zeros(grid.size, int)
+    )
+    if len(tt) > 1:
+        idx = np.where(np.abs(tt[idx - 1] - grid) <= np.abs(tt[idx] - grid), idx - 1, idx)
+    tol = min(ANNOTATION_MAX_GAP_S, 0.5 / rate_hz)
+    ok = (np.abs(tt[idx] - grid) <= tol + 1e-9) & (tt[idx] >= 0.0) & (tt[idx] <= t_end)
+    return track.iloc[np.unique(idx[ok])]
+
+
+def import_scenario(
+    root: str | Path,
+    scenario: str,
+    out: str | Path,
+    *,
+    rate_hz: float = 1.0,
+    include_ego_track: bool = False,
+    full_ins: bool = False,
+) -> Path:
+    """Import one TrafficMonitoring scenario as an interaction folder; returns ``out``.
+
+    Writes (atomically, format ``vei.interaction/1``):
+
+    - ego.csv: the INS decimated to 10 Hz (real samples, no interpolation), cut to the
+      camera's span unless ``full_ins``: t_s [s since the first sample kept, which is
+      start_time_utc = GPS week/tow - 18 s], lat_deg, lon_deg, heading_deg (true, clockwise from north),
+      speed_mps (horizontal, from the north/east velocity);
+    - annotations.csv: every camera track whose majority category is escooter or cyclist,
+      at its camera frames nearest to t = k / rate_hz (within ANNOTATION_MAX_GAP_S; the
+      frame's own time is written) inside the INS span, ego-relative
+      (x forward, y left, ``y_axis = left``) from the INS pose at the frame's time;
+      yaw_deg = motion direction relative to the ego heading (positive left; NaN where
+      the road user moves slower than YAW_MIN_SPEED_MPS); length/width unknown (empty);
+      the car's own camera track is left out (unless ``include_ego_track``: then it is
+      annotated as category 'vehicle', a check of time sync and geodesy);
+    - ground_truth.csv: the same tracks at the full 30 fps, lat/lon, over their whole
+      camera span (it may extend past the INS span).
+
+    Args:
+        root: dataset root (the folder holding data/measurements).
+        scenario: scenario name (see :func:`list_scenarios`).
+        out: interaction folder to write (replaced if it exists).
+        rate_hz: annotation rate [Hz], > 0 and <= 30.
+        include_ego_track: also annotate the car's own camera track (diagnostics).
+        full_ins: keep the whole INS record; by default the ego track is cut to the span
+            the camera covers (plus one 10 Hz step each side), like the paper's clips.
+    Raises:
+        InputError: missing files, unknown scenario, malformed data.
+    """
+    return import_scenario_with_summary(
+        root, scenario, out, rate_hz=rate_hz, include_ego_track=include_ego_track, full_ins=full_ins
+    ).out
+
+
+def import_scenario_with_summary(
+    root: str | Path,
+    scenario: str,
+    out: str | Path,
+    *,
+    rate_hz: float = 1.0,
+    include_ego_track: bool = False,
+    full_ins: bool = False,
+) -> ImportSummary:
+    """:func:`import_scenario`, returning an :class:`ImportSummary` of what was written."""
+    from vei.io.interaction import write_interaction
+
+    if not (
+        isinstance(rate_hz, int | float) and math.isfinite(rate_hz) and 0 < rate_hz <= CAMERA_FPS
+    ):
+        raise InputError(
+            f"rate_hz must be in (0, {CAMERA_FPS:g}] Hz, got {rate_hz!r}", field="rate_hz"
+        )
+    meas = _measurements(root)
+    matching = read_matching(root, scenario)
+    ins = read_ins(meas / "car_data" / matching.ins_file_name)
+    video_offset_s = (matching.start_utc - ins.start_utc).total_seconds()
+    camera = read_camera(
+        meas / "videos" / "trajectory_output" / f"{scenario}{TRAJECTORIES_SUFFIX}", video_offset_s
+    )
+    if not full_ins:
+        ins = _trim_ins(ins, float(camera["t_s"].min()), float(camera["t_s"].max()))
+        video_offset_s = (matching.start_utc - ins.start_utc).total_seconds()
+        camera = camera.assign(
+            t_s=np.round(video_offset_s + camera["frame_id"].to_numpy() / CAMERA_FPS, 9)
+        )
+    t_end = float(ins.t_s[-1])
+    plane = LocalFrame(float(ins.lat_deg[0]), float(ins.lon_deg[0]))
+
+    categories = majority_categories(camera)
+    own = matching.relevant_track_id
+    if own not in categories.index:
+        raise InputError(
+            f"relevant_track_id {own} (the car's own track) does not occur in the camera data",
+            path=matching.path,
+            row=1,
+            field="relevant_track_id",
+        )
+    wanted = [tid for tid, cat in categories.items() if cat in ANNOTATED_CATEGORIES and tid != own]
+    if include_ego_track:
+        wanted.append(own)
+
+    ann_parts, gt_parts = [], []
+    for tid in wanted:
+        cat = "vehicle" if tid == own else str(categories[tid])
+        track = camera[camera["track_id"] == tid]
+        gt_parts.append(
+            track.assign(category=cat)[["t_s", "track_id", "category", "lat_deg", "lon_deg"]]
+        )
+        samples = _sample_track(track, rate_hz, t_end)
+        if samples.empty:
+            continue
+        ts = samples["t_s"].to_numpy()
+        elat, elon, ehead = ins.at(ts)
+        x, y = ego_relative(
+            elat, elon, ehead, samples["lat_deg"].to_numpy(), samples["lon_deg"].to_numpy()
+        )
+        yaw_left = -_wrap180(_track_bearing_deg(track, ts, plane) - ehead)
+        ann_parts.append(
+            pd.DataFrame(
+                {
+                    "t_s": ts,
+                    "track_id": tid,
+                    "category": cat,
+                    "x_m": x,
+                    "y_m": y,
+                    "yaw_deg": yaw_left,
+                    "length_m": np.nan,
+                    "width_m": np.nan,
+                }
+            )
+        )
+    if not ann_parts:
+        raise InputError(
+            f"scenario {scenario!r} has no e-scooter or cyclist seen by the camera while the car's INS records "
+            f"([0, {t_end:.1f}] s after {ins.start_utc.isoformat()})",
+            path=matching.path,
+        )
+    annotations = pd.concat(ann_parts, ignore_index=True)
+    ground_truth = pd.concat(gt_parts, ignore_index=True)
+
+    own_track = camera[camera["track_id"] == own]
+    inside = own_track[(own_track["t_s"] >= 0.0) & (own_track["t_s"] <= t_end)]
+    median_m = p95_m = None
+    if not inside.empty:
+        elat, elon, _ = ins.at(inside["t_s"].to_numpy())
+        from pyproj import Geod
+
+        _, _, dist = Geod(ellps="WGS84").inv(
+            elon, elat, inside["lon_deg"].to_numpy(), inside["lat_deg"].to_numpy()
+        )
+        median_m, p95_m = float(np.median(dist)), float(np.percentile(dist, 95))
+
+    counts = (
+        annotations[annotations["track_id"] != own]
+        .groupby("category")["track_id"]
+        .nunique()
+        .to_dict()
+    )
+    ego = _ego_10hz(ins)
+    notes = (
+        f"Imported by vei from {DATASET_REPO}@{DATASET_COMMIT[:7]} (Apache-2.0), scenario {scenario}. "
+        f"Ego: INS {matching.ins_file_name} (100 Hz) decimated to {EGO_RATE_HZ:g} Hz"
+        + ("" if full_ins else ", cut to the span the camera covers")
+        + f"; t_s = 0 at its first sample (UTC = GPS week/tow - {GPS_UTC_LEAP_S} leap s). "
+        f"Camera: 30 fps, frame k at "
+        f"{matching.start_local.strftime('%Y-%m-%d %H:%M:%S.%f')[:-4]} CET + k/30 s = "
+        f"{video_offset_s:+.3f} s after t_s = 0; UTM 32N -> WGS84. Annotations: e-scooter and cyclist "
+        f"tracks (majority label), {rate_hz:g} Hz, ego-relative via geodesic inverse and the INS true "
+        f"heading; car's own camera track {own} "
+        + ("annotated as 'vehicle' (diagnostics)" if include_ego_track else "left out")
+        + ". "
+        + (
+            f"Own camera track vs INS: median {median_m:.2f} m, p95 {p95_m:.2f} m. "
+            if median_m is not None
+            else "Own camera track not inside the INS span. "
+        )
+        + "Ground truth: the same tracks at 30 fps."
+    )
+    interaction = Interaction(
+        meta=InteractionMeta(
+            id=scenario,
+            source=f"TrafficMonitoring dataset ({DATASET_REPO}), Ingolstadt roadside camera + instrumented car INS",
+            start_time_utc=ins.start_utc,
+            y_axis="left",
+            annotation_rate_hz=float(rate_hz),
+            notes=notes,
+        ),
+        ego=ego,
+        annotations=annotations,
+        ground_truth=ground_truth,
+    )
+    folder = write_interaction(interaction, out)
+    return ImportSummary(
+        scenario=scenario,
+        out=folder,
+        ins_start_utc=ins.start_utc,
+        video_start_utc=matching.start_utc,
+        video_offset_s=video_offset_s,
+        ego_duration_s=float(ego["t_s"].iloc[-1] - ego["t_s"].iloc[0]),
+        tracks={c: int(counts.get(c, 0)) for c in ANNOTATED_CATEGORIES},
+        annotations=int((annotations["track_id"] != own).sum()),
+        own_track_median_m=median_m,
+        own_track_p95_m=p95_m,
+    )

@@ -1,0 +1,318 @@
+"""The paper's case study (Section IV): five configurations of one scenario, scored.
+
+``run_casestudy`` takes a reconstructed scenario, fixes the primary rider's time shift
+(``'auto'``: :func:`vei.experiments.timeshift.find_time_shift`, computed under ``replay``'s
+ego motion; or a number of seconds), runs the configurations through a *backend* and
+scores the runs with :mod:`vei.metrics`. Backends only have to return the long time
+series (:data:`vei.types.TIMESERIES_COLUMNS`), so the built-in engine and CARLA give the
+same outputs. ``write_casestudy`` writes::
+
+    summary.json        {"scenario_id", "primary_threat", "time_shift_s", "time_shift",
+                         "backend", "metrics_config", "paper_outcome", "configs": [...]}
+    summary.csv         one row per configuration (the scalar metrics)
+    timeseries.parquet  the runs' long time series
+    fig4_birdseye.png, fig5_speed_profiles.png, fig6_speed_std.png,
+    fig8_safety_index.png, ttc_zones.png
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from vei.config import PAPER_CASES, CaseConfig, SimConfig, case_preset, config_to_dict
+from vei.errors import BackendError, ConfigError, InputError
+from vei.metrics import MetricsConfig, paper_ttc, summarize, summary_records, trace_from_timeseries
+from vei.types import EGO_ID, TIMESERIES_COLUMNS, Scenario
+
+#: Signature of a backend: (scenario, cases, time_shift_s, sim) -> long time series with
+#: TIMESERIES_COLUMNS, column 'config' = the case's name.
+Runner = Callable[[Scenario, Sequence[CaseConfig], float, SimConfig], pd.DataFrame]
+
+#: The configurations that the paper reports colliding / not colliding (Section IV-C).
+PAPER_COLLIDING: tuple[str, ...] = ("replay", "normal", "aggressive")
+PAPER_SAFE: tuple[str, ...] = ("normal-cap", "aggressive-cap")
+#: Backends that vei knows by name.
+BACKENDS: tuple[str, ...] = ("builtin", "carla")
+
+
+@dataclass(frozen=True)
+class CaseStudyResult:
+    """Outcome of :func:`run_casestudy`.
+
+    Attributes:
+        scenario: the scenario that was run.
+        backend: backend name.
+        time_shift_s: the rider's time shift used by every configuration [s].
+        time_shift: how it was chosen ({'mode': 'auto'|'given', ...details}).
+        cases: the configurations, in run order.
+        frame: long time series of every run (TIMESERIES_COLUMNS).
+        summary: one row per configuration: 'name' + every scalar metric.
+        t_s: [T] step times [s]; ttc_s: [B, T] the paper's TTC per configuration.
+        metrics_config: thresholds used.
+    """
+
+    scenario: Scenario
+    backend: str
+    time_shift_s: float
+    time_shift: dict[str, Any]
+    cases: tuple[CaseConfig, ...]
+    frame: pd.DataFrame
+    summary: pd.DataFrame
+    t_s: np.ndarray
+    ttc_s: np.ndarray
+    metrics_config: MetricsConfig = field(default_factory=MetricsConfig)
+
+    @property
+    def other_id(self) -> str:
+        """agent_id of the scored road user (the scenario's primary threat)."""
+        assert self.scenario.primary_threat is not None
+        return self.scenario.primary_threat
+
+    def paper_outcome(self) -> dict[str, Any]:
+        """Whether the paper's Section IV-C outcome holds: replay/normal/aggressive collide
+        (safety index 0), normal-cap/aggressive-cap do not and keep safety index 1.
+
+        Returns {'reproduced': bool | None (None if a paper configuration was not run),
+        'per_config': {name: {'expected_collision', 'collision', 'safety_index', 'ok'}}}.
+        """
+        rows = {r["name"]: r for r in summary_records(self.summary)}
+        per: dict[str, Any] = {}
+        for name in PAPER_CASES:
+            if name not in rows:
+                continue
+            r = rows[name]
+            expect = name in PAPER_COLLIDING
+            si = r["safety_index"]
+            ok = r["collision"] == expect and (si == 0.0 if expect else si == 1.0)
+            per[name] = {
+                "expected_collision": expect,
+                "collision": r["collision"],
+                "safety_index": si,
+                "ok": bool(ok),
+            }
+        reproduced = all(v["ok"] for v in per.values()) if len(per) == len(PAPER_CASES) else None
+        return {"reproduced": reproduced, "per_config": per}
+
+
+def resolve_cases(names: Sequence[str | CaseConfig] | None) -> tuple[CaseConfig, ...]:
+    """Configurations from names (presets) or CaseConfig objects; default: the paper's five."""
+    items = PAPER_CASES if names is None else names
+    out = tuple(case_preset(n) if isinstance(n, str) else n for n in items)
+    if not out:
+        raise ConfigError("no configuration to run")
+    seen = [c.name for c in out]
+    if len(set(seen)) != len(seen):
+        raise ConfigError(f"configuration names must be unique, got {seen}")
+    return out
+
+
+def parse_time_shift(value: str | float | None) -> float | str:
+    """'auto' (or None) -> 'auto'; a number or numeric text -> float seconds (ConfigError otherwise)."""
+    if value is None:
+        return "auto"
+    if isinstance(value, str):
+        if value.strip().lower() == "auto":
+            return "auto"
+        try:
+            value = float(value)
+        except ValueError:
+            raise ConfigError(f"--time-shift must be 'auto' or seconds, got {value!r}") from None
+    shift = float(value)
+    if not np.isfinite(shift):
+        raise ConfigError(f"time shift must be finite, got {value!r}")
+    return shift
+
+
+# ------------------------------------------------------------------------------ backends
+def _run_builtin(
+    scenario: Scenario, cases: Sequence[CaseConfig], time_shift_s: float, sim: SimConfig
+) -> pd.DataFrame:
+    """Built-in engine: all configurations in one batch."""
+    from vei.sim.engine import run_cases
+
+    result = run_cases(scenario, list(cases), time_shift_s=time_shift_s, sim=sim)
+    return result.to_frame()
+
+
+def get_backend(name: str) -> Runner:
+    """The runner of a backend by name ('builtin'; 'carla' once vei.sim.backends.carla exists)."""
+    if name == "builtin":
+        return _run_builtin
+    if name == "carla":
+        if importlib.util.find_spec("vei.sim.backends.carla") is None:
+            raise BackendError(
+                "backend 'carla' is not available in this installation (vei.sim.backends.carla missing)"
+            )
+        mod = importlib.import_module("vei.sim.backends.carla")
+        runner = getattr(mod, "run_cases_frame", None)
+        if runner is None:
+            raise BackendError(
+                "vei.sim.backends.carla has no run_cases_frame(scenario, cases, time_shift_s, sim)"
+            )
+        return runner
+    raise ConfigError(f"unknown backend {name!r}; expected one of {', '.join(BACKENDS)}")
+
+
+# ------------------------------------------------------------------------------ case study
+def _auto_time_shift(scenario: Scenario, sim: SimConfig) -> tuple[float, dict[str, Any]]:
+    from vei.experiments.timeshift import find_time_shift
+
+    found = find_time_shift(scenario, sim=sim)
+    if isinstance(found, int | float):
+        return float(found), {"mode": "auto"}
+    info = dict(found.as_dict()) if hasattr(found, "as_dict") else {}
+    return float(found.time_shift_s), {"mode": "auto", **info}
+
+
+def run_casestudy(
+    scenario: Scenario,
+    *,
+    cases: Sequence[str | CaseConfig] | None = None,
+    time_shift: str | float = "auto",
+    backend: str | Runner = "builtin",
+    sim: SimConfig | None = None,
+    metrics_config: MetricsConfig | None = None,
+) -> CaseStudyResult:
+    """Run the configurations on one scenario with one time shift and score them.
+
+    Args:
+        scenario: reconstructed scenario with a primary threat (a rider).
+        cases: configuration names / CaseConfigs (default: the paper's five, in order).
+        time_shift: 'auto' or seconds (positive: the rider comes later).
+        backend: 'builtin', 'carla', or a Runner callable.
+        sim: engine settings (default SimConfig(): 0.05 s step, the scenario's span).
+        metrics_config: TTC zone thresholds (paper defaults).
+    Returns:
+        CaseStudyResult (time series, summary table, TTC series).
+    """
+    if scenario.primary_threat is None:
+        raise InputError(
+            f"scenario {scenario.id!r} has no primary threat (no e-scooter or cyclist): nothing to simulate",
+            path=scenario.root,
+        )
+    case_objs = resolve_cases(cases)
+    sim = SimConfig() if sim is None else sim
+    mcfg = MetricsConfig() if metrics_config is None else metrics_config
+    shift = parse_time_shift(time_shift)
+    if shift == "auto":
+        shift_s, shift_info = _auto_time_shift(scenario, sim)
+    else:
+        shift_s, shift_info = float(shift), {"mode": "given"}
+    runner = get_backend(backend) if isinstance(backend, str) else backend
+    backend_name = backend if isinstance(backend, str) else getattr(backend, "__name__", "custom")
+    frame = runner(scenario, case_objs, shift_s, sim)
+    missing = [c for c in TIMESERIES_COLUMNS if c not in frame.columns]
+    if missing:
+        raise BackendError(
+            f"backend {backend_name!r} returned a time series without column(s) {', '.join(missing)}"
+        )
+    ego = scenario.agent(EGO_ID)
+    other = scenario.agent(scenario.primary_threat)
+    ego_dims = (sim.ego_length_m or ego.length_m, sim.ego_width_m or ego.width_m)
+    other_dims = (sim.rider_length_m or other.length_m, sim.rider_width_m or other.width_m)
+    trace, runs = trace_from_timeseries(
+        frame, other_id=other.agent_id, ego_dims_m=ego_dims, other_dims_m=other_dims
+    )
+    names = [c for c, _ in runs]
+    order = [c.name for c in case_objs]
+    if names != order:
+        raise BackendError(f"backend {backend_name!r} returned runs {names}, expected {order}")
+    summary = summarize(trace, mcfg, labels=names)
+    return CaseStudyResult(
+        scenario=scenario,
+        backend=str(backend_name),
+        time_shift_s=shift_s,
+        time_shift=shift_info,
+        cases=case_objs,
+        frame=frame,
+        summary=summary,
+        t_s=np.asarray(trace.t_s),
+        ttc_s=paper_ttc(trace, mcfg),
+        metrics_config=mcfg,
+    )
+
+
+def summary_document(result: CaseStudyResult) -> dict[str, Any]:
+    """The summary.json document of a case study (JSON-safe: NaN/inf -> null)."""
+    from dataclasses import asdict
+
+    configs = summary_records(result.summary)
+    case_by_name = {c.name: c for c in result.cases}
+    for rec in configs:
+        case = case_by_name[rec["name"]]
+        rec["rider"] = case.rider
+        rec["ego_mode"] = case.ego_mode
+    return {
+        "scenario_id": result.scenario.id,
+        "primary_threat": result.other_id,
+        "time_shift_s": result.time_shift_s,
+        "time_shift": _json_safe(result.time_shift),
+        "backend": result.backend,
+        "metrics_config": asdict(result.metrics_config),
+        "paper_outcome": result.paper_outcome(),
+        "configs": configs,
+        "case_configs": {c.name: config_to_dict(c) for c in result.cases},
+    }
+
+
+def _json_safe(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_json_safe(v) for v in obj]
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
+def write_casestudy(
+    result: CaseStudyResult,
+    out_dir: str | Path,
+    *,
+    roads: Callable | None = None,
+    figures: bool = True,
+) -> dict[str, Path]:
+    """Write summary.json, summary.csv, timeseries.parquet and the figures into ``out_dir``.
+
+    Each file is written atomically. Returns {name: path} ('summary_json', 'summary_csv',
+    'timeseries', and the figure keys of vei.report.casestudy_figures.FIGURE_FILES).
+    """
+    from vei.io.atomic import write_json, write_parquet, write_text
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths: dict[str, Path] = {
+        "timeseries": write_parquet(
+            out / "timeseries.parquet", result.frame[list(TIMESERIES_COLUMNS)]
+        ),
+        "summary_csv": write_text(out / "summary.csv", result.summary.to_csv(index=False)),
+        "summary_json": write_json(out / "summary.json", summary_document(result)),
+    }
+    if figures:
+        from vei.report.casestudy_figures import write_casestudy_figures
+
+        paths.update(
+            write_casestudy_figures(
+                out,
+                frame=result.frame,
+                summary=result.summary,
+                other_id=result.other_id,
+                ttc_t_s=result.t_s,
+                ttc_s=result.ttc_s,
+                keyframes=result.scenario.keyframes,
+                roads=roads,
+                safe_ttc_s=result.metrics_config.safe_ttc_s,
+                alert_ttc_s=result.metrics_config.alert_ttc_s,
+            )
+        )
+    return paths

@@ -1,0 +1,582 @@
+"""Sweep specification: which variant parameters to vary, how, and the table of variants.
+
+A sweep spec is a YAML (or JSON) mapping loaded into frozen dataclasses at the edge::
+
+    design: lhs            # grid | random | lhs
+    n_samples: 1000        # random / lhs only (an error for grid: its size is the product)
+    seed: 7                # design seed (random / lhs); also mixed into the per-variant seed
+    base: normal-cap       # the configuration (vei.config.CASE_PRESETS) that parameters the
+                           # spec does not name keep
+    time_shift_reference: auto   # auto: time_shift_s is an offset to the scenario's automatic
+                                 # shift (computed once per scenario under the base config);
+                                 # zero: time_shift_s is the absolute shift
+    parameters:
+      time_shift_s: {min: -2.0, max: 2.0, num: 21}   # a range (num: grid points, grid only)
+      rider_model: {choices: [normal, aggressive]}   # a finite set
+      ego.cruise_speed_mps: {min: 3.0, max: 9.0, num: 13}
+      cap.enabled: true                              # a fixed value
+      sfm:                                           # nested groups are the dotted names
+        k_des: {min: 50.0, max: 200.0, num: 3}
+
+Unknown keys are errors that name the key and the file; ``0`` never means "default".
+Parameters that a spec does not name keep the values of the ``base`` configuration (one of
+``vei.config.CASE_PRESETS``, default ``normal-cap``; the paper's values).
+
+:func:`variants_table` turns a spec into a pandas DataFrame, one row per variant, with a
+stable ``variant_id`` (hash of the scenario id and the parameter values) and a per-variant
+``seed`` derived from that id and the spec seed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import pandas as pd
+
+from vei.config import CASE_PRESETS, SFM_PRESETS, RunConfig
+from vei.errors import ConfigError, InputError
+
+Design = Literal["grid", "random", "lhs"]
+DESIGNS: tuple[str, ...] = ("grid", "random", "lhs")
+RIDER_MODELS: tuple[str, ...] = ("replay", "normal", "aggressive")
+TIME_SHIFT_REFERENCES: tuple[str, ...] = ("auto", "zero")
+
+
+@dataclass(frozen=True)
+class ParamDef:
+    """What a sweepable parameter is: its kind and the values it may take.
+
+    Attributes:
+        name: dotted name (e.g. ``sfm.k_des``).
+        kind: 'float', 'bool' or 'choice' (a string out of ``allowed``).
+        lower, upper: open/closed physical bounds a float must respect (None = unbounded);
+            ``lower_open`` / ``upper_open`` say whether the bound itself is excluded.
+        allowed: the values a 'choice' parameter takes.
+        unit: human-readable unit for documentation.
+        doc: one line on what it is.
+    """
+
+    name: str
+    kind: Literal["float", "bool", "choice"]
+    lower: float | None = None
+    upper: float | None = None
+    lower_open: bool = False
+    upper_open: bool = False
+    allowed: tuple[str, ...] = ()
+    unit: str = ""
+    doc: str = ""
+
+    def check(self, value: Any, where: str) -> Any:
+        """Validate one value and return it normalised (float / bool / str)."""
+        if self.kind == "bool":
+            if not isinstance(value, bool | np.bool_):
+                raise ConfigError(f"{where}: {self.name} expects true or false, got {value!r}")
+            return bool(value)
+        if self.kind == "choice":
+            if not isinstance(value, str) or value not in self.allowed:
+                raise ConfigError(
+                    f"{where}: {self.name} expects one of {', '.join(self.allowed)}, got {value!r}"
+                )
+            return value
+        if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+            raise ConfigError(f"{where}: {self.name} expects a number [{self.unit}], got {value!r}")
+        v = float(value)
+        if not math.isfinite(v):
+            raise ConfigError(f"{where}: {self.name} must be finite, got {value!r}")
+        if self.lower is not None and (v < self.lower or (self.lower_open and v == self.lower)):
+            op = ">" if self.lower_open else ">="
+            raise ConfigError(f"{where}: {self.name} must be {op} {self.lower:g}, got {v:g}")
+        if self.upper is not None and (v > self.upper or (self.upper_open and v == self.upper)):
+            op = "<" if self.upper_open else "<="
+            raise ConfigError(f"{where}: {self.name} must be {op} {self.upper:g}, got {v:g}")
+        return v
+
+
+def _f(name: str, unit: str, doc: str, **kw: Any) -> ParamDef:
+    return ParamDef(name=name, kind="float", unit=unit, doc=doc, **kw)
+
+
+#: Every parameter a sweep can vary, in the column order of the variants table.
+PARAMETERS: dict[str, ParamDef] = {
+    p.name: p
+    for p in (
+        _f("time_shift_s", "s", "time shift of the primary rider (see time_shift_reference)"),
+        ParamDef(
+            "rider_model",
+            "choice",
+            allowed=RIDER_MODELS,
+            doc="primary rider: kinematic replay, SFM normal or SFM aggressive",
+        ),
+        _f("sfm.k_des", "N s/m", "desired-velocity gain", lower=0.0, lower_open=True),
+        _f("sfm.A", "N", "vehicle repulsion amplitude", lower=0.0),
+        _f("sfm.b", "1/m", "vehicle repulsion decay rate", lower=0.0, lower_open=True),
+        _f("sfm.v0", "m/s", "rider's nominal desired speed", lower=0.0, lower_open=True),
+        _f("sfm.mass", "kg", "rider + e-scooter mass", lower=0.0, lower_open=True),
+        ParamDef("sfm.vehicle_force", "bool", doc="apply the vehicle repulsion force f_veh"),
+        _f("ego.cruise_speed_mps", "m/s", "ego PID cruise speed v_d", lower=0.0, lower_open=True),
+        ParamDef("cap.enabled", "bool", doc="collision-avoidance planner on (else PID cruise)"),
+        _f("cap.T_safe_s", "s", "CAP time headway T_safe", lower=0.0, lower_open=True),
+        _f("cap.d_buf_m", "m", "CAP standstill buffer d_buf", lower=0.0),
+        _f("cap.a_min_mps2", "m/s^2", "CAP maximum braking (negative)", upper=0.0, upper_open=True),
+        _f("perception_delay_s", "s", "delay before the CAP sees the rider", lower=0.0),
+    )
+}
+
+_GROUPS = ("sfm", "ego", "cap")
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """How one parameter is varied: a fixed value, a numeric range, or a finite set.
+
+    Attributes:
+        name: dotted parameter name (a key of :data:`PARAMETERS`).
+        value: the fixed value (when neither a range nor choices).
+        min, max: numeric range (floats only), min <= max.
+        num: grid points over [min, max] (grid design only; >= 2, or 1 when min == max).
+        choices: finite set of values (any kind); sampled uniformly by random / lhs.
+    """
+
+    name: str
+    value: Any = None
+    min: float | None = None
+    max: float | None = None
+    num: int | None = None
+    choices: tuple[Any, ...] | None = None
+
+    @property
+    def is_fixed(self) -> bool:
+        """True when the parameter takes one value."""
+        return self.min is None and self.choices is None
+
+    @property
+    def is_range(self) -> bool:
+        """True for a continuous range [min, max]."""
+        return self.min is not None
+
+    def grid_values(self) -> list[Any]:
+        """The values this parameter takes in a grid design."""
+        if self.is_fixed:
+            return [self.value]
+        if self.choices is not None:
+            return list(self.choices)
+        assert self.min is not None and self.max is not None and self.num is not None
+        if self.num == 1:
+            return [float(self.min)]
+        return [float(v) for v in np.linspace(self.min, self.max, self.num)]
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A validated sweep specification (see the module docstring for the YAML form).
+
+    Attributes:
+        design: 'grid', 'random' or 'lhs'.
+        parameters: the varied / fixed parameters, in :data:`PARAMETERS` order.
+        n_samples: number of variants (random / lhs); None for grid.
+        seed: design seed (random / lhs sampling) and per-variant seed salt.
+        time_shift_reference: 'auto' (time_shift_s offsets the scenario's automatic shift)
+            or 'zero' (time_shift_s is absolute).
+        base: configuration preset (``vei.config.CASE_PRESETS``) for what is not swept.
+        source: file it was loaded from, if any (for messages).
+    """
+
+    design: Design
+    parameters: tuple[ParamSpec, ...]
+    n_samples: int | None = None
+    seed: int = 0
+    time_shift_reference: str = "auto"
+    base: str = "normal-cap"
+    source: str | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        where = self.source or "sweep spec"
+        if self.design not in DESIGNS:
+            raise ConfigError(f"{where}: design must be one of {', '.join(DESIGNS)}, got {self.design!r}")
+        if self.time_shift_reference not in TIME_SHIFT_REFERENCES:
+            raise ConfigError(
+                f"{where}: time_shift_reference must be auto or zero, got {self.time_shift_reference!r}"
+            )
+        if self.base not in CASE_PRESETS:
+            raise ConfigError(
+                f"{where}: base must be one of {', '.join(CASE_PRESETS)}, got {self.base!r}"
+            )
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ConfigError(f"{where}: seed must be an integer >= 0, got {self.seed!r}")
+        if self.design == "grid":
+            if self.n_samples is not None:
+                raise ConfigError(
+                    f"{where}: n_samples is not used by design 'grid' (its size is the product "
+                    "of the parameters' num / choices): remove it"
+                )
+            for p in self.parameters:
+                if p.is_range and p.num is None:
+                    raise ConfigError(f"{where}: parameters.{p.name}: design 'grid' needs 'num'")
+        else:
+            if (
+                isinstance(self.n_samples, bool)
+                or not isinstance(self.n_samples, int)
+                or self.n_samples < 1
+            ):
+                raise ConfigError(
+                    f"{where}: design '{self.design}' needs n_samples, an integer >= 1, got {self.n_samples!r}"
+                )
+            for p in self.parameters:
+                if p.num is not None:
+                    raise ConfigError(
+                        f"{where}: parameters.{p.name}: 'num' is only used by design 'grid'"
+                    )
+        names = [p.name for p in self.parameters]
+        if len(set(names)) != len(names):
+            raise ConfigError(f"{where}: a parameter is given twice: {names}")
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Parameter names, in table column order."""
+        return tuple(p.name for p in self.parameters)
+
+    def param(self, name: str) -> ParamSpec:
+        """The ParamSpec of ``name`` (KeyError if the spec does not name it)."""
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The spec as a plain mapping (the YAML form, dotted names)."""
+        params: dict[str, Any] = {}
+        for p in self.parameters:
+            if p.is_fixed:
+                params[p.name] = p.value
+            elif p.choices is not None:
+                params[p.name] = {"choices": list(p.choices)}
+            else:
+                d: dict[str, Any] = {"min": p.min, "max": p.max}
+                if p.num is not None:
+                    d["num"] = p.num
+                params[p.name] = d
+        out: dict[str, Any] = {"design": self.design}
+        if self.n_samples is not None:
+            out["n_samples"] = self.n_samples
+        out["seed"] = self.seed
+        out["time_shift_reference"] = self.time_shift_reference
+        out["base"] = self.base
+        out["parameters"] = params
+        return out
+
+    def digest(self) -> str:
+        """A stable hash of the spec's content (sweep resume refuses a different spec)."""
+        text = json.dumps(self.to_dict(), sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    def n_variants(self) -> int:
+        """Number of design points per scenario (before removing duplicates)."""
+        if self.design == "grid":
+            return int(np.prod([len(p.grid_values()) for p in self.parameters], dtype=np.int64))
+        assert self.n_samples is not None
+        return self.n_samples
+
+
+_SPEC_KEYS = {"design", "n_samples", "seed", "time_shift_reference", "base", "parameters"}
+_PARAM_KEYS = {"min", "max", "num", "choices"}
+
+
+def _flatten_params(raw: Any, where: str) -> dict[str, Any]:
+    if not isinstance(raw, Mapping) or not raw:
+        raise ConfigError(f"{where}: 'parameters' must be a non-empty mapping of parameter names")
+    flat: dict[str, Any] = {}
+    for key, val in raw.items():
+        key = str(key)
+        if key in _GROUPS and isinstance(val, Mapping):
+            for sub, subval in val.items():
+                flat[f"{key}.{sub}"] = subval
+        else:
+            flat[key] = val
+    return flat
+
+
+def _parse_param(name: str, raw: Any, where: str) -> ParamSpec:
+    if name not in PARAMETERS:
+        raise ConfigError(
+            f"{where}: unknown parameter '{name}'; known: {', '.join(PARAMETERS)}"
+        )
+    pdef = PARAMETERS[name]
+    loc = f"{where}: parameters.{name}"
+    if not isinstance(raw, Mapping):
+        return ParamSpec(name=name, value=pdef.check(raw, where))
+    unknown = set(map(str, raw)) - _PARAM_KEYS
+    if unknown:
+        raise ConfigError(
+            f"{loc}: unknown key(s) {', '.join(sorted(unknown))}; expected min/max[/num] or choices"
+        )
+    if "choices" in raw:
+        if set(raw) != {"choices"}:
+            raise ConfigError(f"{loc}: 'choices' cannot be combined with min/max/num")
+        ch = raw["choices"]
+        if not isinstance(ch, Sequence) or isinstance(ch, str) or len(ch) == 0:
+            raise ConfigError(f"{loc}: 'choices' must be a non-empty list")
+        vals = tuple(pdef.check(c, where) for c in ch)
+        if len(set(vals)) != len(vals):
+            raise ConfigError(f"{loc}: 'choices' has duplicates: {list(ch)}")
+        return ParamSpec(name=name, choices=vals)
+    if pdef.kind != "float":
+        raise ConfigError(f"{loc}: a {pdef.kind} parameter takes a value or 'choices', not a range")
+    if "min" not in raw or "max" not in raw:
+        raise ConfigError(f"{loc}: a range needs both 'min' and 'max'")
+    lo, hi = pdef.check(raw["min"], where), pdef.check(raw["max"], where)
+    if lo > hi:
+        raise ConfigError(f"{loc}: min ({lo:g}) > max ({hi:g})")
+    num = raw.get("num")
+    if num is not None:
+        if isinstance(num, bool) or not isinstance(num, int) or num < 1:
+            raise ConfigError(f"{loc}: 'num' must be an integer >= 1, got {num!r}")
+        if num == 1 and lo != hi:
+            raise ConfigError(f"{loc}: 'num' = 1 needs min == max (use a fixed value)")
+        if num >= 2 and lo == hi:
+            raise ConfigError(f"{loc}: min == max needs num = 1 (or a fixed value)")
+    return ParamSpec(name=name, min=lo, max=hi, num=num)
+
+
+def spec_from_dict(raw: Any, *, source: str | None = None) -> SweepSpec:
+    """Build a validated :class:`SweepSpec` from a mapping (YAML/JSON content).
+
+    Raises:
+        ConfigError: unknown key (named, with the file), bad value or inconsistent design.
+    """
+    where = source or "sweep spec"
+    if not isinstance(raw, Mapping):
+        raise ConfigError(f"{where}: expected a mapping at the top level, got {type(raw).__name__}")
+    unknown = set(map(str, raw)) - _SPEC_KEYS
+    if unknown:
+        raise ConfigError(
+            f"{where}: unknown key(s) {', '.join(sorted(unknown))}; expected "
+            f"{', '.join(sorted(_SPEC_KEYS))}"
+        )
+    for req in ("design", "parameters"):
+        if req not in raw:
+            raise ConfigError(f"{where}: missing required key '{req}'")
+    flat = _flatten_params(raw["parameters"], where)
+    parsed = {name: _parse_param(name, val, where) for name, val in flat.items()}
+    ordered = tuple(parsed[n] for n in PARAMETERS if n in parsed)
+    return SweepSpec(
+        design=raw["design"],
+        parameters=ordered,
+        n_samples=raw.get("n_samples"),
+        seed=raw.get("seed", 0),
+        time_shift_reference=raw.get("time_shift_reference", "auto"),
+        base=raw.get("base", "normal-cap"),
+        source=source,
+    )
+
+
+def load_spec(path: str | Path) -> SweepSpec:
+    """Load a sweep spec from a YAML or JSON file.
+
+    Raises:
+        InputError: the file is missing or not valid YAML.
+        ConfigError: its content is invalid (message names the file and the key).
+    """
+    import yaml
+
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"cannot read the sweep spec: {exc.strerror}", path=path) from exc
+    try:
+        raw = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise InputError(f"not valid YAML: {exc}", path=path) from exc
+    return spec_from_dict(raw, source=str(path))
+
+
+# --------------------------------------------------------------------------- variants
+
+
+def _canonical(value: Any) -> Any:
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if isinstance(value, int | float | np.integer | np.floating):
+        return repr(float(value))
+    return str(value)
+
+
+def variant_id(scenario_id: str, params: Mapping[str, Any]) -> str:
+    """Stable id of a variant: 16 hex digits of SHA-256 over the scenario id and parameters.
+
+    Floats enter by ``repr`` (exact), so the same values always give the same id.
+    """
+    payload = json.dumps(
+        {"scenario": scenario_id, "params": {k: _canonical(v) for k, v in sorted(params.items())}},
+        sort_keys=True,
+        separators=(",", ":"),
+    )
+    return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+
+def variant_seed(vid: str, spec_seed: int) -> int:
+    """Per-variant seed in [0, 2**31): from the variant id and the spec seed (stable)."""
+    h = hashlib.sha256(f"{vid}:{spec_seed}".encode()).digest()
+    return int.from_bytes(h[:4], "little") & 0x7FFFFFFF
+
+
+def design_points(spec: SweepSpec) -> pd.DataFrame:
+    """The design of ``spec``: one row per design point, one column per parameter.
+
+    grid: the Cartesian product (last parameter varies fastest). random: independent
+    uniform draws (ranges) / uniform choice (sets), ``numpy.random.default_rng(seed)``.
+    lhs: ``scipy.stats.qmc.LatinHypercube(d, rng=seed)`` over the varied parameters; a set
+    of k choices takes the stratum ``floor(u * k)``. Fixed parameters are constant columns.
+    """
+    names = list(spec.names)
+    if spec.design == "grid":
+        rows = list(itertools.product(*[p.grid_values() for p in spec.parameters]))
+        return pd.DataFrame(rows, columns=names)
+    n = int(spec.n_samples or 0)
+    varied = [p for p in spec.parameters if not p.is_fixed]
+    if spec.design == "random":
+        rng = np.random.default_rng(spec.seed)
+        u = rng.random((n, len(varied)))
+    else:
+        from scipy.stats import qmc
+
+        u = (
+            qmc.LatinHypercube(d=len(varied), rng=spec.seed).random(n)
+            if varied
+            else np.zeros((n, 0))
+        )
+    cols: dict[str, Any] = {}
+    j = 0
+    for p in spec.parameters:
+        if p.is_fixed:
+            cols[p.name] = [p.value] * n
+            continue
+        col = u[:, j]
+        j += 1
+        if p.choices is not None:
+            idx = np.minimum((col * len(p.choices)).astype(np.int64), len(p.choices) - 1)
+            cols[p.name] = [p.choices[i] for i in idx]
+        else:
+            assert p.min is not None and p.max is not None
+            cols[p.name] = (p.min + col * (p.max - p.min)).astype(np.float64)
+    return pd.DataFrame(cols, columns=names)
+
+
+#: Leading columns of a variants table (then one column per parameter, PARAMETERS order).
+VARIANT_COLUMNS: tuple[str, ...] = ("variant_id", "scenario_id", "variant_index", "seed")
+
+
+def variants_table(spec: SweepSpec, scenario_id: str) -> pd.DataFrame:
+    """The variants of one scenario: one row per distinct design point.
+
+    Columns: variant_id (str, :func:`variant_id`), scenario_id (str), variant_index (int,
+    position in the design, the row order), seed (int, :func:`variant_seed`), then one
+    column per spec parameter (float / bool / str). Design points whose parameters repeat
+    an earlier row (possible when only sets are varied) are identical simulations with the
+    same id and are kept once.
+    """
+    pts = design_points(spec)
+    records = pts.to_dict("records")
+    ids = [variant_id(scenario_id, r) for r in records]
+    df = pd.DataFrame(
+        {
+            "variant_id": ids,
+            "scenario_id": scenario_id,
+            "variant_index": np.arange(len(pts), dtype=np.int64),
+            "seed": np.array([variant_seed(i, spec.seed) for i in ids], dtype=np.int64),
+        }
+    )
+    df = pd.concat([df, pts.reset_index(drop=True)], axis=1)
+    for p in spec.parameters:
+        kind = PARAMETERS[p.name].kind
+        if kind == "float":
+            df[p.name] = df[p.name].astype(np.float64)
+        elif kind == "bool":
+            df[p.name] = df[p.name].astype(bool)
+        else:
+            df[p.name] = df[p.name].astype(str)
+    return df.drop_duplicates("variant_id", keep="first").reset_index(drop=True)
+
+
+def row_params(row: Mapping[str, Any], spec: SweepSpec) -> dict[str, Any]:
+    """The parameter values of one variants-table row, as a {dotted name: value} dict."""
+    return {n: row[n] for n in spec.names}
+
+
+#: Sweep parameter -> (config section, field) of vei.config (time shift and rider model aside).
+CONFIG_FIELDS: dict[str, tuple[str, str]] = {
+    "sfm.k_des": ("sfm", "k_des_nspm"),
+    "sfm.A": ("sfm", "a_veh_n"),
+    "sfm.b": ("sfm", "b_veh_per_m"),
+    "sfm.v0": ("sfm", "v0_mps"),
+    "sfm.mass": ("sfm", "mass_kg"),
+    "sfm.vehicle_force": ("sfm", "use_vehicle_force"),
+    "ego.cruise_speed_mps": ("ego", "cruise_speed_mps"),
+    "cap.T_safe_s": ("cap", "t_safe_s"),
+    "cap.d_buf_m": ("cap", "d_buf_m"),
+    "cap.a_min_mps2": ("cap", "a_min_mps2"),
+    "perception_delay_s": ("cap", "perception_delay_s"),
+}
+
+
+def variant_config(
+    params: Mapping[str, Any],
+    spec: SweepSpec,
+    *,
+    auto_shift_s: float | None = None,
+    name: str = "variant",
+) -> RunConfig:
+    """The full run configuration of one variant (what ``vei run --config`` reads back).
+
+    Starts from ``CASE_PRESETS[spec.base]``; ``rider_model`` picks replay / the SFM Normal /
+    Aggressive preset, then ``sfm.*`` override its fields (``sfm.k_des`` is k_des_nspm:
+    the Aggressive preset's k_des_factor still multiplies it); ``cap.enabled`` picks ego mode
+    'cap' or 'pid'; the other parameters map by :data:`CONFIG_FIELDS`. The time shift is
+    ``auto_shift_s + time_shift_s`` (reference 'auto') or ``time_shift_s`` (reference 'zero'),
+    a missing ``time_shift_s`` counting as 0.
+
+    Args:
+        params: {dotted parameter name: value} of the variant.
+        spec: the sweep spec (base and time-shift reference).
+        auto_shift_s: the scenario's automatic shift [s] (required for reference 'auto').
+        name: configuration name written into the result.
+
+    Raises:
+        ConfigError: an invalid combination (e.g. a CAP braking beyond the car's brake).
+    """
+    from dataclasses import replace
+
+    base = CASE_PRESETS[spec.base]
+    case = replace(base, name=name)
+    rider = params.get("rider_model")
+    if rider == "replay":
+        case = replace(case, rider="replay")
+    elif rider in ("normal", "aggressive"):
+        case = replace(case, rider="sfm", sfm=SFM_PRESETS[str(rider)])
+    sections: dict[str, dict[str, Any]] = {"sfm": {}, "ego": {}, "cap": {}}
+    for key, (section, fname) in CONFIG_FIELDS.items():
+        if key in params:
+            v = params[key]
+            sections[section][fname] = bool(v) if isinstance(v, bool | np.bool_) else float(v)
+    updates: dict[str, Any] = {
+        sec: replace(getattr(case, sec), **vals) for sec, vals in sections.items() if vals
+    }
+    if "cap.enabled" in params:
+        updates["ego_mode"] = "cap" if bool(params["cap.enabled"]) else "pid"
+    case = replace(case, **updates) if updates else case
+    offset = float(params.get("time_shift_s", 0.0))
+    if spec.time_shift_reference == "auto":
+        if auto_shift_s is None:
+            raise ConfigError("time_shift_reference 'auto' needs the scenario's automatic shift")
+        shift = float(auto_shift_s) + offset
+    else:
+        shift = offset
+    return RunConfig(case=case, time_shift=shift)

@@ -1,0 +1,716 @@
+"""Reader and writer of the interaction format v1 (``vei.interaction/1``).
+
+An interaction is a folder (spec: ``docs/interaction-format.md``)::
+
+    interaction.json     format, id, source, start_time_utc, y_axis, [annotation_rate_hz, notes]
+    ego.csv              t_s | timestamp_utc, lat_deg, lon_deg, [heading_deg, speed_mps]
+    annotations.csv      t_s | timestamp_utc, track_id, category, x_m, y_m, [yaw_deg, length_m, width_m]
+    ground_truth.csv     optional: t_s | timestamp_utc, track_id, category, lat_deg, lon_deg
+
+:func:`read_interaction` validates everything and raises :class:`vei.errors.InputError`
+naming the file, the 1-based data row (header excluded), the field and what was expected.
+Extra CSV columns are allowed and ignored: the returned tables hold exactly the columns
+documented on :class:`vei.types.Interaction`. :func:`write_interaction` writes a folder
+atomically and validates it before it appears, so a failed write leaves nothing behind.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from vei.errors import InputError
+from vei.io.atomic import atomic_dir
+from vei.types import CATEGORIES, Interaction, InteractionMeta
+
+#: Value of the ``format`` key of interaction.json.
+FORMAT = "vei.interaction/1"
+
+META_FILE = "interaction.json"
+EGO_FILE = "ego.csv"
+ANNOTATIONS_FILE = "annotations.csv"
+GROUND_TRUTH_FILE = "ground_truth.csv"
+
+#: Columns of the returned tables, in order (required + optional, filled with NaN).
+EGO_COLUMNS: tuple[str, ...] = ("t_s", "lat_deg", "lon_deg", "heading_deg", "speed_mps")
+ANNOTATION_COLUMNS: tuple[str, ...] = (
+    "t_s",
+    "track_id",
+    "category",
+    "x_m",
+    "y_m",
+    "yaw_deg",
+    "length_m",
+    "width_m",
+)
+GROUND_TRUTH_COLUMNS: tuple[str, ...] = ("t_s", "track_id", "category", "lat_deg", "lon_deg")
+
+_META_REQUIRED = ("format", "id", "source", "start_time_utc", "y_axis")
+_META_OPTIONAL = ("annotation_rate_hz", "notes")
+
+#: Times closer than this are "equal" when checking annotations against the GPS span [s].
+TIME_TOLERANCE_S = 1e-6
+#: Minimum displacement between two fixes for their course to count [m].
+_COURSE_MIN_STEP_M = 0.3
+#: Minimum number of course samples before heading/position plausibility checks run.
+_COURSE_MIN_SAMPLES = 3
+#: Median course disagreement below which an interpretation "agrees" / above which it "disagrees" [deg].
+_AGREE_DEG = 20.0
+_DISAGREE_DEG = 45.0
+#: Same for the swapped-columns test: the exchanged reading must agree closely [deg].
+_SWAP_DISAGREE_DEG = 30.0
+_SWAP_AGREE_DEG = 10.0
+
+#: Columns read as text (everything else is parsed as numbers).
+_STRING_COLUMNS = ("track_id", "category", "timestamp_utc")
+
+_TZ_SUFFIX = re.compile(r"(?:Z|z|[+-]\d{2}(?::?\d{2})?)$")
+
+
+# ----------------------------------------------------------------------------- metadata
+
+
+def parse_utc(
+    text: Any, *, path: Path | None = None, field: str = "start_time_utc", row: int | None = None
+) -> datetime:
+    """Parse an ISO 8601 timestamp with a timezone into an aware UTC datetime.
+
+    Raises InputError when it is not a string, not ISO 8601, or has no timezone (naive).
+    """
+    if not isinstance(text, str):
+        raise InputError(
+            f"expected an ISO 8601 timestamp string with timezone, got {text!r}",
+            path=path,
+            row=row,
+            field=field,
+        )
+    s = text.strip()
+    try:
+        dt = datetime.fromisoformat(s)
+    except ValueError:
+        raise InputError(
+            f"{text!r} is not an ISO 8601 timestamp (expected e.g. '2021-02-09T12:40:35.690Z')",
+            path=path,
+            row=row,
+            field=field,
+        ) from None
+    if dt.tzinfo is None or dt.utcoffset() is None:
+        raise InputError(
+            f"{text!r} has no timezone (naive); state it explicitly, e.g. '{s}Z' for UTC or "
+            f"'{s}+01:00' for CET",
+            path=path,
+            row=row,
+            field=field,
+        )
+    return dt.astimezone(UTC)
+
+
+def _read_meta(path: Path) -> InteractionMeta:
+    if not path.is_file():
+        raise InputError(f"missing {META_FILE} (every interaction folder needs one)", path=path)
+    try:
+        raw = json.loads(path.read_text(encoding="utf-8-sig"))
+    except json.JSONDecodeError as exc:
+        raise InputError(
+            f"not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}",
+            path=path,
+            row=exc.lineno,
+        ) from None
+    except UnicodeDecodeError:
+        raise InputError("not UTF-8 text", path=path) from None
+    if not isinstance(raw, dict):
+        raise InputError(f"expected a JSON object, got {type(raw).__name__}", path=path)
+    for key in _META_REQUIRED:
+        if key not in raw:
+            raise InputError(
+                f"missing key (required: {', '.join(_META_REQUIRED)})", path=path, field=key
+            )
+    unknown = sorted(set(raw) - set(_META_REQUIRED) - set(_META_OPTIONAL))
+    if unknown:
+        raise InputError(
+            f"unknown key (allowed: {', '.join(_META_REQUIRED + _META_OPTIONAL)}); put free text in 'notes'",
+            path=path,
+            field=unknown[0],
+        )
+    if raw["format"] != FORMAT:
+        raise InputError(f"expected {FORMAT!r}, got {raw['format']!r}", path=path, field="format")
+    for key in ("id", "source"):
+        if not isinstance(raw[key], str) or not raw[key].strip():
+            raise InputError(f"expected a non-empty string, got {raw[key]!r}", path=path, field=key)
+    start = parse_utc(raw["start_time_utc"], path=path, field="start_time_utc")
+    if raw["y_axis"] not in ("left", "right"):
+        raise InputError(
+            f"expected 'left' or 'right', got {raw['y_axis']!r}", path=path, field="y_axis"
+        )
+    rate = raw.get("annotation_rate_hz")
+    if rate is not None:
+        if (
+            isinstance(rate, bool)
+            or not isinstance(rate, int | float)
+            or not math.isfinite(rate)
+            or rate <= 0
+        ):
+            raise InputError(
+                f"expected a positive number [Hz] or null, got {rate!r}",
+                path=path,
+                field="annotation_rate_hz",
+            )
+        rate = float(rate)
+    notes = raw.get("notes", "")
+    if notes is None:
+        notes = ""
+    if not isinstance(notes, str):
+        raise InputError(f"expected a string, got {type(notes).__name__}", path=path, field="notes")
+    return InteractionMeta(
+        id=raw["id"],
+        source=raw["source"],
+        start_time_utc=start,
+        y_axis=raw["y_axis"],
+        annotation_rate_hz=rate,
+        notes=notes,
+    )
+
+
+# ----------------------------------------------------------------------------- CSV helpers
+
+
+def _read_csv(path: Path) -> pd.DataFrame:
+    """Read a CSV: string columns as stripped strings ('' for empty), others parsed by pandas
+    (numbers as float64 with NaN for empty cells; columns holding text stay object)."""
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    try:
+        df = pd.read_csv(
+            path,
+            dtype={c: str for c in _STRING_COLUMNS},
+            keep_default_na=False,
+            na_values=[""],
+            encoding="utf-8-sig",
+            skipinitialspace=True,
+        )
+    except pd.errors.EmptyDataError:
+        raise InputError("empty file (expected a header line and data rows)", path=path) from None
+    except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"not a readable CSV file: {exc}", path=path) from None
+    df.columns = [str(c).strip() for c in df.columns]
+    seen: set[str] = set()
+    for col in df.columns:
+        if col in seen:
+            raise InputError("column appears twice in the header", path=path, field=col)
+        seen.add(col)
+    for col in _STRING_COLUMNS:
+        if col in df.columns:
+            df[col] = df[col].fillna("").astype(str).str.strip()
+    return df
+
+
+def _require(df: pd.DataFrame, path: Path, columns: tuple[str, ...]) -> None:
+    for col in columns:
+        if col not in df.columns:
+            raise InputError(
+                f"missing column in the header (found: {', '.join(df.columns) or 'none'})",
+                path=path,
+                field=col,
+            )
+
+
+def _numeric(
+    df: pd.DataFrame,
+    path: Path,
+    col: str,
+    *,
+    required: bool,
+    lo: float | None = None,
+    hi: float | None = None,
+    unit: str = "",
+) -> np.ndarray:
+    """Column as float64; empty cells are NaN (an error when ``required``)."""
+    if col not in df.columns:
+        return np.full(len(df), np.nan)
+    raw = df[col]
+    if pd.api.types.is_numeric_dtype(raw) and not pd.api.types.is_bool_dtype(raw):
+        values = raw.to_numpy(dtype=np.float64)
+        text = raw
+        bad_text = np.zeros(len(values), dtype=bool)
+    else:
+        text = raw.where(raw.notna(), "").astype(str).str.strip()
+        values = pd.to_numeric(text.where(text != "", None), errors="coerce").to_numpy(
+            dtype=np.float64
+        )
+        bad_text = (
+            np.isnan(values) & (text != "").to_numpy() & ~text.str.lower().isin(["nan"]).to_numpy()
+        )
+    if bad_text.any():
+        i = int(np.flatnonzero(bad_text)[0])
+        raise InputError(
+            f"expected a number{unit}, got {text.iloc[i]!r}", path=path, row=i + 1, field=col
+        )
+    if required and np.isnan(values).any():
+        i = int(np.flatnonzero(np.isnan(values))[0])
+        raise InputError(
+            f"missing value (NaN or empty); expected a number{unit}",
+            path=path,
+            row=i + 1,
+            field=col,
+        )
+    inf = np.isinf(values)
+    if inf.any():
+        i = int(np.flatnonzero(inf)[0])
+        raise InputError(
+            f"expected a finite number{unit}, got {text.iloc[i]!r}", path=path, row=i + 1, field=col
+        )
+    with np.errstate(invalid="ignore"):
+        out_of_range = np.zeros(len(values), dtype=bool)
+        if lo is not None:
+            out_of_range |= values < lo
+        if hi is not None:
+            out_of_range |= values > hi
+    if out_of_range.any():
+        i = int(np.flatnonzero(out_of_range)[0])
+        span = f"[{lo if lo is not None else '-inf'}, {hi if hi is not None else 'inf'}]"
+        raise InputError(
+            f"value {float(values[i])!r} outside {span}{unit}", path=path, row=i + 1, field=col
+        )
+    return values
+
+
+def _times(df: pd.DataFrame, path: Path, start: datetime) -> np.ndarray:
+    """t_s [s] from the ``t_s`` column, or from ``timestamp_utc`` (ISO 8601 with timezone)."""
+    if "t_s" in df.columns:
+        t = _numeric(df, path, "t_s", required=True, unit=" [s]")
+        if "timestamp_utc" in df.columns:
+            t2 = _timestamps_to_s(df, path, start)
+            off = np.abs(t - t2) > 1e-3
+            if off.any():
+                i = int(np.flatnonzero(off)[0])
+                raise InputError(
+                    f"disagrees with t_s = {float(t[i])!r} by {t2[i] - t[i]:.6f} s (give one of t_s, timestamp_utc, or consistent ones)",
+                    path=path,
+                    row=i + 1,
+                    field="timestamp_utc",
+                )
+        return t
+    if "timestamp_utc" in df.columns:
+        return _timestamps_to_s(df, path, start)
+    raise InputError(
+        f"missing column in the header: need t_s or timestamp_utc (found: {', '.join(df.columns) or 'none'})",
+        path=path,
+        field="t_s",
+    )
+
+
+def _timestamps_to_s(df: pd.DataFrame, path: Path, start: datetime) -> np.ndarray:
+    text = df["timestamp_utc"]
+    empty = (text == "").to_numpy()
+    if empty.any():
+        i = int(np.flatnonzero(empty)[0])
+        raise InputError(
+            "missing value; expected an ISO 8601 timestamp with timezone",
+            path=path,
+            row=i + 1,
+            field="timestamp_utc",
+        )
+    naive = ~text.str.contains(_TZ_SUFFIX).to_numpy()
+    if naive.any():
+        i = int(np.flatnonzero(naive)[0])
+        raise InputError(
+            f"{text.iloc[i]!r} has no timezone (naive); write e.g. '{text.iloc[i]}Z' for UTC",
+            path=path,
+            row=i + 1,
+            field="timestamp_utc",
+        )
+    ts = pd.to_datetime(text, format="ISO8601", utc=True, errors="coerce")
+    bad = ts.isna().to_numpy()
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(
+            f"{text.iloc[i]!r} is not an ISO 8601 timestamp",
+            path=path,
+            row=i + 1,
+            field="timestamp_utc",
+        )
+    delta = ts - pd.Timestamp(start)
+    return (delta.dt.total_seconds()).to_numpy(dtype=np.float64)
+
+
+def _strings(df: pd.DataFrame, path: Path, col: str, *, what: str) -> np.ndarray:
+    values = df[col].to_numpy(dtype=object)
+    empty = df[col].to_numpy() == ""
+    if empty.any():
+        i = int(np.flatnonzero(empty)[0])
+        raise InputError(f"missing value; expected {what}", path=path, row=i + 1, field=col)
+    return values.astype(str)
+
+
+def _categories(df: pd.DataFrame, path: Path) -> np.ndarray:
+    cat = _strings(df, path, "category", what=f"one of {', '.join(CATEGORIES)}")
+    unknown = ~np.isin(cat, CATEGORIES)
+    if unknown.any():
+        i = int(np.flatnonzero(unknown)[0])
+        raise InputError(
+            f"unknown category {str(cat[i])!r}; expected one of {', '.join(CATEGORIES)}",
+            path=path,
+            row=i + 1,
+            field="category",
+        )
+    return cat
+
+
+def _check_increasing(
+    t: np.ndarray, path: Path, rows: np.ndarray | None = None, *, label: str = ""
+) -> None:
+    """Times strictly increasing (rows: 1-based file rows of t's entries)."""
+    if t.size < 2:
+        return
+    d = np.diff(t)
+    bad = d <= 0
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0]) + 1
+        row = int(rows[k]) if rows is not None else k + 1
+        prev_row = int(rows[k - 1]) if rows is not None else k
+        kind = "duplicate time" if d[k - 1] == 0 else "time goes backwards"
+        raise InputError(
+            f"{kind}{label}: t_s = {float(t[k])!r} after {float(t[k - 1])!r} at row {prev_row}; times must strictly increase",
+            path=path,
+            row=row,
+            field="t_s",
+        )
+
+
+def _check_tracks(track: np.ndarray, cat: np.ndarray, t: np.ndarray, path: Path) -> None:
+    """Per track: strictly increasing times in file order and one category."""
+    order = np.argsort(track, kind="stable")
+    rows = order + 1
+    tr_sorted = track[order]
+    bounds = np.flatnonzero(tr_sorted[1:] != tr_sorted[:-1]) + 1
+    for seg in np.split(np.arange(len(order)), bounds):
+        idx = order[seg]
+        tid = str(track[idx[0]])
+        _check_increasing(t[idx], path, rows[seg], label=f" in track {tid!r}")
+        cats = cat[idx]
+        if (cats != cats[0]).any():
+            k = int(np.flatnonzero(cats != cats[0])[0])
+            raise InputError(
+                f"track {tid!r} changes category from {str(cats[0])!r} (row {idx[0] + 1}) to {str(cats[k])!r}; "
+                "one category per track",
+                path=path,
+                row=int(idx[k]) + 1,
+                field="category",
+            )
+
+
+def _check_latlon(lat: np.ndarray, lon: np.ndarray, path: Path) -> None:
+    for name, values, limit in (("lat_deg", lat, 90.0), ("lon_deg", lon, 180.0)):
+        bad = np.abs(values) > limit
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            hint = ""
+            if (
+                name == "lat_deg"
+                and np.mean(bad) > 0.5
+                and np.all(np.abs(lon) <= 90.0)
+                and np.all(np.abs(lat) <= 180.0)
+            ):
+                hint = (
+                    "; lat_deg and lon_deg look swapped (lon_deg holds values that fit a latitude)"
+                )
+            raise InputError(
+                f"value {float(values[i])!r} outside [-{limit:g}, {limit:g}] deg{hint}",
+                path=path,
+                row=i + 1,
+                field=name,
+            )
+
+
+def _course_deg(lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Course [deg cw from north] between consecutive fixes that moved, and the index of each start fix."""
+    from pyproj import Geod
+
+    geod = Geod(ellps="WGS84")
+    az, _, dist = geod.inv(lon[:-1], lat[:-1], lon[1:], lat[1:])
+    moved = np.asarray(dist) >= _COURSE_MIN_STEP_M
+    return np.asarray(az)[moved], np.flatnonzero(moved)
+
+
+def _angle_diff_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.abs((a - b + 180.0) % 360.0 - 180.0)
+
+
+def _check_heading_and_axes(
+    lat: np.ndarray, lon: np.ndarray, heading: np.ndarray, path: Path
+) -> None:
+    """Use the course over ground to catch radians-as-degrees headings and swapped lat/lon."""
+    if np.isnan(heading).all() or lat.size < 2:
+        return
+    course, idx = _course_deg(lat, lon)
+    h = heading[idx]
+    ok = np.isfinite(h)
+    course, h, idx = course[ok], h[ok], idx[ok]
+    if course.size < _COURSE_MIN_SAMPLES:
+        return
+    as_given = float(np.median(_angle_diff_deg(course, h)))
+    finite = heading[np.isfinite(heading)]
+    if as_given > _DISAGREE_DEG and np.all(np.abs(finite) <= 2.0 * math.pi + 1e-9):
+        as_rad = float(np.median(_angle_diff_deg(course, np.degrees(h))))
+        if as_rad < _AGREE_DEG:
+            raise InputError(
+                f"heading looks like radians, not degrees: all values lie within +-2*pi and the course "
+                f"over ground agrees with them read as radians (median {as_rad:.1f} deg off) but not as "
+                f"degrees (median {as_given:.1f} deg off); expected degrees clockwise from north",
+                path=path,
+                row=int(idx[0]) + 1,
+                field="heading_deg",
+            )
+    if as_given > _SWAP_DISAGREE_DEG and np.all(np.abs(lon) <= 90.0):
+        sw_course, sw_idx = _course_deg(lon, lat)
+        sw_h = heading[sw_idx]
+        ok = np.isfinite(sw_h)
+        if ok.sum() >= _COURSE_MIN_SAMPLES:
+            swapped = float(np.median(_angle_diff_deg(sw_course[ok], sw_h[ok])))
+            if swapped < _SWAP_AGREE_DEG:
+                raise InputError(
+                    f"lat_deg and lon_deg look swapped: the course over ground disagrees with heading_deg "
+                    f"(median {as_given:.1f} deg off) but agrees when the two columns are exchanged "
+                    f"(median {swapped:.1f} deg off)",
+                    path=path,
+                    row=int(sw_idx[ok][0]) + 1,
+                    field="lat_deg",
+                )
+
+
+# ----------------------------------------------------------------------------- tables
+
+
+def _read_ego(path: Path, start: datetime) -> pd.DataFrame:
+    df = _read_csv(path)
+    _require(df, path, ("lat_deg", "lon_deg"))
+    t = _times(df, path, start)
+    if len(df) < 2:
+        raise InputError(
+            f"the ego track has {len(df)} fix(es); expected at least 2 GPS fixes",
+            path=path,
+            row=len(df) or None,
+            field="t_s",
+        )
+    lat = _numeric(df, path, "lat_deg", required=True, unit=" [deg]")
+    lon = _numeric(df, path, "lon_deg", required=True, unit=" [deg]")
+    _check_latlon(lat, lon, path)
+    heading = _numeric(df, path, "heading_deg", required=False, lo=-360.0, hi=360.0, unit=" [deg]")
+    speed = _numeric(df, path, "speed_mps", required=False, lo=0.0, unit=" [m/s]")
+    _check_increasing(t, path)
+    _check_heading_and_axes(lat, lon, heading, path)
+    return pd.DataFrame(
+        {"t_s": t, "lat_deg": lat, "lon_deg": lon, "heading_deg": heading, "speed_mps": speed}
+    )
+
+
+def _read_annotations(path: Path, start: datetime, ego_t: np.ndarray) -> pd.DataFrame:
+    df = _read_csv(path)
+    _require(df, path, ("track_id", "category", "x_m", "y_m"))
+    t = _times(df, path, start)
+    if len(df) == 0:
+        raise InputError(
+            "no annotations: expected at least one annotated road user (one data row)",
+            path=path,
+            field="track_id",
+        )
+    track = _strings(df, path, "track_id", what="a track id")
+    cat = _categories(df, path)
+    x = _numeric(df, path, "x_m", required=True, unit=" [m]")
+    y = _numeric(df, path, "y_m", required=True, unit=" [m]")
+    yaw = _numeric(df, path, "yaw_deg", required=False, lo=-360.0, hi=360.0, unit=" [deg]")
+    length = _numeric(df, path, "length_m", required=False, lo=0.0, unit=" [m]")
+    width = _numeric(df, path, "width_m", required=False, lo=0.0, unit=" [m]")
+    for name, v in (("length_m", length), ("width_m", width)):
+        zero = v == 0
+        if zero.any():
+            i = int(np.flatnonzero(zero)[0])
+            raise InputError(
+                "expected a positive size [m] (or an empty cell for unknown)",
+                path=path,
+                row=i + 1,
+                field=name,
+            )
+    _check_tracks(track, cat, t, path)
+    lo, hi = float(ego_t[0]), float(ego_t[-1])
+    outside = (t < lo - TIME_TOLERANCE_S) | (t > hi + TIME_TOLERANCE_S)
+    if outside.any():
+        i = int(np.flatnonzero(outside)[0])
+        raise InputError(
+            f"t_s = {float(t[i])!r} lies outside the GPS time span [{lo!r}, {hi!r}] s of {EGO_FILE}; "
+            "annotations need the ego position at their time",
+            path=path,
+            row=i + 1,
+            field="t_s",
+        )
+    out = pd.DataFrame(
+        {
+            "t_s": t,
+            "track_id": pd.Series(track, dtype=object),
+            "category": pd.Series(cat, dtype=object),
+            "x_m": x,
+            "y_m": y,
+            "yaw_deg": yaw,
+            "length_m": length,
+            "width_m": width,
+        }
+    )
+    return out.sort_values(["track_id", "t_s"], kind="stable").reset_index(drop=True)
+
+
+def _read_ground_truth(path: Path, start: datetime) -> pd.DataFrame:
+    df = _read_csv(path)
+    _require(df, path, ("track_id", "category", "lat_deg", "lon_deg"))
+    t = _times(df, path, start)
+    if len(df) == 0:
+        raise InputError(
+            "no rows: expected at least one ground-truth sample (or no file)",
+            path=path,
+            field="track_id",
+        )
+    track = _strings(df, path, "track_id", what="a track id")
+    cat = _categories(df, path)
+    lat = _numeric(df, path, "lat_deg", required=True, unit=" [deg]")
+    lon = _numeric(df, path, "lon_deg", required=True, unit=" [deg]")
+    _check_latlon(lat, lon, path)
+    _check_tracks(track, cat, t, path)
+    out = pd.DataFrame(
+        {
+            "t_s": t,
+            "track_id": pd.Series(track, dtype=object),
+            "category": pd.Series(cat, dtype=object),
+            "lat_deg": lat,
+            "lon_deg": lon,
+        }
+    )
+    return out.sort_values(["track_id", "t_s"], kind="stable").reset_index(drop=True)
+
+
+def read_interaction(folder: str | Path) -> Interaction:
+    """Read and validate an interaction folder (format ``vei.interaction/1``).
+
+    Returns an :class:`~vei.types.Interaction` whose tables have exactly the documented
+    columns (extra CSV columns are ignored; absent optional columns are NaN):
+
+    - ``ego`` [N_ego rows]: t_s [s], lat_deg, lon_deg [deg], heading_deg [deg cw from true
+      north], speed_mps [m/s]; sorted by t_s.
+    - ``annotations`` [N_ann rows]: t_s, track_id (str), category, x_m, y_m [m, y per
+      meta.y_axis], yaw_deg [deg], length_m, width_m [m]; sorted by (track_id, t_s).
+    - ``ground_truth`` [N_gt rows] or None: t_s, track_id (str), category, lat_deg, lon_deg.
+
+    Times given as ``timestamp_utc`` (ISO 8601 with timezone) are converted to t_s, seconds
+    since ``start_time_utc``.
+
+    Raises:
+        InputError: naming file, 1-based data row and field, for anything the spec forbids.
+    """
+    root = Path(folder)
+    if not root.is_dir():
+        raise InputError(
+            "not a folder (expected an interaction folder with interaction.json, ego.csv, annotations.csv)",
+            path=root,
+        )
+    meta = _read_meta(root / META_FILE)
+    ego = _read_ego(root / EGO_FILE, meta.start_time_utc)
+    annotations = _read_annotations(
+        root / ANNOTATIONS_FILE, meta.start_time_utc, ego["t_s"].to_numpy()
+    )
+    gt_path = root / GROUND_TRUTH_FILE
+    ground_truth = _read_ground_truth(gt_path, meta.start_time_utc) if gt_path.exists() else None
+    return Interaction(
+        meta=meta, ego=ego, annotations=annotations, ground_truth=ground_truth, root=root
+    )
+
+
+# ----------------------------------------------------------------------------- writer
+
+
+def format_utc(dt: datetime) -> str:
+    """Aware datetime -> ISO 8601 UTC string with microseconds and a 'Z' suffix."""
+    if dt.tzinfo is None or dt.utcoffset() is None:
+        raise InputError(
+            f"start_time_utc {dt!r} has no timezone (naive); expected an aware datetime",
+            field="start_time_utc",
+        )
+    return dt.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
+def _table_for_writing(
+    df: pd.DataFrame, columns: tuple[str, ...], required: tuple[str, ...], name: str
+) -> pd.DataFrame:
+    for col in required:
+        if col not in df.columns:
+            raise InputError(f"the {name} table lacks the required column", path=name, field=col)
+    out = pd.DataFrame(index=df.index)
+    for col in columns:
+        out[col] = df[col] if col in df.columns else np.nan
+    return out.reset_index(drop=True)
+
+
+def write_interaction(
+    interaction: Interaction, folder: str | Path, *, overwrite: bool = True
+) -> Path:
+    """Write ``interaction`` as a format-v1 folder, atomically; returns the folder.
+
+    The folder is assembled next to the target, read back with :func:`read_interaction`
+    (so invalid data is refused with the same messages) and only then renamed into place.
+    Floats are written with full (round-trip) precision; NaN as empty cells. Reading the
+    result gives back equal tables.
+
+    Raises:
+        InputError: the interaction violates the format (nothing is written).
+        FileExistsError: ``folder`` exists, is not empty and ``overwrite`` is False.
+    """
+    target = Path(folder)
+    meta = interaction.meta
+    doc: dict[str, Any] = {
+        "format": FORMAT,
+        "id": meta.id,
+        "source": meta.source,
+        "start_time_utc": format_utc(meta.start_time_utc),
+        "y_axis": meta.y_axis,
+    }
+    if meta.annotation_rate_hz is not None:
+        doc["annotation_rate_hz"] = meta.annotation_rate_hz
+    if meta.notes:
+        doc["notes"] = meta.notes
+    ego = _table_for_writing(interaction.ego, EGO_COLUMNS, ("t_s", "lat_deg", "lon_deg"), EGO_FILE)
+    ann = _table_for_writing(
+        interaction.annotations,
+        ANNOTATION_COLUMNS,
+        ("t_s", "track_id", "category", "x_m", "y_m"),
+        ANNOTATIONS_FILE,
+    )
+    ann["track_id"] = ann["track_id"].astype(str)
+    gt = None
+    if interaction.ground_truth is not None:
+        gt = _table_for_writing(
+            interaction.ground_truth, GROUND_TRUTH_COLUMNS, GROUND_TRUTH_COLUMNS, GROUND_TRUTH_FILE
+        )
+        gt["track_id"] = gt["track_id"].astype(str)
+    with atomic_dir(target, overwrite=overwrite) as tmp:
+        (tmp / META_FILE).write_text(
+            json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8"
+        )
+        ego.to_csv(tmp / EGO_FILE, index=False, na_rep="", float_format=None)
+        ann.to_csv(tmp / ANNOTATIONS_FILE, index=False, na_rep="")
+        if gt is not None:
+            gt.to_csv(tmp / GROUND_TRUTH_FILE, index=False, na_rep="")
+        try:
+            read_interaction(tmp)
+        except InputError as exc:
+            where = None if exc.path is None else target / exc.path.name
+            raise InputError(
+                f"refusing to write an invalid interaction: {exc.detail}",
+                path=where,
+                row=exc.row,
+                field=exc.field,
+            ) from None
+    return target

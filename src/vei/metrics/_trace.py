@@ -1,0 +1,137 @@
+"""Array views of a :class:`vei.types.Trace` shared by the metric modules (internal)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import numpy.typing as npt
+
+from vei.errors import InputError
+from vei.metrics.geometry import box_corners, box_gap
+from vei.types import Trace
+
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class TraceArrays:
+    """A Trace as validated float/bool arrays ([B, T] unless noted), with derived geometry."""
+
+    trace: Trace
+
+    def __post_init__(self) -> None:
+        t = self.t_s
+        b, n = self.ego_speed.shape
+        if t.ndim != 1 or t.size != n:
+            raise InputError(
+                f"trace t_s has shape {t.shape}, expected [{n}] to match ego_speed_mps [B, T]"
+            )
+        expected = {
+            "ego_xy_m": (b, n, 2),
+            "ego_yaw_rad": (b, n),
+            "ego_accel_mps2": (b, n),
+            "other_xy_m": (b, n, 2),
+            "other_yaw_rad": (b, n),
+            "other_speed_mps": (b, n),
+            "other_vel_mps": (b, n, 2),
+            "other_active": (b, n),
+            "collided": (b, n),
+        }
+        for name, shape in expected.items():
+            got = np.shape(getattr(self.trace, name))
+            if got != shape:
+                raise InputError(
+                    f"trace field {name} has shape {got}, expected {shape}", field=name
+                )
+        if n > 2 and not np.allclose(np.diff(t), t[1] - t[0], rtol=1e-6, atol=1e-9):
+            raise InputError("trace t_s is not a uniform time grid", field="t_s")
+
+    @cached_property
+    def t_s(self) -> FloatArray:
+        return np.asarray(self.trace.t_s, dtype=np.float64)
+
+    @property
+    def dt_s(self) -> float:
+        return self.trace.dt_s
+
+    @cached_property
+    def ego_xy(self) -> FloatArray:
+        return np.asarray(self.trace.ego_xy_m, dtype=np.float64)
+
+    @cached_property
+    def ego_yaw(self) -> FloatArray:
+        return np.asarray(self.trace.ego_yaw_rad, dtype=np.float64)
+
+    @cached_property
+    def ego_speed(self) -> FloatArray:
+        return np.atleast_2d(np.asarray(self.trace.ego_speed_mps, dtype=np.float64))
+
+    @cached_property
+    def ego_accel(self) -> FloatArray:
+        return np.asarray(self.trace.ego_accel_mps2, dtype=np.float64)
+
+    @cached_property
+    def ego_vel(self) -> FloatArray:
+        """[B, T, 2] ego velocity vector (m/s) from speed and heading."""
+        return self.ego_speed[..., None] * np.stack(
+            [np.cos(self.ego_yaw), np.sin(self.ego_yaw)], axis=-1
+        )
+
+    @cached_property
+    def other_xy(self) -> FloatArray:
+        return np.asarray(self.trace.other_xy_m, dtype=np.float64)
+
+    @cached_property
+    def other_yaw(self) -> FloatArray:
+        return np.asarray(self.trace.other_yaw_rad, dtype=np.float64)
+
+    @cached_property
+    def other_vel(self) -> FloatArray:
+        return np.asarray(self.trace.other_vel_mps, dtype=np.float64)
+
+    @cached_property
+    def active(self) -> BoolArray:
+        return np.asarray(self.trace.other_active, dtype=bool)
+
+    @cached_property
+    def collided(self) -> BoolArray:
+        return np.asarray(self.trace.collided, dtype=bool)
+
+    @cached_property
+    def ego_corners(self) -> FloatArray:
+        tr = self.trace
+        return box_corners(self.ego_xy, self.ego_yaw, tr.ego_length_m, tr.ego_width_m)
+
+    @cached_property
+    def other_corners(self) -> FloatArray:
+        tr = self.trace
+        # Inactive steps may hold NaN positions: park them far away (results are masked).
+        xy = np.where(self.active[..., None] & np.isfinite(self.other_xy), self.other_xy, 1e9)
+        yaw = np.where(np.isfinite(self.other_yaw), self.other_yaw, 0.0)
+        return box_corners(xy, yaw, tr.other_length_m, tr.other_width_m)
+
+    @cached_property
+    def gap(self) -> FloatArray:
+        """[B, T] box-to-box gap (m); NaN where the other road user is inactive."""
+        g = box_gap(self.ego_corners, self.other_corners)
+        return np.where(self.active, g, np.nan)
+
+    @cached_property
+    def rel_xy(self) -> FloatArray:
+        """[B, T, 2] other's centre in the ego frame (x forward, y left) (m)."""
+        d = self.other_xy - self.ego_xy
+        c, s = np.cos(self.ego_yaw), np.sin(self.ego_yaw)
+        return np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], axis=-1)
+
+    @cached_property
+    def ahead(self) -> BoolArray:
+        """[B, T] the other's centre is ahead of the ego's centre along the ego heading."""
+        return self.active & (self.rel_xy[..., 0] > 0.0)
+
+
+def arrays(trace: Trace | TraceArrays) -> TraceArrays:
+    """Wrap a Trace (idempotent), validating its shapes."""
+    return trace if isinstance(trace, TraceArrays) else TraceArrays(trace)

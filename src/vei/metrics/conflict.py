@@ -1,0 +1,130 @@
+"""Conflict measures: minimum gap, post-encroachment time (PET) and deceleration rate to
+avoid a crash (DRAC).
+
+- Gap: the box-to-box distance of the two footprints (m), per step.
+- PET: the paths' conflict point is the first crossing of the two centre paths (the ego
+  over the whole run, the other road user over its active span, earliest along the
+  other's path). Each agent occupies the point while its centre is within half its
+  length of it along its own path; PET = (time the second arrives) - (time the first
+  leaves), 0 if the occupancies overlap or the run collides, NaN if the paths never cross.
+- DRAC: v_close^2 / (2 gap), with v_close = v_ego - (v_other . ego heading), the closing
+  speed along the ego's heading, while the other is ahead of the ego and closing; 0 when
+  not closing or behind; NaN where inactive or collided.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from vei.metrics._trace import TraceArrays, arrays
+from vei.metrics.config import MetricsConfig
+from vei.types import Trace
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def gap_series(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
+    """[B, T] box-to-box gap (m), 0 where the boxes touch or overlap, NaN where inactive."""
+    return arrays(trace).gap.copy()
+
+
+def min_gap(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
+    """[B] smallest box-to-box gap over the interaction span (m); NaN if never active."""
+    g = arrays(trace).gap
+    out = np.full(g.shape[0], np.nan)
+    has = np.isfinite(g).any(axis=1)
+    out[has] = np.nanmin(g[has], axis=1)
+    return out
+
+
+def drac_series(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
+    """[B, T] deceleration rate to avoid a crash (m/s^2, >= 0); NaN inactive or collided."""
+    a = arrays(trace)
+    heading = np.stack([np.cos(a.ego_yaw), np.sin(a.ego_yaw)], axis=-1)
+    v_close = a.ego_speed - np.sum(a.other_vel * heading, axis=-1)
+    closing = a.ahead & (v_close > 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        drac = np.where(closing, v_close**2 / (2.0 * a.gap), 0.0)
+    drac = np.where(closing & (a.gap <= 0.0), np.inf, drac)
+    return np.where(a.active & ~a.collided, drac, np.nan)
+
+
+def max_drac(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
+    """[B] largest DRAC over the non-collided interaction span (m/s^2); NaN if none."""
+    d = drac_series(trace, cfg)
+    out = np.full(d.shape[0], np.nan)
+    has = np.isfinite(d).any(axis=1) | np.isinf(d).any(axis=1)
+    out[has] = np.nanmax(d[has], axis=1)
+    return out
+
+
+def _first_crossing(p: FloatArray, q: FloatArray) -> tuple[int, float, int, float] | None:
+    """First crossing of polylines p [N, 2] and q [M, 2], earliest along q.
+
+    Returns (i, u, j, w): p's segment i at fraction u, q's segment j at fraction w.
+    """
+    if len(p) < 2 or len(q) < 2:
+        return None
+    a, da = p[:-1, None, :], (p[1:] - p[:-1])[:, None, :]
+    b, db = q[None, :-1, :], (q[1:] - q[:-1])[None, :, :]
+    denom = da[..., 0] * db[..., 1] - da[..., 1] * db[..., 0]
+    ab = b - a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = (ab[..., 0] * db[..., 1] - ab[..., 1] * db[..., 0]) / denom
+        w = (ab[..., 0] * da[..., 1] - ab[..., 1] * da[..., 0]) / denom
+    ok = (np.abs(denom) > 1e-12) & (u >= 0) & (u <= 1) & (w >= 0) & (w <= 1)
+    if not ok.any():
+        return None
+    ii, jj = np.nonzero(ok)
+    key = jj + w[ii, jj]
+    k = int(np.argmin(key))
+    i, j = int(ii[k]), int(jj[k])
+    return i, float(u[i, j]), j, float(w[i, j])
+
+
+def _occupancy(t: FloatArray, s: FloatArray, s_c: float, half_len: float) -> tuple[float, float]:
+    """Time interval in which the arc length s(t) (non-decreasing) lies within s_c +- half_len."""
+
+    def first_reach(target: float) -> float:
+        k = int(np.searchsorted(s, target, side="left"))
+        if k == 0:
+            return float(t[0])
+        if k >= len(s):
+            return float("inf")
+        ds = s[k] - s[k - 1]
+        frac = 0.0 if ds <= 0 else (target - s[k - 1]) / ds
+        return float(t[k - 1] + frac * (t[k] - t[k - 1]))
+
+    return first_reach(s_c - half_len), first_reach(s_c + half_len + 1e-9)
+
+
+def pet(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
+    """[B] post-encroachment time at the paths' conflict point (s); see module docstring."""
+    a = arrays(trace)
+    tr = a.trace
+    t = a.t_s
+    out = np.full(a.ego_speed.shape[0], np.nan)
+    for bi in range(out.size):
+        if a.collided[bi].any():
+            out[bi] = 0.0
+            continue
+        act = a.active[bi] & np.isfinite(a.other_xy[bi]).all(axis=-1)
+        if act.sum() < 2:
+            continue
+        pe, po, to = a.ego_xy[bi], a.other_xy[bi][act], t[act]
+        hit = _first_crossing(pe, po)
+        if hit is None:
+            continue
+        i, u, j, w = hit
+        se = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pe, axis=0), axis=1))])
+        so = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(po, axis=0), axis=1))])
+        sce = se[i] + u * (se[i + 1] - se[i])
+        sco = so[j] + w * (so[j + 1] - so[j])
+        e_in, e_out = _occupancy(t, se, sce, 0.5 * tr.ego_length_m)
+        o_in, o_out = _occupancy(to, so, sco, 0.5 * tr.other_length_m)
+        if e_in <= o_in:
+            out[bi] = max(0.0, o_in - e_out)
+        else:
+            out[bi] = max(0.0, e_in - o_out)
+    return out

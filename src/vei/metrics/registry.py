@@ -1,0 +1,208 @@
+"""One interface for every metric: ``Metric.compute(trace, cfg) -> np.ndarray`` and a
+registry by name.
+
+Scalar metrics return one value per run ``[B]``; series metrics return ``[B, T]``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from vei.errors import ConfigError
+from vei.metrics import conflict, kinematics, ttc
+from vei.metrics._trace import TraceArrays, arrays
+from vei.metrics.config import MetricsConfig
+from vei.types import Trace
+
+MetricFn = Callable[[TraceArrays, MetricsConfig], np.ndarray]
+
+
+@dataclass(frozen=True)
+class Metric:
+    """A named metric.
+
+    Attributes:
+        name: registry key (also the summary column).
+        kind: 'scalar' -> compute returns [B]; 'series' -> [B, T].
+        unit: unit of the values ('s', 'm', 'm/s^2', 'm/s', '1', 'bool', 'zone').
+        description: one line.
+        fn: the implementation (trace arrays, config) -> array.
+    """
+
+    name: str
+    kind: Literal["scalar", "series"]
+    unit: str
+    description: str
+    fn: MetricFn
+
+    def compute(self, trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> np.ndarray:
+        """Evaluate on a trace of B runs: [B] (scalar) or [B, T] (series)."""
+        return self.fn(arrays(trace), MetricsConfig() if cfg is None else cfg)
+
+
+def _collision(a: TraceArrays, cfg: MetricsConfig) -> npt.NDArray[np.bool_]:
+    return a.collided.any(axis=1)
+
+
+def _collision_time(a: TraceArrays, cfg: MetricsConfig) -> np.ndarray:
+    hit = a.collided.any(axis=1)
+    first = np.argmax(a.collided, axis=1)
+    return np.where(hit, a.t_s[first], np.nan)
+
+
+def _nanmin(x: np.ndarray) -> np.ndarray:
+    out = np.full(x.shape[0], np.nan)
+    has = ~np.isnan(x).all(axis=1)
+    out[has] = np.nanmin(x[has], axis=1)
+    return out
+
+
+def _zone_time(zone: str) -> MetricFn:
+    return lambda a, cfg: ttc.zone_durations(a, cfg)[zone]
+
+
+_ALL: tuple[Metric, ...] = (
+    Metric(
+        "collision", "scalar", "bool", "ego and road user collided (boxes overlapped)", _collision
+    ),
+    Metric(
+        "collision_time_s",
+        "scalar",
+        "s",
+        "time of the first collision (NaN if none)",
+        _collision_time,
+    ),
+    Metric(
+        "safety_index",
+        "scalar",
+        "1",
+        "paper: (T_safe + T_attention) / T_all, 0 on collision",
+        lambda a, c: ttc.safety_index(a, c),
+    ),
+    Metric(
+        "t_safe_s", "scalar", "s", "time in the safe zone (TTC > safe_ttc_s)", _zone_time("safe")
+    ),
+    Metric("t_attention_s", "scalar", "s", "time in the attention zone", _zone_time("attention")),
+    Metric(
+        "t_alert_s",
+        "scalar",
+        "s",
+        "time in the alert zone (TTC <= alert_ttc_s)",
+        _zone_time("alert"),
+    ),
+    Metric(
+        "t_collision_s",
+        "scalar",
+        "s",
+        "time in the collision zone (after the crash)",
+        _zone_time("collision"),
+    ),
+    Metric(
+        "t_interaction_s",
+        "scalar",
+        "s",
+        "length of the interaction span (road user active)",
+        _zone_time("all"),
+    ),
+    Metric(
+        "min_gap_m", "scalar", "m", "smallest box-to-box gap", lambda a, c: conflict.min_gap(a, c)
+    ),
+    Metric(
+        "min_ttc_s",
+        "scalar",
+        "s",
+        "smallest paper TTC = gap / v_ego",
+        lambda a, c: _nanmin(ttc.paper_ttc(a, c)),
+    ),
+    Metric(
+        "min_ttc_rel_s",
+        "scalar",
+        "s",
+        "smallest TTC with relative velocity (boxes)",
+        lambda a, c: _nanmin(ttc.relative_ttc(a, c)),
+    ),
+    Metric(
+        "pet_s",
+        "scalar",
+        "s",
+        "post-encroachment time at the paths' conflict point",
+        lambda a, c: conflict.pet(a, c),
+    ),
+    Metric(
+        "max_drac_mps2",
+        "scalar",
+        "m/s^2",
+        "largest deceleration rate to avoid a crash",
+        lambda a, c: conflict.max_drac(a, c),
+    ),
+    Metric(
+        "peak_decel_mps2",
+        "scalar",
+        "m/s^2",
+        "largest ego deceleration before any crash",
+        lambda a, c: kinematics.peak_deceleration(a, c),
+    ),
+    Metric(
+        "ego_speed_std_mps",
+        "scalar",
+        "m/s",
+        "std of the ego speed over the run (Fig. 6)",
+        lambda a, c: kinematics.ego_speed_std(a, c),
+    ),
+    Metric(
+        "ego_speed_mean_mps",
+        "scalar",
+        "m/s",
+        "mean ego speed over the run",
+        lambda a, c: kinematics.ego_speed_mean(a, c),
+    ),
+    Metric(
+        "ego_speed_min_mps",
+        "scalar",
+        "m/s",
+        "lowest ego speed over the run",
+        lambda a, c: kinematics.ego_speed_min(a, c),
+    ),
+    Metric("ttc_s", "series", "s", "paper TTC per step", lambda a, c: ttc.paper_ttc(a, c)),
+    Metric(
+        "ttc_zone",
+        "series",
+        "zone",
+        "TTC zone code per step (see vei.metrics.ttc.ZONE_NAMES)",
+        lambda a, c: ttc.ttc_zones(a, c),
+    ),
+    Metric(
+        "ttc_rel_s",
+        "series",
+        "s",
+        "TTC with relative velocity per step",
+        lambda a, c: ttc.relative_ttc(a, c),
+    ),
+    Metric(
+        "gap_m", "series", "m", "box-to-box gap per step", lambda a, c: conflict.gap_series(a, c)
+    ),
+    Metric(
+        "drac_mps2", "series", "m/s^2", "DRAC per step", lambda a, c: conflict.drac_series(a, c)
+    ),
+)
+
+#: Every metric by name (read-only).
+METRICS: Mapping[str, Metric] = MappingProxyType({m.name: m for m in _ALL})
+#: Names of the scalar metrics, in summary-column order.
+SCALAR_METRICS: tuple[str, ...] = tuple(m.name for m in _ALL if m.kind == "scalar")
+#: Names of the per-step metrics.
+SERIES_METRICS: tuple[str, ...] = tuple(m.name for m in _ALL if m.kind == "series")
+
+
+def get_metric(name: str) -> Metric:
+    """The metric registered under ``name`` (ConfigError naming the known ones otherwise)."""
+    try:
+        return METRICS[name]
+    except KeyError:
+        raise ConfigError(f"unknown metric {name!r}; known: {', '.join(METRICS)}") from None

@@ -1,0 +1,118 @@
+"""Build a metrics :class:`vei.types.Trace` from a long-format run time series.
+
+Every backend (the built-in engine, CARLA, ...) writes the same long table with
+:data:`vei.types.TIMESERIES_COLUMNS` (one row per agent per step); this turns the rows of
+the ego and one other road user into the arrays the metrics take, so metrics never depend
+on a backend.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from vei.errors import InputError
+from vei.types import EGO_ID, Trace
+
+_NEEDED = (
+    "config",
+    "variant",
+    "t_s",
+    "agent_id",
+    "x_m",
+    "y_m",
+    "yaw_rad",
+    "speed_mps",
+    "accel_mps2",
+    "active",
+    "collided",
+)
+
+
+def trace_from_timeseries(
+    frame: pd.DataFrame,
+    *,
+    other_id: str,
+    ego_dims_m: tuple[float, float],
+    other_dims_m: tuple[float, float],
+    ego_id: str = EGO_ID,
+) -> tuple[Trace, list[tuple[str, int]]]:
+    """Trace of the ego and ``other_id`` for every run (config, variant) in ``frame``.
+
+    Args:
+        frame: long time series (TIMESERIES_COLUMNS); every run on the same time grid.
+        other_id: agent_id of the road user to score against (the primary threat).
+        ego_dims_m, other_dims_m: (length, width) footprints [m].
+        ego_id: agent_id of the ego.
+    Returns:
+        (trace with B = number of runs, [(config, variant)] in order of first appearance).
+        Steps where the other has no row, or ``active`` is False, are inactive (NaN
+        position); its velocity vector is speed * (cos yaw, sin yaw).
+    """
+    missing = [c for c in _NEEDED if c not in frame.columns]
+    if missing:
+        raise InputError(f"time series lacks column(s) {', '.join(missing)}", field=missing[0])
+    runs = list(
+        dict.fromkeys(zip(frame["config"].astype(str), frame["variant"].astype(int), strict=True))
+    )
+    if not runs:
+        raise InputError("time series is empty")
+    t = np.unique(frame["t_s"].to_numpy(dtype=np.float64))
+    n_t, n_b = t.size, len(runs)
+    run_index = {r: i for i, r in enumerate(runs)}
+
+    def grid(agent: str) -> dict[str, np.ndarray]:
+        rows = frame[frame["agent_id"].astype(str) == agent]
+        bi = np.array(
+            [
+                run_index[(c, int(v))]
+                for c, v in zip(rows["config"].astype(str), rows["variant"], strict=True)
+            ],
+            dtype=int,
+        )
+        ti = np.searchsorted(t, rows["t_s"].to_numpy(dtype=np.float64))
+        present = np.zeros((n_b, n_t), dtype=bool)
+        present[bi, ti] = True
+        out = {"present": present}
+        for col in ("x_m", "y_m", "yaw_rad", "speed_mps", "accel_mps2"):
+            arr = np.full((n_b, n_t), np.nan)
+            arr[bi, ti] = rows[col].to_numpy(dtype=np.float64)
+            out[col] = arr
+        for col in ("active", "collided"):
+            arr = np.zeros((n_b, n_t), dtype=bool)
+            arr[bi, ti] = rows[col].to_numpy(dtype=bool)
+            out[col] = arr
+        return out
+
+    ego = grid(ego_id)
+    if not ego["present"].all():
+        b, k = np.argwhere(~ego["present"])[0]
+        raise InputError(
+            f"time series has no ego row for run {runs[b]} at t = {t[k]:.3f} s", field="agent_id"
+        )
+    oth = grid(other_id)
+    if not oth["present"].any():
+        raise InputError(f"time series has no rows of agent {other_id!r}", field="agent_id")
+    active = oth["present"] & oth["active"]
+    other_xy = np.stack([oth["x_m"], oth["y_m"]], axis=-1)
+    other_xy[~active] = np.nan
+    yaw = np.where(np.isfinite(oth["yaw_rad"]), oth["yaw_rad"], 0.0)
+    speed = np.where(np.isfinite(oth["speed_mps"]), oth["speed_mps"], 0.0)
+    trace = Trace(
+        t_s=t,
+        ego_xy_m=np.stack([ego["x_m"], ego["y_m"]], axis=-1),
+        ego_yaw_rad=ego["yaw_rad"],
+        ego_speed_mps=ego["speed_mps"],
+        ego_accel_mps2=np.nan_to_num(ego["accel_mps2"]),
+        other_xy_m=other_xy,
+        other_yaw_rad=yaw,
+        other_speed_mps=speed,
+        other_vel_mps=speed[..., None] * np.stack([np.cos(yaw), np.sin(yaw)], axis=-1),
+        other_active=active,
+        collided=np.logical_or.accumulate(oth["collided"], axis=1),
+        ego_length_m=float(ego_dims_m[0]),
+        ego_width_m=float(ego_dims_m[1]),
+        other_length_m=float(other_dims_m[0]),
+        other_width_m=float(other_dims_m[1]),
+    )
+    return trace, runs

@@ -1,0 +1,233 @@
+"""Social-force e-scooter rider (paper Section III-C; DESIGN.md "Models").
+
+``m a = f_des + f_veh`` on a point mass, integrated with semi-implicit Euler:
+
+- ``f_des = k_des (v_des - v)``;
+- ``v_des = v0 (g - p) / sqrt(|g - p|^2 + sigma^2)`` ('normalised', default: speed ~v0 far
+  from the goal g, decaying to 0 at it) or the paper's literal
+  ``v_des = v0 (g - p) / (|g - p|^2 + sigma^2)`` ('paper');
+- ``f_veh = A exp(-b d) n``, d = distance from the vehicle's influential point q to the
+  rider, n = unit vector from q to the rider. Where the rider is inside the vehicle's box
+  (d = 0) n points from the box centre to the rider (or along the vehicle's heading if
+  they coincide).
+
+Pure functions over arrays of any broadcastable shape (the engine uses ``[B]``); vectors
+are passed as separate x / y component arrays. SI units throughout.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from vei.models.geometry import closest_point_on_box
+
+FloatArray = npt.NDArray[np.float64]
+ArrayLike = npt.ArrayLike
+
+
+def desired_velocity(
+    px_m: ArrayLike,
+    py_m: ArrayLike,
+    gx_m: ArrayLike,
+    gy_m: ArrayLike,
+    v0_mps: ArrayLike,
+    sigma_m: ArrayLike,
+    paper_form: ArrayLike = False,
+) -> tuple[FloatArray, FloatArray]:
+    """Desired velocity v_des towards the goal g.
+
+    Args:
+        px_m, py_m: rider position [...] (m).
+        gx_m, gy_m: goal position s_des [...] (m).
+        v0_mps: nominal speed v0 [...] (m/s).
+        sigma_m: regulariser sigma [...] (m), > 0.
+        paper_form: [...] bool; True = the paper's literal form (denominator |.|^2 +
+            sigma^2, result in 1/s * m... i.e. speed v0 |d| / (|d|^2 + sigma^2)), False =
+            normalised (denominator sqrt(|d|^2 + sigma^2)).
+    Returns:
+        (vx_mps, vy_mps) [...].
+    """
+    dx = np.subtract(gx_m, px_m, dtype=np.float64)
+    dy = np.subtract(gy_m, py_m, dtype=np.float64)
+    q = dx * dx + dy * dy + np.square(sigma_m)
+    paper = np.asarray(paper_form, dtype=bool)
+    if paper.ndim == 0:
+        den = q if bool(paper) else np.sqrt(q)
+    else:
+        den = np.where(paper, q, np.sqrt(q))
+    f = np.asarray(v0_mps, dtype=np.float64) / den
+    return f * dx, f * dy
+
+
+def destination_force(
+    vdes_x_mps: ArrayLike,
+    vdes_y_mps: ArrayLike,
+    vx_mps: ArrayLike,
+    vy_mps: ArrayLike,
+    k_des_nspm: ArrayLike,
+) -> tuple[FloatArray, FloatArray]:
+    """f_des = k_des (v_des - v).
+
+    Args:
+        vdes_x_mps, vdes_y_mps: desired velocity [...] (m/s).
+        vx_mps, vy_mps: current velocity [...] (m/s).
+        k_des_nspm: gain [...] (N s/m).
+    Returns:
+        (fx_n, fy_n) [...] force [N].
+    """
+    k = np.asarray(k_des_nspm, dtype=np.float64)
+    return k * np.subtract(vdes_x_mps, vx_mps), k * np.subtract(vdes_y_mps, vy_mps)
+
+
+def influential_point(
+    px_m: ArrayLike,
+    py_m: ArrayLike,
+    ego_x_m: ArrayLike,
+    ego_y_m: ArrayLike,
+    ego_yaw_rad: ArrayLike,
+    ego_length_m: ArrayLike,
+    ego_width_m: ArrayLike,
+    front_bumper: ArrayLike = False,
+) -> tuple[FloatArray, FloatArray]:
+    """The ego's influential point s_influence for a rider at p.
+
+    Args:
+        px_m, py_m: rider position [...] (m).
+        ego_x_m, ego_y_m, ego_yaw_rad, ego_length_m, ego_width_m: ego box [...] (m, rad).
+        front_bumper: [...] bool; True = centre of the front edge, False = the point of
+            the ego's box closest to the rider.
+    Returns:
+        (qx_m, qy_m) [...].
+    """
+    fb = np.asarray(front_bumper, dtype=bool)
+    if fb.ndim == 0 and bool(fb):
+        hl = 0.5 * np.asarray(ego_length_m, dtype=np.float64)
+        return ego_x_m + hl * np.cos(ego_yaw_rad), ego_y_m + hl * np.sin(ego_yaw_rad)
+    qx, qy = closest_point_on_box(px_m, py_m, ego_x_m, ego_y_m, ego_yaw_rad, ego_length_m, ego_width_m)
+    if fb.ndim == 0 or not fb.any():
+        return qx, qy
+    hl = 0.5 * np.asarray(ego_length_m, dtype=np.float64)
+    fx = ego_x_m + hl * np.cos(ego_yaw_rad)
+    fy = ego_y_m + hl * np.sin(ego_yaw_rad)
+    return np.where(fb, fx, qx), np.where(fb, fy, qy)
+
+
+def vehicle_force(
+    px_m: ArrayLike,
+    py_m: ArrayLike,
+    qx_m: ArrayLike,
+    qy_m: ArrayLike,
+    a_veh_n: ArrayLike,
+    b_veh_per_m: ArrayLike,
+    ego_x_m: ArrayLike | None = None,
+    ego_y_m: ArrayLike | None = None,
+    ego_yaw_rad: ArrayLike | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """f_veh = A exp(-b d) n from the influential point q to the rider p.
+
+    Args:
+        px_m, py_m: rider position [...] (m).
+        qx_m, qy_m: influential point [...] (m).
+        a_veh_n: amplitude A [...] (N). b_veh_per_m: decay b [...] (1/m).
+        ego_x_m, ego_y_m, ego_yaw_rad: ego centre and heading, used for the direction n
+            only where p coincides with q (rider inside the box): n then points from the
+            ego centre to the rider, or along the ego's heading if they coincide too.
+    Returns:
+        (fx_n, fy_n) [...] force [N].
+    """
+    dx = np.subtract(px_m, qx_m, dtype=np.float64)
+    dy = np.subtract(py_m, qy_m, dtype=np.float64)
+    d = np.sqrt(dx * dx + dy * dy)
+    mag = np.asarray(a_veh_n, dtype=np.float64) * np.exp(-np.asarray(b_veh_per_m) * d)
+    tiny = d < 1e-9
+    if np.any(tiny):
+        if ego_x_m is None or ego_y_m is None or ego_yaw_rad is None:
+            ux, uy = np.ones_like(dx), np.zeros_like(dy)
+        else:
+            ex = np.subtract(px_m, ego_x_m, dtype=np.float64)
+            ey = np.subtract(py_m, ego_y_m, dtype=np.float64)
+            de = np.sqrt(ex * ex + ey * ey)
+            ok = de > 1e-9
+            ux = np.where(ok, ex / np.where(ok, de, 1.0), np.cos(ego_yaw_rad))
+            uy = np.where(ok, ey / np.where(ok, de, 1.0), np.sin(ego_yaw_rad))
+        safe = np.where(tiny, 1.0, d)
+        nx = np.where(tiny, ux, dx / safe)
+        ny = np.where(tiny, uy, dy / safe)
+    else:
+        nx, ny = dx / d, dy / d
+    return mag * nx, mag * ny
+
+
+def point_mass_step(
+    px_m: ArrayLike,
+    py_m: ArrayLike,
+    vx_mps: ArrayLike,
+    vy_mps: ArrayLike,
+    fx_n: ArrayLike,
+    fy_n: ArrayLike,
+    mass_kg: ArrayLike,
+    dt_s: float,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """One semi-implicit (symplectic) Euler step of a point mass.
+
+    ``v' = v + F/m dt; p' = p + v' dt``. Under a constant force from (p0, v0) after n steps
+    (t = n dt): ``v_n = v0 + a t`` exactly and ``p_n = p0 + v0 t + a t^2 / 2 + a t dt / 2``,
+    i.e. the position error against the analytic solution is exactly ``a t dt / 2``.
+
+    Args:
+        px_m, py_m, vx_mps, vy_mps: state [...] (m, m/s).
+        fx_n, fy_n: force [...] (N). mass_kg: [...] (kg). dt_s: step (s).
+    Returns:
+        (px_m, py_m, vx_mps, vy_mps) after the step.
+    """
+    inv_m = 1.0 / np.asarray(mass_kg, dtype=np.float64)
+    vx = vx_mps + np.asarray(fx_n) * inv_m * dt_s
+    vy = vy_mps + np.asarray(fy_n) * inv_m * dt_s
+    return px_m + vx * dt_s, py_m + vy * dt_s, vx, vy
+
+
+def social_force(
+    px_m: ArrayLike,
+    py_m: ArrayLike,
+    vx_mps: ArrayLike,
+    vy_mps: ArrayLike,
+    gx_m: ArrayLike,
+    gy_m: ArrayLike,
+    ego_x_m: ArrayLike,
+    ego_y_m: ArrayLike,
+    ego_yaw_rad: ArrayLike,
+    ego_length_m: ArrayLike,
+    ego_width_m: ArrayLike,
+    *,
+    k_des_nspm: ArrayLike,
+    v0_mps: ArrayLike,
+    sigma_m: ArrayLike,
+    a_veh_n: ArrayLike,
+    b_veh_per_m: ArrayLike,
+    use_vehicle_force: ArrayLike = True,
+    paper_form: ArrayLike = False,
+    front_bumper: ArrayLike = False,
+) -> tuple[FloatArray, FloatArray]:
+    """Total social force f_des + f_veh on the rider [N] (f_veh only where enabled).
+
+    Args:
+        px_m, py_m, vx_mps, vy_mps: rider state [...] (m, m/s).
+        gx_m, gy_m: goal s_des [...] (m).
+        ego_x_m, ego_y_m, ego_yaw_rad, ego_length_m, ego_width_m: ego box [...].
+        k_des_nspm: effective destination gain [...] (N s/m) (k_des * k_des_factor).
+        v0_mps, sigma_m, a_veh_n, b_veh_per_m: model parameters [...].
+        use_vehicle_force, paper_form, front_bumper: [...] bool switches.
+    Returns:
+        (fx_n, fy_n) [...].
+    """
+    vdx, vdy = desired_velocity(px_m, py_m, gx_m, gy_m, v0_mps, sigma_m, paper_form)
+    fx, fy = destination_force(vdx, vdy, vx_mps, vy_mps, k_des_nspm)
+    use = np.asarray(use_vehicle_force, dtype=bool)
+    if use.ndim == 0 and not bool(use):
+        return fx, fy
+    qx, qy = influential_point(px_m, py_m, ego_x_m, ego_y_m, ego_yaw_rad, ego_length_m, ego_width_m, front_bumper)
+    hx, hy = vehicle_force(px_m, py_m, qx, qy, a_veh_n, b_veh_per_m, ego_x_m, ego_y_m, ego_yaw_rad)
+    if use.ndim == 0:
+        return fx + hx, fy + hy
+    return fx + np.where(use, hx, 0.0), fy + np.where(use, hy, 0.0)

@@ -1,0 +1,152 @@
+"""Bird's-eye view of a scenario: ego path, every road user's path, keyframes, primary threat.
+
+Artists carry labels so tests (and users) can find them: the ego path is labelled
+``'ego'``, each road user's interpolated path ``'<agent_id>'``, its keyframes
+``'<agent_id> keyframes'``, start markers ``'<agent_id> start'``, simulated tracks
+``'<agent_id> (sim)'``. The primary threat is drawn thicker, in red-orange, and named in the
+legend. ``roads`` is a hook: a callable ``roads(ax)`` that draws the map underneath
+(vei.maps provides one); it is called first so that roads lie below the paths.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import pandas as pd
+
+from vei.io.atomic import atomic_path
+from vei.types import EGO_ID, Scenario
+
+#: Colours per category (the ego in blue; the primary threat overrides its category colour).
+CATEGORY_COLOURS: dict[str, str] = {
+    "ego": "tab:blue",
+    "escooter": "tab:green",
+    "cyclist": "tab:purple",
+    "pedestrian": "tab:brown",
+    "vehicle": "tab:gray",
+}
+PRIMARY_COLOUR = "tab:red"
+
+
+def plot_birdseye(
+    scenario: Scenario,
+    *,
+    ax=None,
+    sim_tracks: pd.DataFrame | None = None,
+    title: str | None = None,
+    roads: Callable | None = None,
+):
+    """Draw the scenario from above (plane x east, y north [m], equal aspect).
+
+    Args:
+        scenario: the scenario (trajectories, keyframes, primary_threat).
+        ax: matplotlib Axes to draw into (a new figure if None).
+        sim_tracks: optional simulated trajectories (columns agent_id, t_s, x_m, y_m), drawn
+            dashed over the recorded ones.
+        title: axes title (default: the scenario id).
+        roads: optional callable roads(ax) drawing the map underneath.
+    Returns:
+        The matplotlib Figure.
+    """
+    if ax is None:
+        from matplotlib.figure import Figure  # no pyplot: no global figure registry
+
+        fig = Figure(figsize=(8, 8))
+        ax = fig.add_subplot()
+    else:
+        fig = ax.figure
+    if roads is not None:
+        roads(ax)
+    traj = scenario.trajectories
+    primary = scenario.primary_threat
+    keyframes = scenario.keyframes
+    order = [a.agent_id for a in scenario.agents if a.agent_id != EGO_ID]
+    if EGO_ID in set(traj["agent_id"]):
+        order = [EGO_ID, *order]
+    for agent_id in order:
+        tr = traj[traj["agent_id"] == agent_id].sort_values("t_s")
+        if tr.empty:
+            continue
+        cat = scenario.agent(agent_id).category
+        is_primary = agent_id == primary
+        colour = PRIMARY_COLOUR if is_primary else CATEGORY_COLOURS.get(cat, "black")
+        width = 2.8 if is_primary or agent_id == EGO_ID else 1.4
+        label = agent_id + (" (primary threat)" if is_primary else "")
+        ax.plot(
+            tr["x_m"].to_numpy(),
+            tr["y_m"].to_numpy(),
+            "-",
+            color=colour,
+            lw=width,
+            label=label,
+            zorder=3,
+        )
+        ax.plot(
+            tr["x_m"].iloc[0],
+            tr["y_m"].iloc[0],
+            "o",
+            color=colour,
+            ms=7 if is_primary or agent_id == EGO_ID else 5,
+            mfc="white",
+            label=f"{agent_id} start",
+            zorder=4,
+        )
+        if keyframes is not None and agent_id != EGO_ID:
+            kf = keyframes[keyframes["agent_id"] == agent_id]
+            if len(kf):
+                ax.plot(
+                    kf["x_m"].to_numpy(),
+                    kf["y_m"].to_numpy(),
+                    "x",
+                    color=colour,
+                    ms=5,
+                    label=f"{agent_id} keyframes",
+                    zorder=5,
+                )
+    if sim_tracks is not None:
+        for agent_id, tr in sim_tracks.groupby("agent_id", sort=True):
+            tr = tr.sort_values("t_s")
+            ax.plot(
+                tr["x_m"].to_numpy(),
+                tr["y_m"].to_numpy(),
+                "--",
+                color="black",
+                lw=1.2,
+                label=f"{agent_id} (sim)",
+                zorder=6,
+            )
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x east [m]")
+    ax.set_ylabel("y north [m]")
+    ax.set_title(title if title is not None else scenario.id)
+    ax.grid(True, lw=0.3, alpha=0.5)
+    # Legend: paths only (start markers and keyframes are explained by the marker key).
+    handles = [
+        h
+        for h in ax.get_lines()
+        if not h.get_label().endswith((" start", " keyframes"))
+        and not h.get_label().startswith("_")
+    ]
+    if handles:
+        ax.legend(
+            handles=handles, loc="best", fontsize=7, title="o start   x keyframes", title_fontsize=7
+        )
+    return fig
+
+
+def save_figure(fig, path: str | Path, dpi: int = 150) -> Path:
+    """Save a figure atomically as PNG (or the format the suffix names); closes nothing.
+
+    Args:
+        fig: matplotlib Figure.
+        path: target file.
+        dpi: resolution [dots per inch].
+    Returns:
+        The path.
+    """
+    path = Path(path)
+    fmt = path.suffix.lstrip(".") or "png"
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, format=fmt, bbox_inches="tight")
+    return path

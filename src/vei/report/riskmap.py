@@ -1,0 +1,98 @@
+"""Risk map: a safety-index heatmap over a parameter plane with the collision boundary drawn.
+
+The function takes plain arrays (no engine, no sweep objects), so it draws both the
+adaptive boundary search and binned sweep results. Matplotlib with the Agg backend.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def risk_map_figure(
+    *,
+    x_centres: np.ndarray,
+    y_centres: np.ndarray,
+    value: np.ndarray,
+    segments: np.ndarray,
+    sample_x: np.ndarray | None = None,
+    sample_y: np.ndarray | None = None,
+    sample_collided: np.ndarray | None = None,
+    x_label: str = "x",
+    y_label: str = "y",
+    value_label: str = "safety index",
+    title: str = "",
+    vmin: float = 0.0,
+    vmax: float = 1.0,
+):
+    """Build the risk-map figure.
+
+    Args:
+        x_centres: [Kx] heatmap cell centres along x; y_centres: [Ky] along y.
+        value: [Ky, Kx] value per cell (e.g. safety index, NaN = no data, drawn blank).
+        segments: [S, 2, 2] boundary segments in x/y units (drawn as one LineCollection,
+            gid 'boundary').
+        sample_x, sample_y, sample_collided: optional [N] evaluated points (drawn as
+            markers: red crosses collide, gid 'collided'; white dots do not, gid 'safe').
+        x_label, y_label, value_label, title: texts.
+        vmin, vmax: colour scale of ``value``.
+
+    Returns:
+        the matplotlib Figure (Agg canvas).
+    """
+    from matplotlib.collections import LineCollection
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.0, 5.2), dpi=110)
+    ax = fig.add_subplot(1, 1, 1)
+    xc, yc = np.asarray(x_centres, float), np.asarray(y_centres, float)
+    mesh = ax.pcolormesh(
+        _edges(xc), _edges(yc), np.ma.masked_invalid(np.asarray(value, float)),
+        cmap="RdYlGn", vmin=vmin, vmax=vmax, shading="flat",
+    )
+    mesh.set_gid("heatmap")
+    fig.colorbar(mesh, ax=ax, label=value_label)
+    if sample_x is not None and sample_y is not None and sample_collided is not None:
+        col = np.asarray(sample_collided, bool)
+        sx, sy = np.asarray(sample_x, float), np.asarray(sample_y, float)
+        a = ax.scatter(sx[col], sy[col], marker="x", s=9, c="darkred", linewidths=0.7, label="collision")
+        a.set_gid("collided")
+        b = ax.scatter(sx[~col], sy[~col], marker=".", s=6, c="white", edgecolors="none", label="no collision")
+        b.set_gid("safe")
+    seg = np.asarray(segments, float).reshape(-1, 2, 2)
+    lc = LineCollection(seg, colors="black", linewidths=2.0, label="collision boundary")
+    lc.set_gid("boundary")
+    ax.add_collection(lc)
+    ax.set_xlim(_edges(xc)[0], _edges(xc)[-1])
+    ax.set_ylim(_edges(yc)[0], _edges(yc)[-1])
+    ax.set_xlabel(x_label)
+    ax.set_ylabel(y_label)
+    ax.set_title(title or f"risk map: {value_label}, collision boundary in black")
+    ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
+    fig.tight_layout()
+    return fig
+
+
+def write_risk_map(path: str | Path, **kwargs) -> Path:
+    """Draw :func:`risk_map_figure` (same keyword arguments) and save it atomically (PNG)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from vei.io.atomic import atomic_path
+
+    fig = risk_map_figure(**kwargs)
+    FigureCanvasAgg(fig)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format=path.suffix.lstrip(".") or "png")
+    return path
+
+
+def _edges(centres: np.ndarray) -> np.ndarray:
+    """[K + 1] cell edges around [K] increasing centres (half a spacing beyond the ends)."""
+    c = np.asarray(centres, float)
+    if c.size == 1:
+        return np.array([c[0] - 0.5, c[0] + 0.5])
+    mid = 0.5 * (c[:-1] + c[1:])
+    return np.concatenate([[c[0] - (mid[0] - c[0])], mid, [c[-1] + (c[-1] - mid[-1])]])
