@@ -166,6 +166,14 @@ class EgoConfig:
         initial_speed: 'cruise' (default; the paper's ego drives at the constant desired
             velocity from the start) or 'recorded' (the recording's speed at t = 0).
         kp, ki, kd: PID gains on the speed error [1/(m/s)], [1/m], [s/m]; paper: 0.05 each.
+        integral_window_s: memory of the integral term [s]: the integral leaks with this
+            time constant (``I <- I exp(-dt / window) + e dt``), i.e. it integrates over
+            about the last ``window`` seconds, like CARLA's PIDLongitudinalController,
+            whose integral is the sum over its last 10 errors (0.5 s at 20 Hz). None = a
+            plain integral (clamped by ``integral_limit`` only). With the paper's gains a
+            plain integral winds up while the car accelerates from a stop and overshoots
+            the cruise speed by ~30 % (7.2 m/s for v_d = 5.6); the 0.5 s window gives a
+            smooth return to v_d (time constant ~4.5 s with the default actuator).
         integral_limit: anti-windup: |ki * integral| is clamped to this [-] (the command
             share the integral may hold); 1.0 = the full command range.
         max_accel_mps2: acceleration at full throttle [m/s^2]. The paper omits it; 3.0 is
@@ -184,6 +192,7 @@ class EgoConfig:
     kp: float = 0.05
     ki: float = 0.05
     kd: float = 0.05
+    integral_window_s: float | None = 0.5
     integral_limit: float = 1.0
     max_accel_mps2: float = 3.0
     max_decel_mps2: float = 8.0
@@ -198,6 +207,8 @@ class EgoConfig:
         _choice("initial_speed", self.initial_speed, ("cruise", "recorded"))
         for name in ("kp", "ki", "kd"):
             _finite(name, getattr(self, name), nonneg=True)
+        if self.integral_window_s is not None:
+            _finite("integral_window_s", self.integral_window_s, positive=True)
         _finite("integral_limit", self.integral_limit, positive=True)
         _finite("max_accel_mps2", self.max_accel_mps2, positive=True)
         _finite("max_decel_mps2", self.max_decel_mps2, positive=True)

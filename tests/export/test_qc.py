@@ -65,9 +65,10 @@ def test_parse_xqar_reads_issues_and_statuses(tmp_path):
 
 def test_missing_checker_and_missing_file_are_clear_errors(tmp_path, monkeypatch):
     monkeypatch.setenv("VEI_QC_BIN", str(tmp_path / "nowhere"))
-    monkeypatch.setenv("PATH", str(tmp_path))
-    monkeypatch.chdir(tmp_path)
-    with pytest.raises(DependencyError, match="make qc-tools"):
+    with pytest.raises(DependencyError, match="VEI_QC_BIN .*nowhere.*make qc-tools"):
         find_qc_openscenario()
+    monkeypatch.delenv("VEI_QC_BIN")
+    with pytest.raises(DependencyError, match="given checker"):
+        find_qc_openscenario(tmp_path / "bin")
     with pytest.raises(InputError, match="file not found"):
         run_qc_openscenario(tmp_path / "none.xosc")

@@ -63,7 +63,9 @@ def export_scenario(
         sim = run_cfg.sim if run_cfg is not None else None
         if time_shift is None:
             time_shift = run_cfg.time_shift if run_cfg is not None else "auto"
-        result = run_casestudy(scenario, cases=[case], time_shift=time_shift, backend="builtin", sim=sim)
+        result = run_casestudy(
+            scenario, cases=[case], time_shift=time_shift, backend="builtin", sim=sim
+        )
         config_name = case.name
         traj = timeseries_to_trajectories(result.frame, config=config_name)
         label = f"vei run of configuration '{config_name}', rider time shift {result.time_shift_s:+.2f} s"
@@ -111,11 +113,13 @@ def register(app: typer.Typer) -> None:
             ),
         ] = None,
         time_shift: Annotated[
-            str,
+            str | None,
             typer.Option(
-                "--time-shift", help="Rider time shift for --config runs: 'auto' or seconds."
+                "--time-shift",
+                help="Rider time shift for --config runs: 'auto' or seconds "
+                "(default: the run file's time_shift, else auto).",
             ),
-        ] = "auto",
+        ] = None,
         osc_version: Annotated[
             str,
             typer.Option(

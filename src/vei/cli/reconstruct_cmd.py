@@ -130,5 +130,10 @@ def print_report(scenario, out: Path) -> None:
             f"riders (e-scooters + cyclists): {s['n_tracks']} tracks, mean RMSE {s['mean_rmse_m']:.3f} m, "
             f"max RMSE {s['max_rmse_m']:.3f} m, p95 {s['p95_m']:.3f} m, max error {s['max_error_m']:.3f} m"
         )
+    dropped = rec.get("dropped_tracks", [])
+    if dropped:
+        console.print(
+            f"left out (no {scenario.rate_hz:g} Hz sample inside their keyframe span): {', '.join(dropped)}"
+        )
     n = scenario.trajectories["agent_id"].nunique()
     console.print(f"wrote {out} ({n} agents at {scenario.rate_hz:g} Hz)")

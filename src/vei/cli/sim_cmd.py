@@ -73,8 +73,10 @@ def print_summary(result, out: Path | None = None, console=None) -> None:
         ("peak decel [m/s2]", "peak_decel_mps2", ".2f"),
         ("speed std [m/s]", "ego_speed_std_mps", ".3f"),
     ]
+    from rich.markup import escape
+
     for head, _, _ in cols:
-        table.add_column(head, justify="left" if head == "config" else "right")
+        table.add_column(escape(head), justify="left" if head == "config" else "right")
     for rec in summary_records(result.summary):
         table.add_row(
             *[_fmt(rec[key], fmt or "") if fmt else _fmt(rec[key]) for _, key, fmt in cols]

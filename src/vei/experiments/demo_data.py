@@ -11,11 +11,13 @@ behind while the e-scooter crosses laterally"; 25 s; ego 5.6 m/s; e-scooter 4.0-
   origin at 39.7745 N, 86.1560 W; lanes 3.5 m wide, the eastbound lane's centre 1.75 m
   south of the centre line); a side street leaves it to the north;
 - the ego drives east in its lane at 5.6 m/s (+-0.08 m/s of natural fluctuation) for 25 s;
-- the e-scooter rides ahead of it in the same lane near its right edge (2.6 m south of
-  the centre line, inside the car's swept width), speeding up from 4.0 to 4.8 m/s, then
-  turns left on a 6 m radius, crossing the street laterally into the side street at
-  4.2 m/s. In the recording the car, faster by ~1-1.6 m/s, has not caught up when the
-  rider turns off: no collision (the smallest gap is about 10 m);
+- the e-scooter rides ahead of it in the same lane, first near the kerb (0.85 m right of
+  the car's centre line, inside the car's swept width), speeding up from 4.0 to 4.8 m/s
+  within 2 s; around t = 9 s it moves towards the middle of the lane (1.6 m to the left,
+  crossing the car's centre line) to prepare a left turn; at t = 17 s it turns left
+  (radius 10 m) and crosses the street diagonally (55 deg) into a side street to the
+  north, at 4.8 m/s. In the recording the car (faster by 0.8-1.6 m/s) is 33 m behind at
+  the start and never catches up: no collision (smallest box gap about 14.6 m);
 - the recording: ego GPS at 10 Hz with heading and speed (white noise 0.05 m plus a slow
   random-walk bias, heading 0.3 deg, speed 0.05 m/s), and the e-scooter annotated at
   1 FPS in the ego frame while it is in the front camera's field of view (+-50 deg, up
@@ -67,6 +69,9 @@ class DemoSpec:
         rider_offset_m: the rider's lateral position, south of the centre line [m].
         rider_speed_min_mps, rider_speed_max_mps: its speed rises from min to max over
             ``rider_accel_time_s`` (paper: 4.0-4.8 m/s); rider_turn_speed_mps in the turn.
+        merge_time_s, merge_length_m, merge_offset_m: the rider moves from the kerb side
+            of the lane towards its middle (to the left by merge_offset_m, over
+            merge_length_m of path centred where it is at merge_time_s) [s, m, m].
         rider_turn_time_s: when it starts turning left [s]; turn_radius_m: the radius of
             its two left arcs [m]; crossing_angle_deg: the heading of its diagonal crossing
             (from the street's direction) [deg]; crossing_straight_m: that straight part [m].
@@ -88,10 +93,13 @@ class DemoSpec:
     rider_offset_m: float = 2.6
     rider_speed_min_mps: float = 4.0
     rider_speed_max_mps: float = 4.8
-    rider_accel_time_s: float = 6.0
-    rider_turn_speed_mps: float = 4.2
-    rider_turn_time_s: float = 13.0
-    turn_radius_m: float = 8.0
+    rider_accel_time_s: float = 2.0
+    rider_turn_speed_mps: float = 4.8
+    merge_time_s: float = 9.0
+    merge_length_m: float = 14.0
+    merge_offset_m: float = 1.6
+    rider_turn_time_s: float = 17.0
+    turn_radius_m: float = 10.0
     crossing_angle_deg: float = 55.0
     crossing_straight_m: float = 4.0
     fov_half_deg: float = 50.0
@@ -148,19 +156,27 @@ def _rider_truth(spec: DemoSpec, t: FloatArray) -> tuple[FloatArray, FloatArray,
     fine_t = np.linspace(0.0, t_end, max(2, int(math.ceil(t_end * 200)) + 1))
     v = _rider_speed(spec, fine_t)
     s_of_t = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(fine_t))])
-    s1 = float(np.interp(spec.rider_turn_time_s, fine_t, s_of_t))  # start of the first arc
+    ds = 0.01
+    s_grid = np.arange(0.0, float(s_of_t[-1]) + 2 * ds, ds)
+    # lane-position change (merge): a sine heading bump centred where the rider is at merge_time_s
+    s_m = float(np.interp(spec.merge_time_s, fine_t, s_of_t))
+    u = (s_grid - (s_m - 0.5 * spec.merge_length_m)) / spec.merge_length_m
+    psi_max = spec.merge_offset_m * math.pi / (2.0 * spec.merge_length_m)
+    merge = np.where((u > 0) & (u < 1), psi_max * np.sin(math.pi * np.clip(u, 0.0, 1.0)), 0.0)
+    # left turn: arc to crossing_angle_deg, straight diagonal, arc to due north
+    s1 = float(np.interp(spec.rider_turn_time_s, fine_t, s_of_t))
     r = spec.turn_radius_m
     a1 = math.radians(spec.crossing_angle_deg)
     a2 = math.pi / 2.0 - a1
     knots = np.cumsum([s1, r * a1, spec.crossing_straight_m, r * a2])
-    ds = 0.01
-    s_grid = np.arange(0.0, float(s_of_t[-1]) + 2 * ds, ds)
     curvature = np.where(
         ((s_grid >= knots[0]) & (s_grid < knots[1])) | ((s_grid >= knots[2]) & (s_grid < knots[3])),
         1.0 / r,
         0.0,
     )
-    heading = np.concatenate([[0.0], np.cumsum(0.5 * (curvature[1:] + curvature[:-1]) * ds)])
+    heading = merge + np.concatenate(
+        [[0.0], np.cumsum(0.5 * (curvature[1:] + curvature[:-1]) * ds)]
+    )
     px = np.concatenate([[0.0], np.cumsum(0.5 * (np.cos(heading[1:]) + np.cos(heading[:-1])) * ds)])
     py = np.concatenate([[0.0], np.cumsum(0.5 * (np.sin(heading[1:]) + np.sin(heading[:-1])) * ds)])
     s = np.interp(t, fine_t, s_of_t)

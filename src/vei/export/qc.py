@@ -7,7 +7,8 @@ XML (``qc_openscenario -c config.xml``) naming the input file and the result fil
 result is a ``.xqar`` XML (``CheckerResults/CheckerBundle/Checker/Issue``), parsed here.
 
 Where the executable is found, in order: the ``qc_bin`` argument (the executable or its
-folder), ``$VEI_QC_BIN`` (same), ``qc_openscenario`` on PATH, ``.tools/qc/bin`` in the
+folder), ``$VEI_QC_BIN`` (same; either, when given, must be right: no silent fallback),
+``qc_openscenario`` on PATH, ``.tools/qc/bin`` in the
 current folder or any parent of it, then in any parent of the installed package (a
 source checkout with ``pip install -e``).
 """
@@ -115,11 +116,20 @@ def find_qc_openscenario(qc_bin: str | Path | None = None) -> Path:
     Raises:
         DependencyError: not found (names ``make qc-tools`` and VEI_QC_BIN).
     """
-    candidates: list[Path] = []
-    for given in (qc_bin, os.environ.get("VEI_QC_BIN")):
-        if given:
+    for given, what in (
+        (qc_bin, "the given checker"),
+        (os.environ.get("VEI_QC_BIN"), "VEI_QC_BIN"),
+    ):
+        if given:  # explicit: use it or fail, never fall back silently
             p = Path(given)
-            candidates.append(p / QC_EXECUTABLE if p.is_dir() else p)
+            exe = p / QC_EXECUTABLE if p.is_dir() else p
+            if exe.is_file() and os.access(exe, os.X_OK):
+                return exe
+            raise DependencyError(
+                f"{what} {exe} is not an executable qc_openscenario: run `make qc-tools` "
+                "(creates .tools/qc) or fix the path"
+            )
+    candidates: list[Path] = []
     on_path = shutil.which(QC_EXECUTABLE)
     if on_path:
         candidates.append(Path(on_path))

@@ -180,6 +180,10 @@ def run_netconvert(args: list[str], *, timeout_s: float = NETCONVERT_TIMEOUT_S) 
     warnings = [ln for ln in lines if ln.startswith("Warning")]
     if proc.returncode != 0:
         errors = [ln for ln in lines if ln.startswith("Error")] or lines[-15:]
+        if any("No edges loaded" in ln for ln in errors):
+            raise InputError(
+                "no road to convert: netconvert loaded no edge (no highway of the kept types in the region?)"
+            )
         why = f"crashed (signal {-proc.returncode})" if proc.returncode < 0 else f"exit code {proc.returncode}"
         if proc.returncode == 139:
             why = "crashed (segmentation fault)"
@@ -350,6 +354,10 @@ def build_opendrive(
         else:
             # Re-project: plain XML in lon/lat, then rebuild in the tmerc plane.
             load = ["--sumo-net-file" if kind == "sumo-net" else "--opendrive-files", str(src)]
+            if kind == "opendrive":
+                # netconvert's own OpenDRIVE schema rejects the CDATA geoReference that it writes
+                # itself; the file was already checked by safexml (and is validated after).
+                load += ["--xml-validation", "never"]
             prefix = tmp / "plain"
             cmd, warn = run_netconvert(
                 [*load, *_geo_boundary_args(clip), "--plain-output-prefix", str(prefix),

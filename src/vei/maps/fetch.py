@@ -214,13 +214,13 @@ def _check_overpass_answer(data: bytes, url: str) -> int:
     """Validate an Overpass XML answer; returns the number of ways."""
     m = _REMARK.search(data)
     if m and (b"error" in m.group(1).lower() or b"timed out" in m.group(1).lower()):
-        raise InputError(f"Overpass reported an error: {m.group(1).decode('utf-8', 'replace')}", path=url)
+        raise InputError(f"{url}: Overpass reported an error: {m.group(1).decode('utf-8', 'replace')}")
     root = safexml.parse_bytes(data, source=url)
     if root.tag != "osm":
-        raise InputError(f"Overpass answer is not OSM XML (root <{root.tag}>)", path=url)
+        raise InputError(f"{url}: Overpass answer is not OSM XML (root <{root.tag}>)")
     ways = sum(1 for _ in root.iter("way"))
     if ways == 0:
-        raise InputError("Overpass returned no road (no highway way in the box)", path=url)
+        raise InputError(f"{url}: Overpass returned no road (no highway way in the box)")
     return ways
 
 
@@ -265,7 +265,7 @@ def fetch_overpass(
             detail = exc.read()[:300].decode("utf-8", "replace").strip()
             last_error = f"HTTP {exc.code} {exc.reason}" + (f": {detail}" if detail else "")
             if exc.code not in RETRY_STATUSES:
-                raise InputError(f"Overpass request failed: {last_error}", path=overpass_url) from exc
+                raise InputError(f"{overpass_url}: Overpass request failed: {last_error}") from exc
             retry_after = exc.headers.get("Retry-After") if exc.headers else None
             if retry_after and retry_after.strip().isdigit():
                 wait = max(wait, min(float(retry_after), MAX_RETRY_AFTER_S))
@@ -282,9 +282,7 @@ def fetch_overpass(
                 return Path(out)
         if attempt < retries:
             time.sleep(wait)
-    raise InputError(
-        f"Overpass request failed after {retries + 1} attempt(s): {last_error}", path=overpass_url
-    )
+    raise InputError(f"{overpass_url}: Overpass request failed after {retries + 1} attempt(s): {last_error}")
 
 
 def fetch_osm(

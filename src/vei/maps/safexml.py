@@ -123,4 +123,5 @@ def parse_bytes(data: bytes | str, *, source: str = "<bytes>") -> ET.Element:
     try:
         return dET.parse(io.BytesIO(raw)).getroot()
     except Exception as exc:  # noqa: BLE001
-        raise _reject(exc, source) from exc
+        err = _reject(exc, None)
+        raise InputError(f"{source}: {err.detail}") from exc

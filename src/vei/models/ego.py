@@ -9,7 +9,7 @@ Pipeline of one control tick (what the engine does, and what a backend should do
 
     rider_ahead, gap = corridor_check(path, ego_s, ...)        # CAP perception
     state, a_brake, braking = cap_step(state, v, v_d, rider_ahead, gap, ...)
-    u_pid, pid = pid_step(pid, v_d - v, dt, kp, ki, kd)        # throttle/brake in [-1, 1]
+    u_pid, pid = pid_step(pid, v_d - v, dt, kp, ki, kd, 1.0, window)  # throttle/brake in [-1, 1]
     pid = pid_reset_where(pid, entered_recover, v_d - v)       # integral reset on RECOVER entry
     u = where(braking, accel_to_command(a_brake, ...), u_pid)  # CARLA: VehicleControl(u)
     a = actuator_step(a, command_to_accel(u, ...), lag, dt)    # built-in engine only
@@ -103,8 +103,9 @@ class PathTable:
         f = (np.asarray(s_m, dtype=np.float64) - self.s_start_m) * (1.0 / self.ds_m)
         if np.ndim(f) == 0:
             f = np.array(f)
-        np.clip(f, 0.0, self.x_m.shape[0] - 1.000001, out=f)
-        i = f.astype(np.intp)
+        n = self.x_m.shape[0]
+        np.clip(f, 0.0, n - 1.0, out=f)
+        i = np.minimum(f.astype(np.intp), max(n - 2, 0))
         f -= i
         return i, f
 
@@ -280,20 +281,23 @@ def pid_step(
     ki: ArrayLike = 0.05,
     kd: ArrayLike = 0.05,
     integral_limit: ArrayLike = 1.0,
+    integral_window_s: ArrayLike = np.inf,
 ) -> tuple[FloatArray, PIDState]:
     """One PID step on the speed error e = v_d - v, producing a command in [-1, 1].
 
-    ``u = clip(kp e + ki I + kd (e - e_prev) / dt, -1, 1)`` with ``I += e dt`` and the
-    anti-windup clamp ``|ki I| <= integral_limit``.
+    ``I <- I exp(-dt / window) + e dt`` (window = inf: plain integral), clamped so that
+    ``|ki I| <= integral_limit``; ``u = clip(kp e + ki I + kd (e - e_prev) / dt, -1, 1)``.
 
     Args:
         state: PIDState [B]. error_mps: [B] speed error [m/s].
         dt_s: step [s]. kp, ki, kd: gains [B] or scalars. integral_limit: [B] or scalar.
+        integral_window_s: [B] or scalar, the integral's memory time constant [s].
     Returns:
         (u [B] in [-1, 1], new PIDState).
     """
     e = np.asarray(error_mps, dtype=np.float64)
-    integral = state.integral_m + e * dt_s
+    decay = np.exp(-dt_s / np.asarray(integral_window_s, dtype=np.float64))
+    integral = state.integral_m * decay + e * dt_s
     ki_a = np.asarray(ki, dtype=np.float64)
     lim = np.asarray(integral_limit, dtype=np.float64) / np.where(ki_a > 0, ki_a, 1.0)
     integral = np.clip(integral, -lim, lim)

@@ -42,9 +42,10 @@ def desired_velocity(
         gx_m, gy_m: goal position s_des [...] (m).
         v0_mps: nominal speed v0 [...] (m/s).
         sigma_m: regulariser sigma [...] (m), > 0.
-        paper_form: [...] bool; True = the paper's literal form (denominator |.|^2 +
-            sigma^2, result in 1/s * m... i.e. speed v0 |d| / (|d|^2 + sigma^2)), False =
-            normalised (denominator sqrt(|d|^2 + sigma^2)).
+        paper_form: [...] bool; True = the paper's literal form (denominator
+            |d|^2 + sigma^2, so the speed is v0 |d| / (|d|^2 + sigma^2), at most
+            v0 / (2 sigma) in m/s when v0 and sigma are read as numbers), False = normalised
+            (denominator sqrt(|d|^2 + sigma^2): speed v0 |d| / sqrt(|d|^2 + sigma^2)).
     Returns:
         (vx_mps, vy_mps) [...].
     """

@@ -214,7 +214,8 @@ def reconstruct(interaction: Interaction, config: ReconstructionConfig | None = 
         track as '<category>_<track_id>') on t_s = k / rate_hz, keyframes (t_s, agent_id,
         source_track_id, category, x_m, y_m, yaw_rad, yaw_source), primary_threat, and extra:
         'reconstruction' (settings, origin rule, sync, ego heading source, per-track method
-        and peak kinematics, active riders), 'threat' (criterion + per-rider figures) and,
+        and peak kinematics (peak_speed_mps / peak_accel_mps2 by finite differences of the
+        rate_hz samples, what a simulator replaying them sees), active riders), 'threat' (criterion + per-rider figures) and,
         with ground truth, 'reconstruction_error'.
     Raises:
         InputError: annotations outside the GPS span, an unusable ego track.

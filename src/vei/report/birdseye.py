@@ -92,6 +92,14 @@ def plot_birdseye(
             label=f"{agent_id} start",
             zorder=4,
         )
+        ax.annotate(
+            agent_id,
+            (tr["x_m"].iloc[0], tr["y_m"].iloc[0]),
+            textcoords="offset points",
+            xytext=(4, 4),
+            fontsize=6,
+            color=colour,
+        )
         if keyframes is not None and agent_id != EGO_ID:
             kf = keyframes[keyframes["agent_id"] == agent_id]
             if len(kf):

@@ -221,10 +221,6 @@ def plot_birdseye_configs(
 
     names = _configs(frame)
     n = len(names)
-    cols = min(n, 3)
-    rows = int(np.ceil(n / cols))
-    fig = Figure(figsize=(4.6 * cols, 3.9 * rows))
-    axes = [fig.add_subplot(rows, cols, i + 1) for i in range(n)]
     sub = _first_variants(frame)
     oth = sub[(sub["agent_id"] == other_id) & sub["active"].astype(bool)]
     kf = (
@@ -237,6 +233,14 @@ def plot_birdseye_configs(
         pts.append(kf[["x_m", "y_m"]].to_numpy())
     allp = np.concatenate(pts) if sum(len(p) for p in pts) else np.zeros((1, 2))
     lo, hi = allp.min(axis=0) - margin_m, allp.max(axis=0) + margin_m
+    aspect = float((hi[0] - lo[0]) / max(hi[1] - lo[1], 1e-6))
+    # wide scenes (a street seen from above) stack the panels; compact ones tile them
+    cols = 1 if aspect > 2.5 else min(n, 3)
+    rows = int(np.ceil(n / cols))
+    panel_w = 11.0 if cols == 1 else 4.6
+    panel_h = min(max(panel_w / aspect, 1.6), 4.6) + 0.7
+    fig = Figure(figsize=(panel_w * cols, panel_h * rows))
+    axes = [fig.add_subplot(rows, cols, i + 1) for i in range(n)]
     for ax, name in zip(axes, names, strict=True):
         if roads is not None:
             roads(ax)
@@ -289,7 +293,7 @@ def plot_birdseye_configs(
             )
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])
-        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_aspect("equal", adjustable="box")
         ax.set_title(name, fontsize=10)
         ax.set_xlabel("x east [m]", fontsize=8)
         ax.set_ylabel("y north [m]", fontsize=8)

@@ -392,7 +392,7 @@ def _step_block(st: SimState, arrays: ScenarioArrays, blk: Block, hist_len: int)
             cap_state = np.where(collided, cap_state, new_cap) if any_coll else new_cap
             if entered.any():
                 pid = ego_model.pid_reset_where(pid, entered, err)
-        u, pid_new = ego_model.pid_step(pid, err, dt, p.kp, p.ki, p.kd, p.integral_limit)
+        u, pid_new = ego_model.pid_step(pid, err, dt, p.kp, p.ki, p.kd, p.integral_limit, p.integral_window_s)
         pid_i, pid_e = pid_new.integral_m, pid_new.prev_error_mps
         if braking is not None and braking.any():
             u = np.where(braking, ego_model.accel_to_command(a_brake, p.max_accel_mps2_ego, p.max_decel_mps2_ego), u)

@@ -64,8 +64,9 @@ class TimeTable:
         f = (np.asarray(t_s, dtype=np.float64) - self.t0_s) * (1.0 / self.dt_s)
         if np.ndim(f) == 0:
             f = np.array(f)
-        np.clip(f, 0.0, max(self.data.shape[0] - 1.000001, 0.0), out=f)
-        i = f.astype(np.intp)
+        n = self.data.shape[0]
+        np.clip(f, 0.0, n - 1.0, out=f)
+        i = np.minimum(f.astype(np.intp), max(n - 2, 0))
         f -= i
         return i, f
 
@@ -92,15 +93,8 @@ class TimeTable:
         Returns:
             [B, C] interpolated samples.
         """
-        t = np.asarray(t_s, dtype=np.float64)
-        m = self.data.shape[0]
-        if m == 1:
-            return np.broadcast_to(self.data[0], t.shape + (self.data.shape[1],)).copy()
-        f = np.clip((t - self.t0_s) / self.dt_s, 0.0, m - 1.000001)
-        i = f.astype(np.intp)
-        w = (f - i)[..., None]
-        lo = self.data[i]
-        return lo + w * (self.data[i + 1] - lo)
+        i, w = self.index(t_s)
+        return np.stack(self.values_at(i, w, *self.columns), axis=-1)
 
 
 def _uniform_track(df: Any, cols: Sequence[str], where: str) -> tuple[float, float, FloatArray]:
@@ -332,7 +326,8 @@ class VariantParams:
         max_speed_mps, max_accel_mps2: rider limits; +inf = none.
         ego_mode: int8, 0 replay-speed, 1 pid, 2 cap.
         cruise_speed_mps: v_d [m/s]. initial_speed_mps: ego speed at t = 0 [m/s].
-        kp, ki, kd, integral_limit: PID. max_accel_mps2_ego, max_decel_mps2_ego,
+        kp, ki, kd, integral_limit: PID. integral_window_s: the integral's memory [s]
+            (+inf = plain integral). max_accel_mps2_ego, max_decel_mps2_ego,
             actuator_lag_s: actuator (EgoConfig).
         t_safe_s, d_buf_m, a_min_mps2, corridor_half_width_m, detection_range_m,
             release_margin_m, recover_tolerance_mps: CAP (CAPConfig).
@@ -363,6 +358,7 @@ class VariantParams:
     ki: FloatArray
     kd: FloatArray
     integral_limit: FloatArray
+    integral_window_s: FloatArray
     max_accel_mps2_ego: FloatArray
     max_decel_mps2_ego: FloatArray
     actuator_lag_s: FloatArray
@@ -393,7 +389,8 @@ class VariantParams:
             raise ConfigError("VariantParams needs at least one variant")
         for name in ("mass_kg", "sigma_m", "lookahead_m", "arrive_radius_m", "k_des_nspm",
                      "max_accel_mps2_ego", "max_decel_mps2_ego", "corridor_half_width_m",
-                     "detection_range_m", "recover_tolerance_mps", "max_speed_mps", "max_accel_mps2"):
+                     "detection_range_m", "recover_tolerance_mps", "max_speed_mps", "max_accel_mps2",
+                     "integral_window_s"):
             if np.any(getattr(self, name) <= 0):
                 raise ConfigError(f"VariantParams.{name} must be > 0")
         for name in ("a_veh_n", "b_veh_per_m", "v0_mps", "cruise_speed_mps", "initial_speed_mps", "kp",
@@ -476,6 +473,7 @@ class VariantParams:
             "ki": ego.ki,
             "kd": ego.kd,
             "integral_limit": ego.integral_limit,
+            "integral_window_s": inf if ego.integral_window_s is None else ego.integral_window_s,
             "max_accel_mps2_ego": ego.max_accel_mps2,
             "max_decel_mps2_ego": ego.max_decel_mps2,
             "actuator_lag_s": ego.actuator_lag_s,

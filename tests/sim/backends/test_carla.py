@@ -3,6 +3,7 @@ and (only with VEI_CARLA_HOST) a run on a real server."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import socket
@@ -18,9 +19,10 @@ from vei.sim.backends.carla import (
     CarlaSettings,
     ClosedLoop,
     EgoMeasurement,
+    _xodr_text,
     connect,
-    run_cases_frame,
     run_carla,
+    run_cases_frame,
 )
 from vei.sim.backends.carla_frame import pure_pursuit_steer
 from vei.sim.engine import run_cases
@@ -79,8 +81,14 @@ def test_settings_validation(monkeypatch):
     ) == ("walker.pedestrian.0001")
 
 
-def test_scenario_without_map_is_an_input_error():
+def test_scenario_without_map_is_an_input_error(tmp_path):
     with pytest.raises(InputError, match="no OpenDRIVE map"):
+        _xodr_text(dataclasses.replace(crossing_scenario(tmp_path), maps={}))
+    scen = crossing_scenario(tmp_path)  # names map.xodr, which is not there
+    with pytest.raises(InputError, match="OpenDRIVE map not found"):
+        _xodr_text(scen)
+    # without a server, the server is what the user hears about first
+    with pytest.raises(BackendError, match="no CARLA server"):
         run_carla(crossing_scenario(), "replay", host="127.0.0.1", port=_free_port(), timeout_s=1.0)
 
 

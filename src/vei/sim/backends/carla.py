@@ -40,6 +40,7 @@ from __future__ import annotations
 import math
 import os
 import socket
+import sys
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -600,8 +601,8 @@ def run_carla(
     if not cases:
         raise ConfigError("run_carla needs at least one configuration")
     sim = sim or SimConfig()
-    xodr = _xodr_text(scenario) if settings.generate_world else None
     client = connect(settings.host, settings.port, settings.timeout_s)
+    xodr = _xodr_text(scenario) if settings.generate_world else None
     frames = []
     world = _World(client, settings, sim.dt_s, xodr)
     try:
@@ -638,6 +639,12 @@ def _run_one(
     sensor.listen(lambda event: contacts.append(int(event.other_actor.id)))
     rider_actor = None
     others: dict[int, Any] = {}
+    bar = None
+    if sys.stderr.isatty():
+        from rich.progress import Progress
+
+        bar = Progress(transient=True)
+        bar.start()
     try:
         # initial speed along the heading, then one tick to settle
         yaw0 = float(st.ego_yaw_rad[0])
@@ -645,7 +652,11 @@ def _run_one(
         vx, vy = world_to_carla_xy(v0 * math.cos(yaw0), v0 * math.sin(yaw0))
         ego.set_target_velocity(carla.Vector3D(float(vx), float(vy), 0.0))
         world.world.tick()
+        if bar is not None:
+            task = bar.add_task(f"CARLA {case.name}", total=loop.n_steps)
         for k in range(loop.n_steps):
+            if bar is not None:
+                bar.advance(task)
             # replayed others and the rider at step k
             for j, oid in enumerate(a.other_ids):
                 active = bool(a.other_active[k, j])
@@ -697,6 +708,8 @@ def _run_one(
             f"CARLA server {cfg.host}:{cfg.port} failed during the run: {exc}"
         ) from exc
     finally:
+        if bar is not None:
+            bar.stop()
         sensor.stop()
         for actor in [*others.values(), rider_actor, sensor, ego]:
             if actor is not None:

@@ -1,0 +1,68 @@
+"""Automatic time shift on constructed crossings with known answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vei.config import CaseConfig, EgoConfig, SimConfig
+from vei.errors import InputError
+from vei.experiments.timeshift import find_time_shift, parse_time_shift
+from vei.sim.engine import run_cases
+from vei.sim.testing import crossing_scenario
+
+
+def test_finds_the_meeting_on_the_default_crossing() -> None:
+    sc = crossing_scenario()
+    res = find_time_shift(sc)
+    # Ego front (centre + 2.35 m) reaches x = 60 at (60 - 2.35) / 5.6 = 10.2946 s; the
+    # recorded rider crosses y = 0 at 2 + 15 / 4.4 = 5.4091 s.
+    expected = (60.0 - 2.35) / 5.6 - (2.0 + 15.0 / 4.4)
+    assert res.time_shift_s == pytest.approx(expected, abs=2e-3)
+    assert float(res) == res.time_shift_s
+    assert res.miss_distance_m < 0.02
+    assert res.meet_time_s == pytest.approx((60.0 - 2.35) / 5.6, abs=0.01)
+    assert (res.meet_x_m, res.meet_y_m) == pytest.approx((60.0, 0.0), abs=0.02)
+    assert res.cruise_speed_mps == pytest.approx(5.6)
+    # Under this shift the replay configuration hits the rider head-on.
+    r = run_cases(sc, ["replay"], time_shift_s=res.time_shift_s)
+    assert bool(r.collision[0])
+    assert r.collision_time_s[0] == pytest.approx(res.meet_time_s - (0.3 + 0.0) / 5.6, abs=0.1)
+
+
+def test_other_geometry_and_negative_shift() -> None:
+    # Faster ego (8 m/s), slower rider (3 m/s) crossing at x = 30 from y = -9, starting at
+    # t = 6 s: it crosses y = 0 at 9 s, the ego front reaches x = 30 at 27.65 / 8 = 3.456 s,
+    # so the rider must come 5.544 s earlier (negative shift).
+    sc = crossing_scenario(
+        ego_speed_mps=8.0, rider_speed_mps=3.0, crossing_x_m=30.0, rider_y0_m=-9.0, rider_y1_m=9.0, rider_t0_s=6.0
+    )
+    res = find_time_shift(sc)
+    assert res.time_shift_s == pytest.approx(27.65 / 8.0 - 9.0, abs=2e-3)
+    assert res.time_shift_s < 0
+
+
+def test_ego_motion_is_the_replay_configuration() -> None:
+    # A different cruise speed moves the meeting: front reaches x = 60 at 57.65 / 7.
+    sc = crossing_scenario()
+    case = CaseConfig(name="replay", ego=EgoConfig(cruise_speed_mps=7.0))
+    res = find_time_shift(sc, case=case, sim=SimConfig())
+    assert res.time_shift_s == pytest.approx(57.65 / 7.0 - (2.0 + 15.0 / 4.4), abs=2e-3)
+    assert res.cruise_speed_mps == 7.0
+
+
+def test_search_range_and_parse() -> None:
+    sc = crossing_scenario()
+    res = find_time_shift(sc, search_range_s=(-5.0, 2.0))
+    # The best shift within [-5, 2] is the upper end (closest to the true 4.89).
+    assert res.time_shift_s == pytest.approx(2.0, abs=1e-9)
+    assert res.miss_distance_m > 5.0
+    with pytest.raises(InputError):
+        find_time_shift(sc, search_range_s=(3.0, 1.0))
+    assert parse_time_shift("auto") == "auto"
+    assert parse_time_shift(" 2.5 ") == 2.5
+    assert parse_time_shift(-1) == -1.0
+    for bad in ("soon", "nan", "inf"):
+        with pytest.raises(InputError):
+            parse_time_shift(bad)
+    assert np.isfinite(res.as_dict()["meet_time_s"])
