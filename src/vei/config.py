@@ -376,14 +376,14 @@ CASE_PRESETS: dict[str, CaseConfig] = {
 }
 
 
-def case_preset(name: str, **overrides: Any) -> CaseConfig:
+def case_preset(preset: str, /, **overrides: Any) -> CaseConfig:
     """The named configuration (one of CASE_PRESETS), optionally with fields replaced.
 
     Example: ``case_preset("normal-cap", ego=EgoConfig(cruise_speed_mps=5.6))``.
     """
-    if name not in CASE_PRESETS:
-        raise ConfigError(f"unknown configuration {name!r}; expected one of {', '.join(CASE_PRESETS)}")
-    base = CASE_PRESETS[name]
+    if preset not in CASE_PRESETS:
+        raise ConfigError(f"unknown configuration {preset!r}; expected one of {', '.join(CASE_PRESETS)}")
+    base = CASE_PRESETS[preset]
     return replace(base, **overrides) if overrides else base
 
 

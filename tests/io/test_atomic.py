@@ -30,3 +30,17 @@ def test_atomic_dir_all_or_nothing(tmp_path):
         raise RuntimeError("boom")
     assert sorted(p.name for p in target.iterdir()) == ["x"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_outputs_get_umask_permissions_not_0600(tmp_path):
+    import os
+
+    umask = os.umask(0o022)
+    try:
+        path = write_text(tmp_path / "p.txt", "x")
+        assert (path.stat().st_mode & 0o777) == 0o644
+        with atomic_dir(tmp_path / "d") as d:
+            (d / "f").write_text("1")
+        assert ((tmp_path / "d").stat().st_mode & 0o777) == 0o755
+    finally:
+        os.umask(umask)

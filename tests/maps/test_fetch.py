@@ -39,9 +39,13 @@ def _inside(lat_lon, b: Bounds) -> bool:
     return b.south_deg <= lat <= b.north_deg and b.west_deg <= lon <= b.east_deg
 
 
-def test_crop_keeps_exactly_the_ways_touching_the_box_with_all_their_nodes(west_oakland_osm, tmp_path):
+def test_crop_keeps_exactly_the_ways_touching_the_box_with_all_their_nodes(
+    west_oakland_osm, tmp_path
+):
     nodes, ways, rels = _read_osm(west_oakland_osm)
-    expected_ways = {w for w, refs in ways.items() if any(_inside(nodes[r], WO_BOX) for r in refs if r in nodes)}
+    expected_ways = {
+        w for w, refs in ways.items() if any(_inside(nodes[r], WO_BOX) for r in refs if r in nodes)
+    }
     out = tmp_path / "crop.osm"
     counts = crop_osm(west_oakland_osm, WO_BOX, out)
     c_nodes, c_ways, c_rels = _read_osm(out)
@@ -162,7 +166,9 @@ def overpass_server(source: Path, script: list[int | str]) -> Iterator[tuple[str
 
 def test_overpass_success_returns_the_crop_of_the_queried_box(west_oakland_osm, tmp_path):
     with overpass_server(west_oakland_osm, ["ok"]) as (url, queries):
-        out = fetch_osm(WO_BOX, tmp_path / "map.osm", source="overpass", overpass_url=url, backoff_s=0.01)
+        out = fetch_osm(
+            WO_BOX, tmp_path / "map.osm", source="overpass", overpass_url=url, backoff_s=0.01
+        )
     assert len(queries) == 1 and "(37.8068000,-122.3015000,37.8080000,-122.2995000)" in queries[0]
     crop = tmp_path / "crop.osm"
     crop_osm(west_oakland_osm, WO_BOX, crop)
@@ -176,7 +182,9 @@ def test_overpass_retries_after_429_and_504_then_succeeds(west_oakland_osm, tmp_
     assert len(_read_osm(out)[1]) > 0
 
 
-def test_overpass_persistent_failure_is_a_clear_error_after_all_attempts(west_oakland_osm, tmp_path):
+def test_overpass_persistent_failure_is_a_clear_error_after_all_attempts(
+    west_oakland_osm, tmp_path
+):
     with overpass_server(west_oakland_osm, [503]) as (url, queries):
         with pytest.raises(InputError, match=r"failed after 3 attempt\(s\): HTTP 503") as exc:
             fetch_osm(WO_BOX, tmp_path / "map.osm", overpass_url=url, retries=2, backoff_s=0.01)
@@ -194,7 +202,9 @@ def test_overpass_bad_request_is_not_retried(west_oakland_osm, tmp_path):
 
 def test_overpass_error_remark_and_empty_answer_are_clear_errors(west_oakland_osm, tmp_path):
     with overpass_server(west_oakland_osm, ["remark"]) as (url, _):
-        with pytest.raises(InputError, match="Overpass reported an error: runtime error: Query ran out of memory"):
+        with pytest.raises(
+            InputError, match="Overpass reported an error: runtime error: Query ran out of memory"
+        ):
             fetch_osm(WO_BOX, tmp_path / "map.osm", overpass_url=url, backoff_s=0.01)
     with overpass_server(west_oakland_osm, ["empty"]) as (url, _):
         with pytest.raises(InputError, match="no road"):

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Annotated
 
 import typer
 
@@ -16,14 +17,18 @@ from vei.errors import InputError
 def _parse_floats(text: str, n: int, option: str) -> list[float]:
     parts = [p.strip() for p in text.split(",")]
     if len(parts) != n:
-        raise InputError(f"{option} expects {n} comma-separated numbers, got {text!r}", field=option)
+        raise InputError(
+            f"{option} expects {n} comma-separated numbers, got {text!r}", field=option
+        )
     try:
         return [float(p) for p in parts]
     except ValueError as exc:
         raise InputError(f"{option} expects numbers, got {text!r}", field=option) from exc
 
 
-def _bounds_from_options(bbox: str | None, interaction: Path | None, scenario: Path | None, margin_m: float):
+def _bounds_from_options(
+    bbox: str | None, interaction: Path | None, scenario: Path | None, margin_m: float
+):
     from vei.geo import Bounds
 
     given = [x is not None for x in (bbox, interaction, scenario)]
@@ -36,7 +41,9 @@ def _bounds_from_options(bbox: str | None, interaction: Path | None, scenario: P
         from vei.io.interaction import read_interaction
 
         inter = read_interaction(interaction)
-        return Bounds.around(inter.ego["lat_deg"].to_numpy(), inter.ego["lon_deg"].to_numpy(), margin_m=margin_m)
+        return Bounds.around(
+            inter.ego["lat_deg"].to_numpy(), inter.ego["lon_deg"].to_numpy(), margin_m=margin_m
+        )
     assert scenario is not None
     path = scenario / "scenario.json" if scenario.is_dir() else scenario
     try:
@@ -48,7 +55,9 @@ def _bounds_from_options(bbox: str | None, interaction: Path | None, scenario: P
     b = doc.get("bounds") if isinstance(doc, dict) else None
     keys = ("south_deg", "west_deg", "north_deg", "east_deg")
     if not isinstance(b, dict) or any(k not in b for k in keys):
-        raise InputError(f"scenario.json needs 'bounds' with {', '.join(keys)}", path=path, field="bounds")
+        raise InputError(
+            f"scenario.json needs 'bounds' with {', '.join(keys)}", path=path, field="bounds"
+        )
     try:
         return Bounds(*(float(b[k]) for k in keys))
     except (TypeError, ValueError) as exc:
@@ -64,30 +73,49 @@ def register(app: typer.Typer) -> None:
 
     @map_app.command("fetch")
     def fetch(
-        out: Path = typer.Option(..., "--out", help="Output OSM XML file (e.g. map.osm)."),
-        bbox: str | None = typer.Option(
-            None, "--bbox", help="Region as S,W,N,E in degrees (south, west, north, east)."
-        ),
-        interaction: Path | None = typer.Option(
-            None, "--interaction", help="Interaction folder: the region around its ego GPS track."
-        ),
-        scenario: Path | None = typer.Option(
-            None, "--scenario", help="Scenario folder (or scenario.json): its 'bounds'."
-        ),
-        source: str = typer.Option(
-            "auto",
-            "--source",
-            help="'overpass', a local extract (.osm, .osm.gz, .osm.bz2, .osm.pbf) to crop, or 'auto' "
-            "($VEI_OSM_SOURCE, else overpass).",
-        ),
-        margin_m: float = typer.Option(
-            100.0, "--margin-m", help="With --interaction: margin around the ego track [m]."
-        ),
-        overpass_url: str | None = typer.Option(
-            None, "--overpass-url", help="Overpass API endpoint (default $VEI_OVERPASS_URL or overpass-api.de)."
-        ),
-        timeout_s: float = typer.Option(90.0, "--timeout-s", help="Overpass request timeout [s]."),
-        retries: int = typer.Option(3, "--retries", help="Overpass retries on HTTP 429/5xx and network errors."),
+        out: Annotated[Path, typer.Option("--out", help="Output OSM XML file (e.g. map.osm).")],
+        bbox: Annotated[
+            str | None,
+            typer.Option("--bbox", help="Region as S,W,N,E in degrees (south, west, north, east)."),
+        ] = None,
+        interaction: Annotated[
+            Path | None,
+            typer.Option(
+                "--interaction", help="Interaction folder: the region around its ego GPS track."
+            ),
+        ] = None,
+        scenario: Annotated[
+            Path | None,
+            typer.Option("--scenario", help="Scenario folder (or scenario.json): its 'bounds'."),
+        ] = None,
+        source: Annotated[
+            str,
+            typer.Option(
+                "--source",
+                help="'overpass', a local extract (.osm, .osm.gz, .osm.bz2, .osm.pbf) to crop, or 'auto' "
+                "($VEI_OSM_SOURCE, else overpass).",
+            ),
+        ] = "auto",
+        margin_m: Annotated[
+            float,
+            typer.Option(
+                "--margin-m", help="With --interaction: margin around the ego track, in metres."
+            ),
+        ] = 100.0,
+        overpass_url: Annotated[
+            str | None,
+            typer.Option(
+                "--overpass-url",
+                help="Overpass API endpoint (default $VEI_OVERPASS_URL or overpass-api.de).",
+            ),
+        ] = None,
+        timeout_s: Annotated[
+            float, typer.Option("--timeout-s", help="Overpass request timeout, in seconds.")
+        ] = 90.0,
+        retries: Annotated[
+            int,
+            typer.Option("--retries", help="Overpass retries on HTTP 429/5xx and network errors."),
+        ] = 3,
     ) -> None:
         """Get the OSM road network of a region into an .osm file (crop keeps complete ways)."""
         from vei.maps.attach import MapConfig, resolve_source
@@ -96,7 +124,14 @@ def register(app: typer.Typer) -> None:
         bounds = _bounds_from_options(bbox, interaction, scenario, margin_m)
         cfg = MapConfig.from_env(**({"overpass_url": overpass_url} if overpass_url else {}))
         resolved = resolve_source(source)
-        fetch_osm(bounds, out, source=resolved, overpass_url=cfg.overpass_url, timeout_s=timeout_s, retries=retries)
+        fetch_osm(
+            bounds,
+            out,
+            source=resolved,
+            overpass_url=cfg.overpass_url,
+            timeout_s=timeout_s,
+            retries=retries,
+        )
         from vei.maps import safexml
 
         counts = {"node": 0, "way": 0, "relation": 0}
@@ -109,25 +144,47 @@ def register(app: typer.Typer) -> None:
 
     @map_app.command("build")
     def build(
-        source: Path = typer.Argument(..., help="An .osm/.osm.gz/.osm.bz2/.osm.pbf, a SUMO .net.xml(.gz) or an .xodr."),
-        out: Path = typer.Option(..., "--out", help="Output OpenDRIVE file (e.g. map.xodr)."),
-        origin: str | None = typer.Option(
-            None,
-            "--origin",
-            help="LAT,LON of the tmerc plane's origin [deg] (the scenario origin); default: centre of the data.",
-        ),
-        converter: str = typer.Option(
-            "netconvert", "--converter", help="'netconvert' (SUMO, default) or 'carla' (carla.Osm2Odr, OSM only)."
-        ),
-        traffic_lights: bool = typer.Option(
-            False, "--traffic-lights/--no-traffic-lights", help="Build traffic lights from OSM signal nodes."
-        ),
-        carla_check: bool = typer.Option(
-            True, "--carla-check/--no-carla-check", help="Load the result in carla.Map offline and count waypoints."
-        ),
-        strict: bool = typer.Option(
-            False, "--strict", help="Exit with an error when the OpenDRIVE output violates the XSD."
-        ),
+        source: Annotated[
+            Path,
+            typer.Argument(
+                help="An .osm/.osm.gz/.osm.bz2/.osm.pbf, a SUMO .net.xml(.gz) or an .xodr."
+            ),
+        ],
+        out: Annotated[Path, typer.Option("--out", help="Output OpenDRIVE file (e.g. map.xodr).")],
+        origin: Annotated[
+            str | None,
+            typer.Option(
+                "--origin",
+                help="LAT,LON of the tmerc plane's origin in degrees (the scenario origin); default: centre of the data.",
+            ),
+        ] = None,
+        converter: Annotated[
+            str,
+            typer.Option(
+                "--converter",
+                help="'netconvert' (SUMO, default) or 'carla' (carla.Osm2Odr, OSM sources only).",
+            ),
+        ] = "netconvert",
+        traffic_lights: Annotated[
+            bool,
+            typer.Option(
+                "--traffic-lights/--no-traffic-lights",
+                help="Build traffic lights from OSM signal nodes.",
+            ),
+        ] = False,
+        carla_check: Annotated[
+            bool,
+            typer.Option(
+                "--carla-check/--no-carla-check",
+                help="Load the result in carla.Map offline and count waypoints.",
+            ),
+        ] = True,
+        strict: Annotated[
+            bool,
+            typer.Option(
+                "--strict", help="Exit with an error when the OpenDRIVE output violates the XSD."
+            ),
+        ] = False,
     ) -> None:
         """Convert SOURCE to OpenDRIVE in a tmerc plane; validate against the XSD; check in CARLA."""
         from vei.errors import DependencyError
@@ -139,7 +196,9 @@ def register(app: typer.Typer) -> None:
         if origin is not None:
             lat, lon = _parse_floats(origin, 2, "--origin")
             org = (lat, lon)
-        result = build_opendrive(source, out, origin=org, converter=converter, traffic_lights=traffic_lights)
+        result = build_opendrive(
+            source, out, origin=org, converter=converter, traffic_lights=traffic_lights
+        )
         typer.echo(
             f"wrote {result.opendrive} ({result.converter}, {result.elapsed_s:.2f} s; "
             f"{len(result.warnings)} converter warnings)"
@@ -149,9 +208,13 @@ def register(app: typer.Typer) -> None:
         typer.echo(f"geoReference: {result.proj_string}")
         report = validate_opendrive(result.opendrive)
         if report.valid:
-            typer.echo(f"XSD: valid OpenDRIVE {report.version} ({report.schema}, {report.validator})")
+            typer.echo(
+                f"XSD: valid OpenDRIVE {report.version} ({report.schema}, {report.validator})"
+            )
         else:
-            typer.echo(f"XSD: {len(report.issues)} violation(s) of OpenDRIVE {report.version} ({report.schema}):")
+            typer.echo(
+                f"XSD: {len(report.issues)} violation(s) of OpenDRIVE {report.version} ({report.schema}):"
+            )
             for what, count in list(report.summary().items())[:10]:
                 typer.echo(f"  {count} x {what}")
         if carla_check:
@@ -165,6 +228,9 @@ def register(app: typer.Typer) -> None:
                     f"{info['roads']} roads; origin {info['origin_lat_deg']:.7f}, {info['origin_lon_deg']:.7f}"
                 )
         if strict and not report.valid:
-            raise InputError(f"OpenDRIVE output violates the XSD ({len(report.issues)} issue(s))", path=result.opendrive)
+            raise InputError(
+                f"OpenDRIVE output violates the XSD ({len(report.issues)} issue(s))",
+                path=result.opendrive,
+            )
 
     app.add_typer(map_app, name="map")

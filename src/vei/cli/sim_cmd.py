@@ -26,13 +26,31 @@ _TIME_SHIFT_HELP = (
     "Time shift of the primary rider in seconds (positive: it comes later), or 'auto': the "
     "shift that makes the replayed paths meet in space-time (computed under replay's ego motion)."
 )
-_BACKEND_HELP = "Simulation backend: 'builtin' (the embedded engine) or 'carla' (needs vei.sim.backends.carla and a server)."
+_BACKEND_HELP = "Simulation backend: 'builtin' (the embedded engine) or 'carla' (a CARLA server; see --host/--port)."
+_HOST_HELP = "CARLA server host (backend carla only; default $VEI_CARLA_HOST, else 127.0.0.1)."
+_PORT_HELP = "CARLA server port (backend carla only; default $VEI_CARLA_PORT, else 2000)."
+
+
+def _backend(name: str, host: str | None, port: int | None):
+    """The backend argument of run_casestudy: a name, or a CARLA runner bound to host/port."""
+    from vei.errors import ConfigError
+
+    if name == "carla" and (host is not None or port is not None):
+        from vei.experiments.casestudy import get_backend
+
+        get_backend("carla")  # clear error if the backend is missing
+        from vei.sim.backends.carla import carla_runner
+
+        return carla_runner(host=host, port=port)
+    if name != "carla" and (host is not None or port is not None):
+        raise ConfigError("--host/--port apply to --backend carla only")
+    return name
 
 
 def _console():
     from rich.console import Console
 
-    return Console(soft_wrap=True) if sys.stdout.isatty() else Console(width=160)
+    return Console(soft_wrap=True) if sys.stdout.isatty() else Console(width=200)
 
 
 def _fmt(value: Any, fmt: str = ".2f") -> str:
@@ -76,7 +94,9 @@ def print_summary(result, out: Path | None = None, console=None) -> None:
     from rich.markup import escape
 
     for head, _, _ in cols:
-        table.add_column(escape(head), justify="left" if head == "config" else "right")
+        table.add_column(
+            escape(head), justify="left" if head == "config" else "right", no_wrap=head == "config"
+        )
     for rec in summary_records(result.summary):
         table.add_row(
             *[_fmt(rec[key], fmt or "") if fmt else _fmt(rec[key]) for _, key, fmt in cols]
@@ -166,6 +186,8 @@ def register(app: typer.Typer) -> None:
             ),
         ] = None,
         backend: Annotated[str, typer.Option("--backend", help=_BACKEND_HELP)] = "builtin",
+        host: Annotated[str | None, typer.Option("--host", help=_HOST_HELP)] = None,
+        port: Annotated[int | None, typer.Option("--port", help=_PORT_HELP)] = None,
         figures: Annotated[
             bool, typer.Option("--figures/--no-figures", help="Write the figures.")
         ] = True,
@@ -182,7 +204,9 @@ def register(app: typer.Typer) -> None:
         )
         sim = run_cfg.sim if run_cfg is not None else None
         scen = _read_scenario(scenario)
-        result = run_casestudy(scen, cases=[case], time_shift=shift, backend=backend, sim=sim)
+        result = run_casestudy(
+            scen, cases=[case], time_shift=shift, backend=_backend(backend, host, port), sim=sim
+        )
         paths = write_casestudy(result, out, figures=figures)
         doc = summary_document(result)
         metrics_doc = {
@@ -216,6 +240,8 @@ def register(app: typer.Typer) -> None:
         ],
         time_shift: Annotated[str, typer.Option("--time-shift", help=_TIME_SHIFT_HELP)] = "auto",
         backend: Annotated[str, typer.Option("--backend", help=_BACKEND_HELP)] = "builtin",
+        host: Annotated[str | None, typer.Option("--host", help=_HOST_HELP)] = None,
+        port: Annotated[int | None, typer.Option("--port", help=_PORT_HELP)] = None,
         figures: Annotated[
             bool, typer.Option("--figures/--no-figures", help="Write the figures.")
         ] = True,
@@ -224,7 +250,7 @@ def register(app: typer.Typer) -> None:
         from vei.experiments.casestudy import run_casestudy, write_casestudy
 
         scen = _read_scenario(scenario)
-        result = run_casestudy(scen, time_shift=time_shift, backend=backend)
+        result = run_casestudy(scen, time_shift=time_shift, backend=_backend(backend, host, port))
         write_casestudy(result, out, figures=figures)
         print_summary(result, out)
 

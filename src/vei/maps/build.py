@@ -162,7 +162,9 @@ def _netconvert_env(exe: str) -> dict[str, str]:
     return env
 
 
-def run_netconvert(args: list[str], *, timeout_s: float = NETCONVERT_TIMEOUT_S) -> tuple[list[str], list[str]]:
+def run_netconvert(
+    args: list[str], *, timeout_s: float = NETCONVERT_TIMEOUT_S
+) -> tuple[list[str], list[str]]:
     """Run netconvert with ``args``; returns (command, warning lines).
 
     Raises:
@@ -172,7 +174,12 @@ def run_netconvert(args: list[str], *, timeout_s: float = NETCONVERT_TIMEOUT_S) 
     cmd = [exe, *args]
     try:
         proc = subprocess.run(
-            cmd, capture_output=True, text=True, timeout=timeout_s, env=_netconvert_env(exe), check=False
+            cmd,
+            capture_output=True,
+            text=True,
+            timeout=timeout_s,
+            env=_netconvert_env(exe),
+            check=False,
         )
     except subprocess.TimeoutExpired as exc:
         raise BackendError(f"netconvert did not finish within {timeout_s:g} s") from exc
@@ -184,7 +191,11 @@ def run_netconvert(args: list[str], *, timeout_s: float = NETCONVERT_TIMEOUT_S) 
             raise InputError(
                 "no road to convert: netconvert loaded no edge (no highway of the kept types in the region?)"
             )
-        why = f"crashed (signal {-proc.returncode})" if proc.returncode < 0 else f"exit code {proc.returncode}"
+        why = (
+            f"crashed (signal {-proc.returncode})"
+            if proc.returncode < 0
+            else f"exit code {proc.returncode}"
+        )
         if proc.returncode == 139:
             why = "crashed (segmentation fault)"
         raise BackendError(f"netconvert failed, {why}:\n" + "\n".join(errors[-15:]))
@@ -200,7 +211,9 @@ def _default_origin(src: Path, kind: str) -> tuple[float, float]:
             proj = elem.get("projParameter", "!")
             orig = elem.get("origBoundary", "")
             if proj == "!":
-                raise InputError("the SUMO network has no geo-reference (projParameter '!')", path=src)
+                raise InputError(
+                    "the SUMO network has no geo-reference (projParameter '!')", path=src
+                )
             vals = [float(v) for v in orig.split(",")]
             if len(vals) != 4:
                 raise InputError(f"bad origBoundary {orig!r}", path=src, field="location")
@@ -249,7 +262,10 @@ def _drop_crossings(con_file: Path) -> None:
 def _geo_boundary_args(clip: Bounds | None) -> list[str]:
     if clip is None:
         return []
-    return ["--keep-edges.in-geo-boundary", f"{clip.west_deg},{clip.south_deg},{clip.east_deg},{clip.north_deg}"]
+    return [
+        "--keep-edges.in-geo-boundary",
+        f"{clip.west_deg},{clip.south_deg},{clip.east_deg},{clip.north_deg}",
+    ]
 
 
 def build_opendrive(
@@ -318,13 +334,23 @@ def build_opendrive(
         if origin is None or same:
             write_bytes(out, src.read_bytes())
             return MapBuildResult(
-                out, None, frame.origin_lat_deg, frame.origin_lon_deg, geo or frame.proj_string,
-                "copy", kind, (), (), time.perf_counter() - t0,
+                out,
+                None,
+                frame.origin_lat_deg,
+                frame.origin_lon_deg,
+                geo or frame.proj_string,
+                "copy",
+                kind,
+                (),
+                (),
+                time.perf_counter() - t0,
             )
         if geo is None:
             raise InputError("cannot re-project an OpenDRIVE file without geoReference", path=src)
 
-    net_out = Path(sumo_net_out) if sumo_net_out is not None else out.with_name(out.stem + ".net.xml")
+    net_out = (
+        Path(sumo_net_out) if sumo_net_out is not None else out.with_name(out.stem + ".net.xml")
+    )
     commands: list[tuple[str, ...]] = []
     warnings: list[str] = []
     with tempfile.TemporaryDirectory(prefix="vei-map-") as tmpdir:
@@ -368,11 +394,18 @@ def build_opendrive(
             warnings += warn
             _drop_crossings(Path(f"{prefix}.con.xml"))
             args = []
-            for opt, suffix in (("-n", "nod"), ("-e", "edg"), ("-x", "con"), ("-i", "tll"), ("-t", "typ")):
+            for opt, suffix in (
+                ("-n", "nod"),
+                ("-e", "edg"),
+                ("-x", "con"),
+                ("-i", "tll"),
+                ("-t", "typ"),
+            ):
                 f = Path(f"{prefix}.{suffix}.xml")
                 if f.is_file():
                     args += [opt, str(f)]
             args += [
+                "--xml-validation", "never",  # netconvert's own plain output, written just now
                 "--proj", frame.proj_string,
                 "--offset.disable-normalization",
                 *([] if traffic_lights else NETCONVERT_NO_TLS_OPTIONS),
@@ -417,7 +450,9 @@ def _carla_convert(osm: Path, out: Path, frame: LocalFrame, *, traffic_lights: b
     try:
         import carla
     except ImportError as exc:
-        raise DependencyError("--converter carla needs the carla client package: pip install 'vei[carla]'") from exc
+        raise DependencyError(
+            "--converter carla needs the carla client package: pip install 'vei[carla]'"
+        ) from exc
     settings = carla.Osm2OdrSettings()
     settings.proj_string = frame.proj_string
     settings.center_map = False  # keep the origin: the geoReference is written only uncentred

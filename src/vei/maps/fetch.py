@@ -104,7 +104,9 @@ def osm_data_bounds(path: str | Path) -> Bounds:
     except RuntimeError as exc:
         raise InputError(f"cannot read OSM file: {exc}", path=p) from exc
     if box.valid():
-        return Bounds(box.bottom_left.lat, box.bottom_left.lon, box.top_right.lat, box.top_right.lon)
+        return Bounds(
+            box.bottom_left.lat, box.bottom_left.lon, box.top_right.lat, box.top_right.lon
+        )
     s = w = float("inf")
     n = e = float("-inf")
     for node in osmium.FileProcessor(str(p), osmium.osm.NODE):
@@ -154,7 +156,9 @@ def crop_osm(source: str | Path, bounds: Bounds, out: str | Path) -> dict[str, i
                     keep_nodes.update(refs)
             elif obj.is_relation():
                 for m in obj.members:
-                    if (m.type == "n" and m.ref in inside) or (m.type == "w" and m.ref in keep_ways):
+                    if (m.type == "n" and m.ref in inside) or (
+                        m.type == "w" and m.ref in keep_ways
+                    ):
                         keep_rels.add(obj.id)
                         break
     except RuntimeError as exc:
@@ -214,7 +218,9 @@ def _check_overpass_answer(data: bytes, url: str) -> int:
     """Validate an Overpass XML answer; returns the number of ways."""
     m = _REMARK.search(data)
     if m and (b"error" in m.group(1).lower() or b"timed out" in m.group(1).lower()):
-        raise InputError(f"{url}: Overpass reported an error: {m.group(1).decode('utf-8', 'replace')}")
+        raise InputError(
+            f"{url}: Overpass reported an error: {m.group(1).decode('utf-8', 'replace')}"
+        )
     root = safexml.parse_bytes(data, source=url)
     if root.tag != "osm":
         raise InputError(f"{url}: Overpass answer is not OSM XML (root <{root.tag}>)")
@@ -249,14 +255,19 @@ def fetch_overpass(
         raise InputError(f"retries must be >= 0, got {retries}")
     if timeout_s <= 0:
         raise InputError(f"timeout_s must be > 0, got {timeout_s}")
-    body = urllib.parse.urlencode({"data": overpass_query(bounds, timeout_s=int(timeout_s))}).encode()
+    body = urllib.parse.urlencode(
+        {"data": overpass_query(bounds, timeout_s=int(timeout_s))}
+    ).encode()
     last_error = "no attempt made"
     for attempt in range(retries + 1):
         wait = backoff_s * (2**attempt)
         req = urllib.request.Request(
             overpass_url,
             data=body,
-            headers={"User-Agent": "vei (https://github.com/vei) map fetch", "Accept": "application/xml"},
+            headers={
+                "User-Agent": "vei (https://github.com/vei) map fetch",
+                "Accept": "application/xml",
+            },
         )
         try:
             with urllib.request.urlopen(req, timeout=timeout_s) as resp:
@@ -282,7 +293,9 @@ def fetch_overpass(
                 return Path(out)
         if attempt < retries:
             time.sleep(wait)
-    raise InputError(f"{overpass_url}: Overpass request failed after {retries + 1} attempt(s): {last_error}")
+    raise InputError(
+        f"{overpass_url}: Overpass request failed after {retries + 1} attempt(s): {last_error}"
+    )
 
 
 def fetch_osm(
@@ -308,7 +321,12 @@ def fetch_osm(
     """
     if str(source) == "overpass":
         return fetch_overpass(
-            bounds, out, overpass_url=overpass_url, timeout_s=timeout_s, retries=retries, backoff_s=backoff_s
+            bounds,
+            out,
+            overpass_url=overpass_url,
+            timeout_s=timeout_s,
+            retries=retries,
+            backoff_s=backoff_s,
         )
     src = Path(source)
     if not is_osm_path(src):

@@ -113,7 +113,12 @@ class RoadGeometry:
     def bounds_xy(self) -> tuple[float, float, float, float]:
         """(min_x, min_y, max_x, max_y) of all lanes [m]."""
         pts = np.vstack([np.vstack([lane.inner, lane.outer]) for lane in self.lanes])
-        return (float(pts[:, 0].min()), float(pts[:, 1].min()), float(pts[:, 0].max()), float(pts[:, 1].max()))
+        return (
+            float(pts[:, 0].min()),
+            float(pts[:, 1].min()),
+            float(pts[:, 0].max()),
+            float(pts[:, 1].max()),
+        )
 
 
 def _polygons(rings: list[FloatArray]) -> list[Any]:
@@ -144,10 +149,14 @@ def _f(elem, name: str, default: float | None = None, *, path: Path | None = Non
     try:
         return float(raw)
     except ValueError as exc:
-        raise InputError(f"<{elem.tag}> attribute '{name}'={raw!r} is not a number", path=path, field=name) from exc
+        raise InputError(
+            f"<{elem.tag}> attribute '{name}'={raw!r} is not a number", path=path, field=name
+        ) from exc
 
 
-def _local_geometry(geom, ds: FloatArray, length: float, path: Path | None) -> tuple[FloatArray, FloatArray, FloatArray]:
+def _local_geometry(
+    geom, ds: FloatArray, length: float, path: Path | None
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     """(u, v, heading) in the geometry's local frame at distances ``ds`` along it."""
     kind = None
     for child in geom:
@@ -167,8 +176,12 @@ def _local_geometry(geom, ds: FloatArray, length: float, path: Path | None) -> t
         c1 = _f(kind, "curvEnd", path=path)
         s_f = np.linspace(0.0, length, n + 1)
         th = c0 * s_f + (c1 - c0) * s_f**2 / (2.0 * length if length > 0 else 1.0)
-        cu = np.concatenate([[0.0], np.cumsum(0.5 * (np.cos(th[1:]) + np.cos(th[:-1])) * np.diff(s_f))])
-        cv = np.concatenate([[0.0], np.cumsum(0.5 * (np.sin(th[1:]) + np.sin(th[:-1])) * np.diff(s_f))])
+        cu = np.concatenate(
+            [[0.0], np.cumsum(0.5 * (np.cos(th[1:]) + np.cos(th[:-1])) * np.diff(s_f))]
+        )
+        cv = np.concatenate(
+            [[0.0], np.cumsum(0.5 * (np.sin(th[1:]) + np.sin(th[:-1])) * np.diff(s_f))]
+        )
         return np.interp(ds, s_f, cu), np.interp(ds, s_f, cv), np.interp(ds, s_f, th)
     if kind.tag == "poly3":
         a, b, c, d = (_f(kind, x, 0.0, path=path) for x in "abcd")
@@ -208,7 +221,9 @@ def _plan_view(road, path: Path | None) -> list[tuple[float, float, float, float
     return out
 
 
-def _eval_plan_view(geoms, s: FloatArray, path: Path | None) -> tuple[FloatArray, FloatArray, FloatArray]:
+def _eval_plan_view(
+    geoms, s: FloatArray, path: Path | None
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Reference line x, y, heading [m, m, rad] at road coordinates ``s`` [m]."""
     x = np.empty_like(s)
     y = np.empty_like(s)
@@ -228,7 +243,9 @@ def _eval_plan_view(geoms, s: FloatArray, path: Path | None) -> tuple[FloatArray
     return x, y, h
 
 
-def _cubic_records(records: list[tuple[float, float, float, float, float]], s: FloatArray) -> FloatArray:
+def _cubic_records(
+    records: list[tuple[float, float, float, float, float]], s: FloatArray
+) -> FloatArray:
     """Piecewise cubic a + b ds + c ds^2 + d ds^3 (records sorted by start), evaluated at s."""
     if not records:
         return np.zeros_like(s)
@@ -263,7 +280,9 @@ def load_roads(xodr_path: str | Path, *, step_m: float = DEFAULT_STEP_M) -> Road
     p = Path(xodr_path)
     root = safexml.parse_file(p)
     if root.tag != "OpenDRIVE":
-        raise InputError(f"expected an OpenDRIVE file (root <OpenDRIVE>), found <{root.tag}>", path=p)
+        raise InputError(
+            f"expected an OpenDRIVE file (root <OpenDRIVE>), found <{root.tag}>", path=p
+        )
     geo = root.find("header/geoReference")
     proj = None if geo is None or not (geo.text or "").strip() else " ".join(geo.text.split())
     lanes: list[Lane] = []
@@ -303,7 +322,9 @@ def load_roads(xodr_path: str | Path, *, step_m: float = DEFAULT_STEP_M) -> Road
                 side_el = sec.find(side)
                 if side_el is None:
                     continue
-                side_lanes = sorted(side_el.findall("lane"), key=lambda ln: abs(int(ln.get("id", "0"))))
+                side_lanes = sorted(
+                    side_el.findall("lane"), key=lambda ln: abs(int(ln.get("id", "0")))
+                )
                 t_in = t_ref.copy()
                 for ln in side_lanes:
                     widths = sorted(
@@ -318,14 +339,26 @@ def load_roads(xodr_path: str | Path, *, step_m: float = DEFAULT_STEP_M) -> Road
                     t_out = t_in + sign * w
                     inner = np.column_stack([x + t_in * nx, y + t_in * ny])
                     outer = np.column_stack([x + t_out * nx, y + t_out * ny])
-                    lanes.append(Lane(rid, k, int(ln.get("id", "0")), ln.get("type", "none"), junction, inner, outer))
+                    lanes.append(
+                        Lane(
+                            rid,
+                            k,
+                            int(ln.get("id", "0")),
+                            ln.get("type", "none"),
+                            junction,
+                            inner,
+                            outer,
+                        )
+                    )
                     t_in = t_out
     if not refs:
         raise InputError("OpenDRIVE file has no road", path=p)
     return RoadGeometry(tuple(lanes), tuple(refs), proj, skipped, p)
 
 
-def drivable_share(roads: RoadGeometry, x_m: npt.ArrayLike, y_m: npt.ArrayLike, *, tolerance_m: float = 0.0) -> float:
+def drivable_share(
+    roads: RoadGeometry, x_m: npt.ArrayLike, y_m: npt.ArrayLike, *, tolerance_m: float = 0.0
+) -> float:
     """Share of points (x, y) [m] (any equal shapes; NaN ignored) that lie on a drivable lane.
 
     Args:
@@ -360,7 +393,9 @@ def drivable_share(roads: RoadGeometry, x_m: npt.ArrayLike, y_m: npt.ArrayLike, 
     return float(np.mean(inside))
 
 
-def draw_roads(ax, roads: RoadGeometry, *, zorder: float = -10.0, lane_lines: bool = True) -> list[Any]:
+def draw_roads(
+    ax, roads: RoadGeometry, *, zorder: float = -10.0, lane_lines: bool = True
+) -> list[Any]:
     """Draw the map under everything else on a matplotlib Axes (plane metres, equal aspect not forced).
 
     Drivable lanes are filled grey, other lanes (sidewalks, bike lanes, ...) light grey, and
@@ -376,7 +411,9 @@ def draw_roads(ax, roads: RoadGeometry, *, zorder: float = -10.0, lane_lines: bo
     drivable = [lane.outline for lane in roads.lanes if lane.drivable]
     other = [lane.outline for lane in roads.lanes if not lane.drivable]
     artists: list[Any] = []
-    pc_other = PolyCollection(other, facecolors=OTHER_FACE, edgecolors="none", zorder=zorder, label="_sidewalks")
+    pc_other = PolyCollection(
+        other, facecolors=OTHER_FACE, edgecolors="none", zorder=zorder, label="_sidewalks"
+    )
     pc_drive = PolyCollection(drivable, facecolors=ROAD_FACE, edgecolors=ROAD_FACE, linewidths=0.3,
                               zorder=zorder + 0.1, label="drivable lanes")  # fmt: skip
     ax.add_collection(pc_other, autolim=False)
@@ -384,7 +421,9 @@ def draw_roads(ax, roads: RoadGeometry, *, zorder: float = -10.0, lane_lines: bo
     artists += [pc_drive, pc_other]
     if lane_lines:
         segs = [lane.outer for lane in roads.lanes if lane.drivable]
-        lc = LineCollection(segs, colors=LINE_COLOR, linewidths=0.5, zorder=zorder + 0.2, label="_lane lines")
+        lc = LineCollection(
+            segs, colors=LINE_COLOR, linewidths=0.5, zorder=zorder + 0.2, label="_lane lines"
+        )
         ax.add_collection(lc, autolim=False)
         artists.append(lc)
     return artists

@@ -26,7 +26,9 @@ def _defused():
     except ImportError as exc:  # pragma: no cover - defusedxml is a core dependency
         from vei.errors import DependencyError
 
-        raise DependencyError("defusedxml is required to parse XML safely (pip install defusedxml)") from exc
+        raise DependencyError(
+            "defusedxml is required to parse XML safely (pip install defusedxml)"
+        ) from exc
     return dET, DefusedXmlException
 
 

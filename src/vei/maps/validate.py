@@ -82,7 +82,9 @@ def _xmlschema():
     try:
         import xmlschema
     except ImportError as exc:
-        raise DependencyError("OpenDRIVE validation needs xmlschema: pip install 'vei[maps]'") from exc
+        raise DependencyError(
+            "OpenDRIVE validation needs xmlschema: pip install 'vei[maps]'"
+        ) from exc
     return xmlschema
 
 
@@ -93,10 +95,14 @@ def _schema(rel: str):
 
 def read_header(root_or_path) -> tuple[int, int, str | None]:
     """(revMajor, revMinor, geoReference text or None) of an OpenDRIVE root element or file."""
-    root = safexml.parse_file(root_or_path) if isinstance(root_or_path, (str, Path)) else root_or_path
+    root = (
+        safexml.parse_file(root_or_path) if isinstance(root_or_path, (str, Path)) else root_or_path
+    )
     where = root_or_path if isinstance(root_or_path, (str, Path)) else None
     if root.tag != "OpenDRIVE":
-        raise InputError(f"expected an OpenDRIVE file (root <OpenDRIVE>), found <{root.tag}>", path=where)
+        raise InputError(
+            f"expected an OpenDRIVE file (root <OpenDRIVE>), found <{root.tag}>", path=where
+        )
     header = root.find("header")
     if header is None:
         raise InputError("OpenDRIVE file has no <header>", path=where, field="header")
@@ -153,7 +159,9 @@ def validate_opendrive(path: str | Path, *, validator: str = "auto") -> Validati
     major, minor, _geo = read_header(root) if root.tag == "OpenDRIVE" else read_header(p)
     note = ""
     if major != 1 or minor < 4:
-        raise InputError(f"OpenDRIVE {major}.{minor} is not supported (vei validates 1.4-1.7)", path=p)
+        raise InputError(
+            f"OpenDRIVE {major}.{minor} is not supported (vei validates 1.4-1.7)", path=p
+        )
     rel = SCHEMA_FILES.get(minor)
     if rel is None:
         rel = SCHEMA_FILES[7]
@@ -163,12 +171,15 @@ def validate_opendrive(path: str | Path, *, validator: str = "auto") -> Validati
             raise DependencyError("validator 'lxml' needs lxml: pip install lxml")
         from lxml import etree
 
-        parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False)
+        parser = etree.XMLParser(
+            resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False
+        )
         doc = etree.parse(str(p), parser)  # entity-free: checked by safexml above
         schema = _lxml_schema(rel)
         schema.validate(doc)
         issues = tuple(
-            SchemaIssue(path=str(err.path or ""), reason=str(err.message)) for err in schema.error_log
+            SchemaIssue(path=str(err.path or ""), reason=str(err.message))
+            for err in schema.error_log
         )
     else:
         schema = _schema(rel)
@@ -197,7 +208,9 @@ def carla_check(xodr_path: str | Path, *, distance_m: float = 2.0) -> dict[str, 
     try:
         import carla
     except ImportError as exc:
-        raise DependencyError("the CARLA check needs the carla client package: pip install 'vei[carla]'") from exc
+        raise DependencyError(
+            "the CARLA check needs the carla client package: pip install 'vei[carla]'"
+        ) from exc
     p = Path(xodr_path)
     safexml.check_file(p)
     text = p.read_text(encoding="utf-8")

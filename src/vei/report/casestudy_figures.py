@@ -202,7 +202,7 @@ def plot_birdseye_configs(
     keyframes: pd.DataFrame | None = None,
     roads: Callable | None = None,
     ego_id: str = EGO_ID,
-    margin_m: float = 15.0,
+    margin_m: float = 6.0,
 ):
     """Fig. 4: one bird's-eye panel per configuration (plane x east, y north [m]).
 
@@ -305,7 +305,7 @@ def plot_birdseye_configs(
         "Bird's-eye view: ego (red), original keyframes (dashed black), simulated e-scooter (dashed green)",
         fontsize=10,
     )
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.97))
     return fig
 
 

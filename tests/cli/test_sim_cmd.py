@@ -1,0 +1,173 @@
+import importlib.util
+import json
+
+import pandas as pd
+import pytest
+
+from vei.cli.main import main
+from vei.config import PAPER_CASES
+
+FIGURES = (
+    "fig4_birdseye.png",
+    "fig5_speed_profiles.png",
+    "fig6_speed_std.png",
+    "fig8_safety_index.png",
+)
+
+
+@pytest.fixture(scope="module")
+def demo_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo") / "out"
+    import contextlib
+    import io
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = main(["demo", "--out", str(out)])
+    return code, buf.getvalue(), out
+
+
+def test_demo_end_to_end_prints_five_rows_and_writes_the_figures(demo_run):
+    code, text, out = demo_run
+    assert code == 0, text
+    for name in PAPER_CASES:
+        assert any(line.strip("│┃ ").startswith(name + " ") for line in text.splitlines()), name
+    assert "SYNTHETIC" in text
+    assert "reproduced" in text and "NOT reproduced" not in text
+    assert str(out.resolve()) in text.replace("\n", "")
+    for fig in FIGURES:
+        assert (out / fig).read_bytes()[:4] == b"\x89PNG"
+    doc = json.loads((out / "summary.json").read_text())
+    rows = {c["name"]: c for c in doc["configs"]}
+    assert [rows[n]["collision"] for n in PAPER_CASES] == [True, True, True, False, False]
+    assert [rows[n]["safety_index"] for n in PAPER_CASES] == [0.0, 0.0, 0.0, 1.0, 1.0]
+    assert doc["time_shift"]["mode"] == "auto" and doc["time_shift_s"] > 0
+    assert (out / "interaction" / "interaction.json").exists()
+    assert (out / "scenario" / "scenario.json").exists()
+
+
+def test_casestudy_command_with_given_shift(demo_run, tmp_path, capsys):
+    _, _, out = demo_run
+    code = main(
+        [
+            "casestudy",
+            str(out / "scenario"),
+            "--out",
+            str(tmp_path / "cs"),
+            "--time-shift",
+            "0",
+            "--no-figures",
+        ]
+    )
+    text = capsys.readouterr().out
+    assert code == 0, text
+    doc = json.loads((tmp_path / "cs" / "summary.json").read_text())
+    assert doc["time_shift_s"] == 0.0 and doc["time_shift"] == {"mode": "given"}
+    # unshifted, the recording is crash-free: the replay does not collide
+    assert doc["configs"][0]["name"] == "replay" and doc["configs"][0]["collision"] is False
+    assert "+0.00 s" in text
+    csv = pd.read_csv(tmp_path / "cs" / "summary.csv")
+    assert csv["name"].tolist() == list(PAPER_CASES)
+    assert not list((tmp_path / "cs").glob("*.png"))
+
+
+def test_run_one_named_config(demo_run, tmp_path, capsys):
+    _, _, out = demo_run
+    dest = tmp_path / "run"
+    code = main(
+        [
+            "run",
+            str(out / "scenario"),
+            "--config",
+            "normal-cap",
+            "--out",
+            str(dest),
+            "--time-shift",
+            "4.5",
+        ]
+    )
+    assert code == 0, capsys.readouterr().out
+    doc = json.loads((dest / "metrics.json").read_text())
+    assert doc["config"] == "normal-cap" and doc["time_shift_s"] == 4.5
+    assert doc["metrics"]["collision"] is False
+    assert doc["case_config"]["ego_mode"] == "cap"
+    ts = pd.read_parquet(dest / "timeseries.parquet")
+    assert set(ts["config"]) == {"normal-cap"}
+    assert not (dest / "summary.json").exists()
+    for fig in FIGURES:
+        assert (dest / fig).exists()
+
+
+def test_run_with_a_config_file(demo_run, tmp_path, capsys):
+    _, _, out = demo_run
+    cfg = tmp_path / "slow-cap.yaml"
+    cfg.write_text("preset: normal-cap\nname: cap-tsafe3\ncap:\n  t_safe_s: 3.0\n")
+    dest = tmp_path / "run"
+    code = main(
+        [
+            "run",
+            str(out / "scenario"),
+            "--config",
+            str(cfg),
+            "--out",
+            str(dest),
+            "--time-shift",
+            "4.5",
+            "--no-figures",
+        ]
+    )
+    assert code == 0, capsys.readouterr().out
+    doc = json.loads((dest / "metrics.json").read_text())
+    assert doc["config"] == "cap-tsafe3"
+    assert doc["case_config"]["cap"]["t_safe_s"] == 3.0
+
+
+def test_bad_inputs_exit_2_with_a_message(demo_run, tmp_path, capsys):
+    _, _, out = demo_run
+    assert (
+        main(["run", str(out / "scenario"), "--config", "calm", "--out", str(tmp_path / "x")]) == 2
+    )
+    assert "neither a configuration name" in capsys.readouterr().err
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("preset: normal-cap\ncap:\n  t_save_s: 3.0\n")
+    assert (
+        main(["run", str(out / "scenario"), "--config", str(bad), "--out", str(tmp_path / "x")])
+        == 2
+    )
+    assert "t_save_s" in capsys.readouterr().err
+    assert (
+        main(
+            [
+                "casestudy",
+                str(out / "scenario"),
+                "--out",
+                str(tmp_path / "x"),
+                "--time-shift",
+                "later",
+            ]
+        )
+        == 2
+    )
+    assert main(["casestudy", str(tmp_path / "nowhere"), "--out", str(tmp_path / "x")]) == 2
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("vei.sim.backends.carla") is not None, reason="CARLA backend installed"
+)
+def test_carla_backend_absent_is_a_clear_error(demo_run, tmp_path, capsys):
+    _, _, out = demo_run
+    assert (
+        main(
+            ["casestudy", str(out / "scenario"), "--out", str(tmp_path / "x"), "--backend", "carla"]
+        )
+        == 2
+    )
+    assert "carla" in capsys.readouterr().err
+
+
+def test_demo_real_without_data_is_a_clear_error(tmp_path, capsys):
+    code = main(
+        ["demo", "--real", "--data-dir", str(tmp_path / "empty"), "--out", str(tmp_path / "o")]
+    )
+    assert code == 2
+    assert "trafficmonitoring data set was not found" in capsys.readouterr().err
