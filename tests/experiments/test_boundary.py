@@ -132,3 +132,109 @@ def test_bad_arguments():
         adaptive_boundary(line_oracle, (1, 0), (0, 1))
     with pytest.raises(ConfigError, match="collision"):
         adaptive_boundary(lambda p: {"x": p[:, 0]}, (0, 1), (0, 1), coarse=(2, 2), levels=0)
+
+
+# ----------------------------------------------------------------------------- engine
+
+
+@pytest.fixture(scope="module")
+def demo_scenario(tmp_path_factory):
+    """The synthetic demo interaction, reconstructed into a scenario folder."""
+    from vei.experiments.demo_data import demo_interaction
+    from vei.io.scenario import write_scenario
+    from vei.recon.pipeline import reconstruct
+
+    folder = tmp_path_factory.mktemp("demo") / "scenario"
+    write_scenario(reconstruct(demo_interaction()), folder)
+    return folder
+
+
+def test_search_boundary_on_the_demo_scenario(demo_scenario, tmp_path):
+    import json
+
+    import pandas as pd
+
+    from vei.config import RunConfig, load_config
+    from vei.experiments.boundary import search_boundary
+    from vei.experiments.sweep_spec import spec_from_dict
+    from vei.io.scenario import read_scenario
+    from vei.metrics import summarize
+    from vei.sim.engine import simulate
+    from vei.sim.state import VariantParams, prepare_scenario
+
+    spec = spec_from_dict(
+        {
+            "design": "grid",
+            "base": "normal",
+            "parameters": {
+                "time_shift_s": {"min": -3.0, "max": 3.0, "num": 5},
+                "ego.cruise_speed_mps": {"min": 3.0, "max": 9.0, "num": 5},
+                "cap.enabled": False,
+            },
+        }
+    )
+    out = tmp_path / "b"
+    res = search_boundary(
+        demo_scenario, spec, "time_shift_s", "ego.cruise_speed_mps", out,
+        coarse=(5, 5), levels=2, k_critical=6, progress=False,
+    )
+    s = res.samples
+    assert res.grid_evaluations == 17 * 17
+    assert res.n_evaluations < res.grid_evaluations
+    assert 0 < s["collision"].sum() < len(s)
+    assert (s["time_shift_s"] == s["x"]).all() and (s["ego.cruise_speed_mps"] == s["y"]).all()
+    assert not s["cap.enabled"].any()
+    # every crossing sits on a lattice edge between a colliding and a safe sample
+    key = {(int(i), int(j)): bool(c) for i, j, c in zip(s["i"], s["j"], s["collision"], strict=True)}
+    hx = res.x_values[1] - res.x_values[0]
+    hy = res.y_values[1] - res.y_values[0]
+    assert len(res.crossings) > 5
+    for px, py in res.crossings:
+        fi = (px - res.x_values[0]) / hx
+        fj = (py - res.y_values[0]) / hy
+        if abs(fi - round(fi)) < 1e-6:  # vertical edge
+            i, j = round(fi), int(np.floor(fj))
+            assert key[(i, j)] != key[(i, j + 1)]
+        else:
+            i, j = int(np.floor(fi)), round(fj)
+            assert key[(i, j)] != key[(i + 1, j)]
+    doc = json.loads((out / "boundary.json").read_text())
+    assert doc["n_evaluations"] == res.n_evaluations and len(doc["segments"]) == len(res.segments)
+    crit = pd.read_csv(out / "critical.csv")
+    assert len(crit) == 6 and list(crit.columns[:4]) == ["variant_id", "scenario_id", "variant_index", "seed"]
+    assert (out / "riskmap.png").stat().st_size > 10_000
+    # each critical variant's config file reproduces its outcome
+    arrays = prepare_scenario(read_scenario(demo_scenario))
+    for vid in crit["variant_id"][:3]:
+        cfg = load_config(out / "configs" / f"{vid}.yaml", RunConfig)
+        row = s[s["variant_id"] == vid].iloc[0]
+        p = VariantParams.from_case(cfg.case, arrays, 1, time_shift_s=cfg.time_shift)
+        again = summarize(simulate(arrays, p).to_trace())
+        assert bool(again["collision"][0]) == bool(row["collision"])
+        assert again["safety_index"][0] == pytest.approx(row["safety_index"], abs=1e-12)
+
+
+def test_search_boundary_rejects_a_varying_third_parameter(demo_scenario, tmp_path):
+    from vei.experiments.boundary import search_boundary
+    from vei.experiments.sweep_spec import spec_from_dict
+
+    spec = spec_from_dict(
+        {
+            "design": "grid",
+            "parameters": {
+                "time_shift_s": {"min": -1.0, "max": 1.0, "num": 2},
+                "rider_model": {"choices": ["normal", "aggressive"]},
+            },
+        }
+    )
+    with pytest.raises(ConfigError, match="rider_model"):
+        search_boundary(demo_scenario, spec, "time_shift_s", "ego.cruise_speed_mps", tmp_path,
+                        y_range=(3.0, 9.0))
+    with pytest.raises(ConfigError, match="float parameter"):
+        search_boundary(demo_scenario, spec, "time_shift_s", "rider_model", tmp_path)
+    with pytest.raises(ConfigError, match="needs a range"):
+        search_boundary(
+            demo_scenario,
+            spec_from_dict({"design": "grid", "parameters": {"time_shift_s": 0.0}}),
+            "time_shift_s", "ego.cruise_speed_mps", tmp_path,
+        )

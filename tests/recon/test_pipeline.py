@@ -213,3 +213,18 @@ def test_stadtmitte_primary_threat_and_active_riders(shared_interactions):
     assert primary["conflict"]
     assert primary["pet_s"] == pytest.approx(min(r["pet_s"] for r in conflicting))
     assert isinstance(sc.trajectories, pd.DataFrame) and math.isfinite(sc.rate_hz)
+
+
+def test_stadtmitte_scenario_folder_round_trips(shared_interactions, tmp_path):
+    # stadtmitte has single-keyframe tracks off the 20 Hz grid: they are dropped, and the
+    # written folder must still read back (their keyframes must not be left behind).
+    from vei.io.scenario import read_scenario, write_scenario
+
+    sc = reconstruct(shared_interactions["stadtmitte_12_audi_geradeaus_03"])
+    dropped = sc.extra["reconstruction"]["dropped_tracks"]
+    assert dropped  # the case this test is about
+    assert not set(dropped) & set(sc.keyframes["agent_id"])
+    back = read_scenario(write_scenario(sc, tmp_path / "scen"))
+    assert {a.agent_id for a in back.agents} == {a.agent_id for a in sc.agents}
+    assert len(back.keyframes) == len(sc.keyframes)
+    assert back.primary_threat == sc.primary_threat

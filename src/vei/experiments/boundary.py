@@ -468,7 +468,11 @@ def search_boundary(
     res = adaptive_boundary(oracle, xr, yr, coarse=coarse, levels=levels, x_name=x, y_name=y, progress=cb)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    write_parquet(out / "samples.parquet", res.samples)
+    lead = ["variant_id", "scenario_id", "variant_index", "seed"]
+    params = [n for n in PARAMETERS if n in res.samples.columns]
+    rest = [c for c in res.samples.columns if c not in (*lead, *params, "x", "y")]
+    table = res.samples[lead + params + rest]
+    write_parquet(out / "samples.parquet", table)
     write_json(
         out / "boundary.json",
         {
@@ -504,10 +508,10 @@ def search_boundary(
             sample_collided=res.samples["collision"].to_numpy(),
             x_label=x,
             y_label=y,
-            title=f"{sid}: safety index, collision boundary ({res.n_evaluations} variants, "
-            f"grid {res.grid_evaluations})",
+            title=f"{sid}: safety index and collision boundary\n({res.n_evaluations} variants "
+            f"evaluated; a grid of the same resolution: {res.grid_evaluations})",
         )
-    crit = most_critical(boundary_neighbours(res).drop(columns=["x", "y"]), k_critical)
+    crit = most_critical(boundary_neighbours(res)[table.columns], k_critical)
     write_text(out / "critical.csv", crit.to_csv(index=False))
     write_json(out / "critical.json", json_records(crit))
     write_variant_configs(out / "configs", crit, spec, evaluator.auto_shift_s(prepared))

@@ -301,6 +301,8 @@ def reconstruct(interaction: Interaction, config: ReconstructionConfig | None = 
             }
         )
     trajectories = pd.concat(frames, ignore_index=True)[list(TRAJECTORY_COLUMNS)]
+    # A track with no sample on the simulation grid is not an agent of the scenario.
+    keyframes = keyframes[~keyframes["agent_id"].isin(dropped)].reset_index(drop=True)
 
     # 8. primary threat.
     figures = []

@@ -69,7 +69,7 @@ def risk_map_figure(
     ax.set_ylim(_edges(yc)[0], _edges(yc)[-1])
     ax.set_xlabel(x_label)
     ax.set_ylabel(y_label)
-    ax.set_title(title or f"risk map: {value_label}, collision boundary in black")
+    ax.set_title(title or f"risk map: {value_label}, collision boundary in black", fontsize=9)
     ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
     fig.tight_layout()
     return fig
