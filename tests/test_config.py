@@ -72,7 +72,9 @@ def test_cap_needs_reachable_deceleration() -> None:
 
 def test_load_yaml_with_preset_and_overrides(tmp_path) -> None:
     f = tmp_path / "mine.yaml"
-    f.write_text("preset: normal-cap\nname: mine\ncap:\n  t_safe_s: 5\nego:\n  cruise_speed_mps: 5.6\n")
+    f.write_text(
+        "preset: normal-cap\nname: mine\ncap:\n  t_safe_s: 5\nego:\n  cruise_speed_mps: 5.6\n"
+    )
     cfg = load_config(f, CaseConfig)
     assert cfg.name == "mine" and cfg.ego_mode == "cap" and cfg.rider == "sfm"
     assert cfg.cap.t_safe_s == 5.0 and cfg.cap.d_buf_m == 3.0

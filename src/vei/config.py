@@ -310,7 +310,13 @@ class SimConfig:
         _finite("dt_s", self.dt_s, positive=True)
         if self.dt_s > 1.0:
             raise ConfigError(f"dt_s must be <= 1 s, got {self.dt_s}")
-        for name in ("duration_s", "ego_length_m", "ego_width_m", "rider_length_m", "rider_width_m"):
+        for name in (
+            "duration_s",
+            "ego_length_m",
+            "ego_width_m",
+            "rider_length_m",
+            "rider_width_m",
+        ):
             v = getattr(self, name)
             if v is not None:
                 _finite(name, v, positive=True)
@@ -382,7 +388,9 @@ def case_preset(preset: str, /, **overrides: Any) -> CaseConfig:
     Example: ``case_preset("normal-cap", ego=EgoConfig(cruise_speed_mps=5.6))``.
     """
     if preset not in CASE_PRESETS:
-        raise ConfigError(f"unknown configuration {preset!r}; expected one of {', '.join(CASE_PRESETS)}")
+        raise ConfigError(
+            f"unknown configuration {preset!r}; expected one of {', '.join(CASE_PRESETS)}"
+        )
     base = CASE_PRESETS[preset]
     return replace(base, **overrides) if overrides else base
 
@@ -425,7 +433,9 @@ def _build(cls: type[T], raw: Any, where: str) -> T:
     if isinstance(raw, str) and cls in _PRESETS_OF:
         raw = {"preset": raw}
     if not isinstance(raw, Mapping):
-        raise ConfigError(f"{where}: expected a mapping for {cls.__name__}, got {type(raw).__name__}")
+        raise ConfigError(
+            f"{where}: expected a mapping for {cls.__name__}, got {type(raw).__name__}"
+        )
     raw = dict(raw)
     base: Any = None
     if "preset" in raw:
@@ -446,7 +456,13 @@ def _build(cls: type[T], raw: Any, where: str) -> T:
             f"expected some of {', '.join(known)}"
         )
     kwargs: dict[str, Any] = {}
-    nested = {"sfm": SFMConfig, "ego": EgoConfig, "cap": CAPConfig, "case": CaseConfig, "sim": SimConfig}
+    nested = {
+        "sfm": SFMConfig,
+        "ego": EgoConfig,
+        "cap": CAPConfig,
+        "case": CaseConfig,
+        "sim": SimConfig,
+    }
     for key, value in raw.items():
         sub = nested.get(key)
         if sub is not None:
@@ -454,8 +470,26 @@ def _build(cls: type[T], raw: Any, where: str) -> T:
                 value = _override(getattr(base, key), value, f"{where}.{key}")
             kwargs[key] = _build(sub, value, f"{where}.{key}")
         else:
-            if isinstance(value, int) and not isinstance(value, bool) and key.endswith(
-                ("_s", "_m", "_mps", "_mps2", "_n", "_kg", "_nspm", "_per_m", "factor", "kp", "ki", "kd", "limit")
+            if (
+                isinstance(value, int)
+                and not isinstance(value, bool)
+                and key.endswith(
+                    (
+                        "_s",
+                        "_m",
+                        "_mps",
+                        "_mps2",
+                        "_n",
+                        "_kg",
+                        "_nspm",
+                        "_per_m",
+                        "factor",
+                        "kp",
+                        "ki",
+                        "kd",
+                        "limit",
+                    )
+                )
             ):
                 value = float(value)
             kwargs[key] = value

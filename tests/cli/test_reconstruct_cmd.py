@@ -58,3 +58,40 @@ def test_bad_options_exit_2(tmp_path, args):
 def test_missing_interaction_exits_2_with_message(tmp_path, capsys):
     assert main(["reconstruct", str(tmp_path / "nope"), "--out", str(tmp_path / "s")]) == 2
     assert "nope" in capsys.readouterr().err
+
+
+def test_map_from_the_real_ingolstadt_network_is_attached_and_aligned(
+    trafficmonitoring_root, data_dir, tmp_path, capsys
+):
+    """`--map FILE`: the real SUMO network of the recorded intersection becomes the
+    scenario's OpenDRIVE map in the scenario's own plane; the recorded car lies on it."""
+    from vei.datasets.trafficmonitoring import import_scenario
+    from vei.report.birdseye import plot_birdseye
+
+    net = data_dir / "maps" / "ingolstadt_research_intersection.net.xml.gz"
+    inter = import_scenario(
+        trafficmonitoring_root, "klinikum_01_marktkauf_geradeaus", tmp_path / "i"
+    )
+    out = tmp_path / "scen"
+    assert main(["reconstruct", str(inter), "--out", str(out), "--map", str(net)]) == 0
+    assert "ego samples on a drivable lane" in capsys.readouterr().out
+    sc = read_scenario(out)
+    assert sc.maps["opendrive"] == "map.xodr" and (out / "map.xodr").is_file()
+    info = sc.extra["map"]
+    assert info["schema_valid"] and info["projection"] == sc.projection
+    # Measured 0.994 (the car drives its lane through the intersection).
+    assert info["ego_on_drivable_share"] >= 0.98
+    assert "geoReference" in (out / "map.xodr").read_text()[:5000]
+    # Figures of a scenario with a map draw its roads underneath (polygon collections).
+    fig_with = plot_birdseye(sc)
+    fig_without = plot_birdseye(sc, roads=lambda ax: None)
+    assert len(fig_with.axes[0].collections) >= len(fig_without.axes[0].collections) + 2
+
+
+def test_bad_map_source_is_a_clean_error(tmp_path, capsys):
+    src = make_interaction(tmp_path)
+    bad = tmp_path / "roads.txt"
+    bad.write_text("not a map")
+    rc = main(["reconstruct", str(src), "--out", str(tmp_path / "s"), "--map", str(bad)])
+    assert rc == 2
+    assert not (tmp_path / "s").exists()

@@ -151,18 +151,17 @@ def test_bad_inputs_exit_2_with_a_message(demo_run, tmp_path, capsys):
     assert main(["casestudy", str(tmp_path / "nowhere"), "--out", str(tmp_path / "x")]) == 2
 
 
-@pytest.mark.skipif(
-    importlib.util.find_spec("vei.sim.backends.carla") is not None, reason="CARLA backend installed"
-)
-def test_carla_backend_absent_is_a_clear_error(demo_run, tmp_path, capsys):
+def test_carla_backend_without_a_server_is_a_clear_error(demo_run, tmp_path, capsys):
     _, _, out = demo_run
-    assert (
-        main(
-            ["casestudy", str(out / "scenario"), "--out", str(tmp_path / "x"), "--backend", "carla"]
-        )
-        == 2
-    )
-    assert "carla" in capsys.readouterr().err
+    args = ["casestudy", str(out / "scenario"), "--out", str(tmp_path / "x"), "--time-shift", "0"]
+    if importlib.util.find_spec("vei.sim.backends.carla") is None:
+        assert main([*args, "--backend", "carla"]) == 2
+        assert "not available" in capsys.readouterr().err
+    else:  # nothing listens on port 1 of the loopback: refused at once
+        assert main([*args, "--backend", "carla", "--host", "127.0.0.1", "--port", "1"]) == 2
+        assert "CARLA" in capsys.readouterr().err
+    assert main([*args, "--host", "127.0.0.1"]) == 2  # --host without --backend carla
+    assert "--backend carla only" in capsys.readouterr().err
 
 
 def test_demo_real_without_data_is_a_clear_error(tmp_path, capsys):
@@ -171,3 +170,21 @@ def test_demo_real_without_data_is_a_clear_error(tmp_path, capsys):
     )
     assert code == 2
     assert "trafficmonitoring data set was not found" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_demo_real_on_trafficmonitoring(trafficmonitoring_root, tmp_path, capsys):
+    out = tmp_path / "real"
+    code = main(
+        ["demo", "--real", "--data-dir", str(trafficmonitoring_root.parent), "--out", str(out)]
+    )
+    text = capsys.readouterr().out
+    assert code == 0, text
+    assert "stadtmitte_12_audi_geradeaus_03" in text
+    doc = json.loads((out / "summary.json").read_text())
+    assert [c["name"] for c in doc["configs"]] == list(PAPER_CASES)
+    assert doc["primary_threat"].startswith(("cyclist", "escooter"))
+    # the automatic shift makes the replayed paths meet: the replay collides
+    assert doc["configs"][0]["collision"] is True
+    for fig in FIGURES:
+        assert (out / fig).exists()

@@ -35,7 +35,12 @@ def test_other_geometry_and_negative_shift() -> None:
     # t = 6 s: it crosses y = 0 at 9 s, the ego front reaches x = 30 at 27.65 / 8 = 3.456 s,
     # so the rider must come 5.544 s earlier (negative shift).
     sc = crossing_scenario(
-        ego_speed_mps=8.0, rider_speed_mps=3.0, crossing_x_m=30.0, rider_y0_m=-9.0, rider_y1_m=9.0, rider_t0_s=6.0
+        ego_speed_mps=8.0,
+        rider_speed_mps=3.0,
+        crossing_x_m=30.0,
+        rider_y0_m=-9.0,
+        rider_y1_m=9.0,
+        rider_t0_s=6.0,
     )
     res = find_time_shift(sc)
     assert res.time_shift_s == pytest.approx(27.65 / 8.0 - 9.0, abs=2e-3)

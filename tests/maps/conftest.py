@@ -45,3 +45,10 @@ def ingolstadt_map(tmp_path_factory, ingolstadt_net):
     out = tmp_path_factory.mktemp("ing") / "map.xodr"
     clip = Bounds.around(INGOLSTADT_ORIGIN[0], INGOLSTADT_ORIGIN[1], margin_m=300.0)
     return build_opendrive(ingolstadt_net, out, origin=INGOLSTADT_ORIGIN, clip=clip)
+
+
+@pytest.fixture(scope="session")
+def ingolstadt_roads(ingolstadt_map):
+    from vei.maps.roads import load_roads
+
+    return load_roads(ingolstadt_map.opendrive)

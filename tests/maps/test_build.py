@@ -88,10 +88,18 @@ def test_pbf_source_is_converted_and_origin_defaults_to_the_data_centre(helsinki
     res = build_opendrive(osm, tmp_path / "h.xodr")
     assert (res.origin_lat_deg, res.origin_lon_deg) == pytest.approx(box.center)
     assert validate_opendrive(res.opendrive).valid
-    # A .pbf goes through osmium to XML first (netconvert reads no PBF): the full extract.
-    res_pbf = build_opendrive(helsinki_pbf, tmp_path / "full.xodr", origin=box.center)
-    assert res_pbf.source_kind == "osm" and res_pbf.opendrive.stat().st_size > 100_000
-    assert validate_opendrive(res_pbf.opendrive).valid
+    # A .pbf goes through osmium to XML first (netconvert reads no PBF): same map.
+    import osmium
+
+    pbf = tmp_path / "h.osm.pbf"
+    writer = osmium.SimpleWriter(str(pbf))
+    for obj in osmium.FileProcessor(str(osm)):
+        {"n": writer.add_node, "w": writer.add_way, "r": writer.add_relation}[obj.type_str()](obj)
+    writer.close()
+    res_pbf = build_opendrive(pbf, tmp_path / "p.xodr", origin=box.center)
+    assert res_pbf.source_kind == "osm" and validate_opendrive(res_pbf.opendrive).valid
+    roads = [sum(1 for _ in safexml.iter_elements(r.opendrive, {"road"})) for r in (res, res_pbf)]
+    assert roads[0] == roads[1] > 20
 
 
 def test_sumo_net_is_reprojected_from_utm_into_the_tmerc_plane(ingolstadt_map, ingolstadt_net):
@@ -125,7 +133,7 @@ def _ins_xy(frame: LocalFrame, record: str) -> tuple[np.ndarray, np.ndarray]:
     ("record", "measured"),
     [("20210209_133957", 1.000), ("20210209_134348", 0.998)],
 )
-def test_recorded_car_falls_on_the_lanes_of_the_ingolstadt_net(ingolstadt_map, record, measured):
+def test_recorded_car_falls_on_the_lanes_of_the_ingolstadt_net(ingolstadt_roads, record, measured):
     """The instrumented car's INS track (100 Hz) lies on the drivable lanes of the real network.
 
     Measured shares: 1.000 (stadtmitte_12, 9842 samples) and 0.998 (klinikum_01, 1979). The
@@ -133,9 +141,9 @@ def test_recorded_car_falls_on_the_lanes_of_the_ingolstadt_net(ingolstadt_map, r
     on the lanes, and the roadside camera's track of the same car agrees (0.18), so it is
     the map, not the INS (see docs/maps.md).
     """
-    from vei.maps.roads import drivable_share, load_roads
+    from vei.maps.roads import drivable_share
 
-    roads = load_roads(ingolstadt_map.opendrive)
+    roads = ingolstadt_roads
     x, y = _ins_xy(LocalFrame(*INGOLSTADT_ORIGIN), record)
     share = drivable_share(roads, x, y)
     assert share >= 0.99

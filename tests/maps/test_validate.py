@@ -63,3 +63,27 @@ def test_non_opendrive_and_bad_validator(tmp_path):
     no_header.write_text(HEADER.split("<header")[0] + "<road/></OpenDRIVE>")
     with pytest.raises(InputError, match="no <header>"):
         validate_opendrive(no_header)
+
+
+def test_carla_check_without_carla_is_a_dependency_error(tmp_path, monkeypatch):
+    import sys
+
+    from vei.errors import DependencyError
+    from vei.maps.validate import carla_check
+
+    monkeypatch.setitem(sys.modules, "carla", None)  # import carla -> ImportError
+    with pytest.raises(DependencyError, match="vei\\[carla\\]"):
+        carla_check(write_odr(tmp_path / "ok.xodr", straight_road()))
+
+
+def test_carla_check_on_a_hand_written_road(tmp_path):
+    pytest.importorskip("carla")
+    from vei.maps.validate import carla_check
+
+    info = carla_check(write_odr(tmp_path / "ok.xodr", straight_road()), distance_m=2.0)
+    # Two driving lanes (+1, -1) on one 100 m road; the sidewalk gets no waypoints.
+    assert info["roads"] == 1 and info["lanes"] == 2
+    assert info["waypoints"] == pytest.approx(2 * 50, abs=4)
+    assert info["mean_lane_width_m"] == pytest.approx(3.25, abs=0.01)
+    assert info["origin_lat_deg"] == pytest.approx(48.0, abs=1e-9)
+    assert info["origin_lon_deg"] == pytest.approx(11.0, abs=1e-9)

@@ -62,7 +62,9 @@ def test_command_mapping_and_actuator_lag() -> None:
     assert ego.accel_to_command(a, 3.0, 8.0) == pytest.approx([1.0, 0.5, -0.5, -1.0])
     assert float(ego.accel_to_command(-20.0, 3.0, 8.0)) == -1.0
     # First-order lag, exact discretisation: a' = a + (1 - exp(-dt / tau)) (a_cmd - a).
-    assert float(ego.actuator_step(0.0, -6.0, 0.2, 0.05)) == pytest.approx(-6.0 * (1 - math.exp(-0.25)))
+    assert float(ego.actuator_step(0.0, -6.0, 0.2, 0.05)) == pytest.approx(
+        -6.0 * (1 - math.exp(-0.25))
+    )
     assert float(ego.actuator_step(0.0, -6.0, 0.0, 0.05)) == -6.0
     assert float(ego.speed_step(0.1, -6.0, 0.05)) == 0.0
 
@@ -116,7 +118,9 @@ def test_corridor_check() -> None:
     ry = np.array([1.0, 4.0, 0.0, 0.0, 0.0])
     ryaw = np.array([math.pi / 2, math.pi / 2, 0.0, 0.0, 0.0])
     active = np.array([True, True, True, True, False])
-    ahead, gap = ego.corridor_check(path, np.full(5, 10.0), 4.7, rx, ry, ryaw, 1.2, 0.6, active, 3.5, 60.0)
+    ahead, gap = ego.corridor_check(
+        path, np.full(5, 10.0), 4.7, rx, ry, ryaw, 1.2, 0.6, active, 3.5, 60.0
+    )
     assert ahead.tolist() == [True, False, False, True, False]
     assert gap[0] == pytest.approx(30.0 - 12.35 - 0.3)  # crossing: half its width along the path
     assert gap[3] == pytest.approx(30.0 - 12.35 - 0.6)  # riding along: half its length
@@ -135,13 +139,22 @@ def test_cap_state_machine_transitions() -> None:
     assert new.tolist() == [B, C, B, R, C, B]
     assert braking.tolist() == [True, False, True, False, False, True]
     assert entered.tolist() == [False, False, False, True, False, False]
-    assert a[0] == pytest.approx(-5.6**2 / (2 * 11.0))
+    assert a[0] == pytest.approx(-(5.6**2) / (2 * 11.0))
     assert a[2] == pytest.approx(-9.0 / (2 * 7.0))
     assert a[5] == pytest.approx(-16.0 / (2 * 2.0))
     assert a[[1, 3, 4]].tolist() == [0.0, 0.0, 0.0]
     # Release by distance: BRAKE with d > d_safe + margin.
-    new, *_ = ego.cap_step(np.array([B], dtype=np.int8), np.array([1.0]), 5.6, np.array([True]), np.array([20.0]))
+    new, *_ = ego.cap_step(
+        np.array([B], dtype=np.int8), np.array([1.0]), 5.6, np.array([True]), np.array([20.0])
+    )
     assert new.tolist() == [R]
     # The paper's per-step law in BRAKE ignores the gap.
-    _, a, _, _ = ego.cap_step(np.array([B], dtype=np.int8), np.array([4.0]), 5.6, np.array([True]), np.array([5.0]), paper_per_step=True)
+    _, a, _, _ = ego.cap_step(
+        np.array([B], dtype=np.int8),
+        np.array([4.0]),
+        5.6,
+        np.array([True]),
+        np.array([5.0]),
+        paper_per_step=True,
+    )
     assert float(a[0]) == pytest.approx(-1.0)

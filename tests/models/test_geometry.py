@@ -42,8 +42,12 @@ def test_rotated_boxes_touching_corner_to_edge() -> None:
     # B: unit square rotated 45 deg whose left corner touches A's right edge (x = 1).
     h = math.sqrt(2) / 2
     assert bool(boxes_overlap(0.0, 0.0, 0.0, 2.0, 2.0, 1.0 + h, 0.0, math.pi / 4, 1.0, 1.0))
-    assert not bool(boxes_overlap(0.0, 0.0, 0.0, 2.0, 2.0, 1.0 + h + 1e-6, 0.0, math.pi / 4, 1.0, 1.0))
-    assert float(box_gap(0.0, 0.0, 0.0, 2.0, 2.0, 1.1 + h, 0.0, math.pi / 4, 1.0, 1.0)) == pytest.approx(0.1, abs=1e-9)
+    assert not bool(
+        boxes_overlap(0.0, 0.0, 0.0, 2.0, 2.0, 1.0 + h + 1e-6, 0.0, math.pi / 4, 1.0, 1.0)
+    )
+    assert float(
+        box_gap(0.0, 0.0, 0.0, 2.0, 2.0, 1.1 + h, 0.0, math.pi / 4, 1.0, 1.0)
+    ) == pytest.approx(0.1, abs=1e-9)
 
 
 def test_overlap_is_symmetric_and_batched() -> None:
@@ -62,7 +66,9 @@ def test_overlap_is_symmetric_and_batched() -> None:
 
 
 def test_closest_point_on_box() -> None:
-    qx, qy = closest_point_on_box(np.array([3.0, 0.5, -5.0]), np.array([0.5, 0.2, 4.0]), 0.0, 0.0, 0.0, 2.0, 1.0)
+    qx, qy = closest_point_on_box(
+        np.array([3.0, 0.5, -5.0]), np.array([0.5, 0.2, 4.0]), 0.0, 0.0, 0.0, 2.0, 1.0
+    )
     assert qx == pytest.approx([1.0, 0.5, -1.0])
     assert qy == pytest.approx([0.5, 0.2, 0.5])
     # Rotated 90 deg: length along y.

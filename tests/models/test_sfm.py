@@ -23,7 +23,9 @@ def test_desired_velocity_normalised_and_paper_forms() -> None:
     vx, vy = sfm.desired_velocity(2.0, 3.0, 2.0, 3.0, 5.0, 1.0)
     assert (float(vx), float(vy)) == (0.0, 0.0)
     # Batched with a per-variant form switch.
-    vx, _ = sfm.desired_velocity(0.0, 0.0, np.array([3.0, 3.0]), 4.0, 5.0, 1.0, np.array([False, True]))
+    vx, _ = sfm.desired_velocity(
+        0.0, 0.0, np.array([3.0, 3.0]), 4.0, 5.0, 1.0, np.array([False, True])
+    )
     assert vx == pytest.approx([15 / math.sqrt(26), 15 / 26])
 
 
@@ -62,7 +64,9 @@ def test_social_force_total_and_switches() -> None:
     f_veh = 100.0 * math.exp(-3.5 * 2.65)
     assert float(fx) == pytest.approx(f_des + f_veh)
     assert float(fy) == pytest.approx(0.0)
-    fx, _ = sfm.social_force(5.0, 0.0, 0.0, 0.0, 10.0, 0.0, 0.0, 0.0, 0.0, 4.7, 1.85, use_vehicle_force=False, **kw)
+    fx, _ = sfm.social_force(
+        5.0, 0.0, 0.0, 0.0, 10.0, 0.0, 0.0, 0.0, 0.0, 4.7, 1.85, use_vehicle_force=False, **kw
+    )
     assert float(fx) == pytest.approx(f_des)
 
 

@@ -13,7 +13,13 @@ from vei.models.ego import BRAKE
 from vei.models.geometry import box_gap
 from vei.sim.engine import _RECORDED, SimResult, initial_state, run_cases, simulate, step
 from vei.sim.state import VariantParams, prepare_scenario
-from vei.sim.testing import TrackSpec, crossing_scenario, ego_straight, make_scenario, standing_rider_scenario
+from vei.sim.testing import (
+    TrackSpec,
+    crossing_scenario,
+    ego_straight,
+    make_scenario,
+    standing_rider_scenario,
+)
 from vei.types import TIMESERIES_COLUMNS
 
 #: The time shift of the default crossing scenario that puts the rider's centre on the
@@ -64,12 +70,16 @@ def test_batch_equals_single_runs(crossing_arrays) -> None:
         single = simulate(crossing_arrays, p.take([i]))
         for name, arr in _series(single).items():
             assert np.array_equal(arr[0], getattr(batch, name)[i]), (i, name)
-            assert np.array_equal(arr[0], getattr(shuffled, name)[int(np.flatnonzero(perm == i)[0])]), (i, name)
+            assert np.array_equal(
+                arr[0], getattr(shuffled, name)[int(np.flatnonzero(perm == i)[0])]
+            ), (i, name)
     assert batch.collision.any() and (~batch.collision).any()
 
 
 def test_step_is_pure_and_matches_simulate(crossing_arrays) -> None:
-    p = VariantParams.from_case(case_preset("normal-cap"), crossing_arrays, 2, time_shift_s=[SHIFT_S, SHIFT_S + 1])
+    p = VariantParams.from_case(
+        case_preset("normal-cap"), crossing_arrays, 2, time_shift_s=[SHIFT_S, SHIFT_S + 1]
+    )
     st0 = initial_state(crossing_arrays, p)
     frozen = {k: np.copy(v) for k, v in st0._asdict().items() if k != "k"}
     st = st0
@@ -126,9 +136,18 @@ def test_collision_stops_both_and_recording_continues(crossing_arrays) -> None:
 def test_constant_speed_replay_20_mps_for_2_s_is_40_m() -> None:
     ego = ego_straight(20.0, 2.0, 20.0)
     t = ego.t_s
-    rider = TrackSpec("escooter", t, np.full_like(t, 10.0), np.full_like(t, 30.0), np.zeros_like(t), np.zeros_like(t))
+    rider = TrackSpec(
+        "escooter",
+        t,
+        np.full_like(t, 10.0),
+        np.full_like(t, 30.0),
+        np.zeros_like(t),
+        np.zeros_like(t),
+    )
     sc = make_scenario({"ego": ego, "r": rider}, primary_threat="r")
-    r = run_cases(sc, ["replay-speed", CaseConfig(name="pid20", ego=EgoConfig(cruise_speed_mps=20.0))])
+    r = run_cases(
+        sc, ["replay-speed", CaseConfig(name="pid20", ego=EgoConfig(cruise_speed_mps=20.0))]
+    )
     assert r.t_s[-1] == pytest.approx(2.0)
     assert r.ego_x_m[:, -1] == pytest.approx([40.0, 40.0], abs=1e-9)
     assert r.ego_speed_mps[:, -1] == pytest.approx([20.0, 20.0])
@@ -137,7 +156,9 @@ def test_constant_speed_replay_20_mps_for_2_s_is_40_m() -> None:
 def test_cap_stops_short_of_a_standing_escooter_and_paper_law_hits_it() -> None:
     sc = standing_rider_scenario(rider_x_m=40.0)
     gap_law = CaseConfig(name="gap", rider="replay", ego_mode="cap")
-    paper = CaseConfig(name="paper", rider="replay", ego_mode="cap", cap=CAPConfig(braking_law="paper_per_step"))
+    paper = CaseConfig(
+        name="paper", rider="replay", ego_mode="cap", cap=CAPConfig(braking_law="paper_per_step")
+    )
     no_lag = dataclasses.replace(gap_law, name="gap-nolag", ego=EgoConfig(actuator_lag_s=0.0))
     r = run_cases(sc, [gap_law, paper, no_lag], time_shift_s=0.0)
     final_gap = box_gap(
@@ -168,7 +189,9 @@ def test_perception_delay_postpones_braking(crossing_arrays) -> None:
     assert r.ego_speed_mps[1].min() < r.ego_speed_mps[0, k1] or r.collision[1]
 
 
-def test_rider_inactive_outside_its_shifted_span_and_sfm_starts_from_the_recording(crossing_arrays) -> None:
+def test_rider_inactive_outside_its_shifted_span_and_sfm_starts_from_the_recording(
+    crossing_arrays,
+) -> None:
     shift = 3.0
     r = run_cases(crossing_arrays, ["replay", "normal"], time_shift_s=shift)
     t = r.t_s
@@ -183,7 +206,14 @@ def test_rider_inactive_outside_its_shifted_span_and_sfm_starts_from_the_recordi
 
 def test_other_road_users_are_replayed_and_contacts_recorded() -> None:
     t = np.arange(0, 201) / 20.0
-    other = TrackSpec("cyclist", t, np.full_like(t, 20.0), np.zeros_like(t), np.full_like(t, np.pi / 2), np.zeros_like(t))
+    other = TrackSpec(
+        "cyclist",
+        t,
+        np.full_like(t, 20.0),
+        np.zeros_like(t),
+        np.full_like(t, np.pi / 2),
+        np.zeros_like(t),
+    )
     sc = crossing_scenario(duration_s=10.0, others=[("c2", other)])
     r = run_cases(sc, ["replay"], time_shift_s=0.0)
     assert r.other_ids == ("c2",)
@@ -226,7 +256,9 @@ def test_record_none_keeps_summaries(crossing_arrays) -> None:
 
 
 def test_variant_params_validation(crossing_arrays) -> None:
-    p = VariantParams.from_case(case_preset("normal"), crossing_arrays, 4, mass_kg=[90.0, 95.0, 100.0, 105.0])
+    p = VariantParams.from_case(
+        case_preset("normal"), crossing_arrays, 4, mass_kg=[90.0, 95.0, 100.0, 105.0]
+    )
     assert p.batch_size == 4 and p.mass_kg.tolist() == [90.0, 95.0, 100.0, 105.0]
     assert p.cruise_speed_mps.tolist() == [5.6] * 4  # median moving speed of the recording
     with pytest.raises(ConfigError):

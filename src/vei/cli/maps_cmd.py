@@ -5,7 +5,10 @@ Heavy work (osmium, netconvert, carla, xmlschema) is imported inside the command
 
 from __future__ import annotations
 
+import contextlib
 import json
+import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated
 
@@ -62,6 +65,18 @@ def _bounds_from_options(
         return Bounds(*(float(b[k]) for k in keys))
     except (TypeError, ValueError) as exc:
         raise InputError(f"bounds must be numbers: {exc}", path=path, field="bounds") from exc
+
+
+@contextlib.contextmanager
+def _status(message: str) -> Iterator[None]:
+    """A rich spinner on stderr while external tools run (only when stderr is a terminal)."""
+    if not sys.stderr.isatty():
+        yield
+        return
+    from rich.console import Console
+
+    with Console(stderr=True).status(message):
+        yield
 
 
 def register(app: typer.Typer) -> None:
@@ -206,7 +221,8 @@ def register(app: typer.Typer) -> None:
         if result.sumo_net is not None:
             typer.echo(f"wrote {result.sumo_net} (SUMO network of the same map)")
         typer.echo(f"geoReference: {result.proj_string}")
-        report = validate_opendrive(result.opendrive)
+        with _status("validating against the OpenDRIVE XSD ..."):
+            report = validate_opendrive(result.opendrive)
         if report.valid:
             typer.echo(
                 f"XSD: valid OpenDRIVE {report.version} ({report.schema}, {report.validator})"
@@ -219,7 +235,8 @@ def register(app: typer.Typer) -> None:
                 typer.echo(f"  {count} x {what}")
         if carla_check:
             try:
-                info = run_carla_check(result.opendrive)
+                with _status("loading the map in carla.Map ..."):
+                    info = run_carla_check(result.opendrive)
             except DependencyError as exc:
                 typer.echo(f"CARLA check skipped: {exc}")
             else:

@@ -8,6 +8,9 @@ reconstruction error (RMSE, p95, max [m]); then a summary with the primary threa
 
 from __future__ import annotations
 
+import functools
+import shutil
+import tempfile
 from pathlib import Path
 from typing import Annotated
 
@@ -60,7 +63,16 @@ def register(app: typer.Typer) -> None:
                 "--figure/--no-figure", help="Write birdseye.png into the scenario folder."
             ),
         ] = True,
-        # Map support (--map auto|FILE) is added by vei.maps; it plugs in here.
+        map_source: Annotated[
+            str | None,
+            typer.Option(
+                "--map",
+                help="Attach a road map (OpenDRIVE, built with SUMO netconvert in the scenario's "
+                "plane): 'auto' (the configured OSM source: $VEI_OSM_SOURCE, else the Overpass "
+                "API at $VEI_OVERPASS_URL), 'overpass', or a file: OSM extract (.osm, .osm.pbf), "
+                "SUMO network (.net.xml[.gz]) or OpenDRIVE (.xodr). Omit for no map.",
+            ),
+        ] = None,
     ) -> None:
         """Reconstruct a scenario from a recorded interaction (paper Section III-B)."""
         from vei.io.interaction import read_interaction
@@ -73,13 +85,24 @@ def register(app: typer.Typer) -> None:
         )
         data = read_interaction(interaction)
         scenario = run_reconstruct(data, config)
-        writers = {}
-        if figure:
-            from vei.report.birdseye import plot_birdseye, save_figure
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix=".vei-map-", dir=out.parent) as work:
+            writers = {}
+            draw_roads = None
+            if map_source is not None:
+                from vei.maps import draw_roads as draw
+                from vei.maps.scenario_map import add_map
 
-            fig = plot_birdseye(scenario, title=f"{scenario.id} ({interp})")
-            writers["birdseye.png"] = lambda p: save_figure(fig, p)
-        write_scenario(scenario, out, extra_files=writers)
+                scenario, files, roads = add_map(scenario, Path(work), source=map_source)
+                for name, path in files.items():
+                    writers[name] = functools.partial(shutil.copyfile, path)
+                draw_roads = functools.partial(draw, roads=roads)
+            if figure:
+                from vei.report.birdseye import plot_birdseye, save_figure
+
+                fig = plot_birdseye(scenario, title=f"{scenario.id} ({interp})", roads=draw_roads)
+                writers["birdseye.png"] = functools.partial(save_figure, fig)
+            write_scenario(scenario, out, extra_files=writers)
         print_report(scenario, out)
 
 
@@ -134,6 +157,13 @@ def print_report(scenario, out: Path) -> None:
     if dropped:
         console.print(
             f"left out (no {scenario.rate_hz:g} Hz sample inside their keyframe span): {', '.join(dropped)}"
+        )
+    map_info = scenario.extra.get("map")
+    if map_info:
+        console.print(
+            f"map: {map_info['opendrive']} (OpenDRIVE {map_info['opendrive_version']}, "
+            f"schema {'valid' if map_info['schema_valid'] else 'INVALID'}, source {map_info['source']}); "
+            f"ego samples on a drivable lane: {100 * map_info['ego_on_drivable_share']:.1f} %"
         )
     n = scenario.trajectories["agent_id"].nunique()
     console.print(f"wrote {out} ({n} agents at {scenario.rate_hz:g} Hz)")

@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 from pathlib import Path
@@ -341,7 +342,11 @@ def run_demo(
     console = console or _console()
     out = Path(out)
     inter_dir, scen_dir = out / "interaction", out / "scenario"
-    with console.status("preparing the interaction ...") if console.is_terminal else _nullcontext():
+
+    def status(msg: str):
+        return console.status(msg) if console.is_terminal else contextlib.nullcontext()
+
+    with status("step 1/3: preparing the interaction ..."):
         if real:
             from vei.datasets.trafficmonitoring import import_scenario
 
@@ -358,20 +363,14 @@ def run_demo(
                 "generated the built-in SYNTHETIC demo interaction (not a recording): "
                 + str(inter_dir)
             )
-    scenario = reconstruct(read_interaction(inter_dir), ReconstructionConfig(interp=interp))
-    write_scenario(scenario, scen_dir)
+    with status("step 2/3: reconstructing the scenario ..."):
+        scenario = reconstruct(read_interaction(inter_dir), ReconstructionConfig(interp=interp))
+        write_scenario(scenario, scen_dir)
     console.print(
         f"reconstructed {scenario.id}: primary threat {scenario.primary_threat}, {scenario.rate_hz:g} Hz -> {scen_dir}"
     )
-    result = run_casestudy(scenario, time_shift=time_shift)
-    write_casestudy(result, out)
+    with status("step 3/3: time shift, five configurations, metrics and figures ..."):
+        result = run_casestudy(scenario, time_shift=time_shift)
+        write_casestudy(result, out)
     print_summary(result, out, console=console)
     return result
-
-
-class _nullcontext:
-    def __enter__(self):
-        return None
-
-    def __exit__(self, *exc):
-        return False

@@ -534,12 +534,14 @@ def sweep_risk_map(
     *,
     x: str | None = None,
     y: str | None = None,
-    bins: int = 25,
+    bins: int | None = None,
 ) -> dict[str, Any] | None:
-    """Risk map of a finished sweep over two range parameters (default: the first two).
+    """Risk map of a finished sweep over two range parameters (default: time shift x ego
+    cruise speed when both are ranges, else the first two ranges in PARAMETERS order).
 
     Variants are binned in the (x, y) plane: a grid design's own values are the bins (one
-    variant per bin per other setting), other designs use ``bins`` equal bins per axis. The
+    variant per bin per other setting), other designs use ``bins`` equal bins per axis
+    (default: about 10 variants per bin, 4 to 25 bins per axis). The
     heatmap is the mean safety index per bin, the boundary the 0.5 level of the collision
     share (marching squares, linear interpolation; :func:`vei.experiments.boundary.share_boundary`).
 
@@ -551,11 +553,17 @@ def sweep_risk_map(
     from vei.experiments.boundary import binned_risk, share_boundary
     from vei.report.riskmap import write_risk_map
 
-    ranges = [p for p in spec.parameters if p.is_range and p.min != p.max]
+    ranges = [p.name for p in spec.parameters if p.is_range and p.min != p.max]
     if x is None or y is None:
         if len(ranges) < 2:
             return None
-        x, y = ranges[0].name, ranges[1].name
+        x, y = (
+            ("time_shift_s", "ego.cruise_speed_mps")
+            if {"time_shift_s", "ego.cruise_speed_mps"} <= set(ranges)
+            else (ranges[0], ranges[1])
+        )
+    if bins is None:
+        bins = int(np.clip(np.sqrt(len(results) / 10.0), 4, 25))
     if not {"safety_index", "collision", x, y} <= set(results.columns):
         return None
 

@@ -83,7 +83,9 @@ def parse_time_shift(value: str | float) -> str | float:
         try:
             v = float(text)
         except ValueError:
-            raise InputError(f"expected 'auto' or a number of seconds, got {value!r}", field="time-shift") from None
+            raise InputError(
+                f"expected 'auto' or a number of seconds, got {value!r}", field="time-shift"
+            ) from None
     if not np.isfinite(v):
         raise InputError(f"time shift must be finite, got {value!r}", field="time-shift")
     return v
@@ -127,7 +129,11 @@ def find_time_shift(
     fx = ex + hl * np.cos(eyaw)
     fy = ey + hl * np.sin(eyaw)
 
-    lo, hi = (float(t[0] - tr.t_end_s), float(t[-1] - tr.t0_s)) if search_range_s is None else search_range_s
+    lo, hi = (
+        (float(t[0] - tr.t_end_s), float(t[-1] - tr.t0_s))
+        if search_range_s is None
+        else search_range_s
+    )
     if not (np.isfinite(lo) and np.isfinite(hi)) or hi < lo:
         raise InputError(f"invalid time-shift search range ({lo}, {hi})", field="search_range_s")
     dt = arrays.dt_s
@@ -137,7 +143,9 @@ def find_time_shift(
     t_tab = tr.t0_s + np.arange(m) * tr.dt_s
     x_tab, y_tab = tr.data[:, tr.col("x_m")], tr.data[:, tr.col("y_m")]
 
-    def miss(taus_: np.ndarray, times: np.ndarray, fxs: np.ndarray, fys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def miss(
+        taus_: np.ndarray, times: np.ndarray, fxs: np.ndarray, fys: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """[n_tau] miss distances and the index of the closest time for each."""
         out = np.full(taus_.shape, np.inf)
         arg = np.zeros(taus_.shape, dtype=np.intp)
@@ -154,7 +162,10 @@ def find_time_shift(
 
     d_grid, arg_grid = miss(taus, t, fx, fy)
     if not np.isfinite(d_grid).any():
-        raise InputError("the rider's recording never overlaps the simulated span", path=f"scenario {scenario.id}")
+        raise InputError(
+            "the rider's recording never overlaps the simulated span",
+            path=f"scenario {scenario.id}",
+        )
     best = float(d_grid.min())
     ties = np.flatnonzero(d_grid <= best + tie_tolerance_m)
     # Among ties, prefer the smallest |tau|; refine around it (times near the meeting).

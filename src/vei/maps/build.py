@@ -26,12 +26,15 @@ the schema deviations reported.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import shutil
 import subprocess
+import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -361,7 +364,7 @@ def build_opendrive(
         if kind == "osm" and (src.name.lower().endswith((".pbf", ".bz2"))):
             osm_input = _to_osm_xml(src, tmp / "source.osm")
         if converter == "carla":
-            _carla_convert(osm_input, xodr_tmp, frame, traffic_lights=traffic_lights)
+            warnings += _carla_convert(osm_input, xodr_tmp, frame, traffic_lights=traffic_lights)
             commands.append(("carla.Osm2Odr.convert", frame.proj_string))
         elif kind == "osm":
             args = [
@@ -445,8 +448,10 @@ def build_opendrive(
     )
 
 
-def _carla_convert(osm: Path, out: Path, frame: LocalFrame, *, traffic_lights: bool) -> None:
-    """carla.Osm2Odr.convert with the plane's proj string, no centring, CARLA's way types."""
+def _carla_convert(osm: Path, out: Path, frame: LocalFrame, *, traffic_lights: bool) -> list[str]:
+    """carla.Osm2Odr.convert with the plane's proj string, no centring, CARLA's way types.
+
+    Returns the converter's warning lines (captured from the native stdout/stderr)."""
     try:
         import carla
     except ImportError as exc:
@@ -462,10 +467,33 @@ def _carla_convert(osm: Path, out: Path, frame: LocalFrame, *, traffic_lights: b
     settings.default_lane_width = DEFAULT_LANE_WIDTH_M
     settings.set_osm_way_types(list(CARLA_WAY_TYPES))
     text = osm.read_text(encoding="utf-8")
-    try:
-        xodr = carla.Osm2Odr.convert(text, settings)
-    except RuntimeError as exc:
-        raise BackendError(f"carla.Osm2Odr.convert failed: {exc}") from exc
+    with _captured_fds() as captured:
+        try:
+            xodr = carla.Osm2Odr.convert(text, settings)
+        except RuntimeError as exc:
+            raise BackendError(f"carla.Osm2Odr.convert failed: {exc}") from exc
     if not xodr:
         raise BackendError("carla.Osm2Odr.convert returned nothing")
     out.write_text(xodr, encoding="utf-8")
+    return [ln for ln in captured if ln.startswith("Warning")]
+
+
+@contextlib.contextmanager
+def _captured_fds() -> Iterator[list[str]]:
+    """Capture what native code writes to file descriptors 1 and 2 (the lines, after exit)."""
+    lines: list[str] = []
+    sys.stdout.flush()
+    sys.stderr.flush()
+    with tempfile.TemporaryFile() as sink:
+        saved = [os.dup(1), os.dup(2)]
+        try:
+            os.dup2(sink.fileno(), 1)
+            os.dup2(sink.fileno(), 2)
+            yield lines
+        finally:
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            for fd in saved:
+                os.close(fd)
+            sink.seek(0)
+            lines.extend(sink.read().decode("utf-8", "replace").splitlines())

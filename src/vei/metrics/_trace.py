@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -21,6 +21,8 @@ class TraceArrays:
     """A Trace as validated float/bool arrays ([B, T] unless noted), with derived geometry."""
 
     trace: Trace
+    #: memo of derived series keyed by (name, config), filled by the metric modules
+    memo: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         t = self.t_s

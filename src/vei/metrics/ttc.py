@@ -53,6 +53,9 @@ def paper_ttc(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> F
     """
     cfg = _cfg(cfg)
     a = arrays(trace)
+    key = ("paper_ttc", cfg)
+    if key in a.memo:
+        return a.memo[key].copy()
     v = a.ego_speed
     moving = v > cfg.min_speed_mps
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -60,7 +63,9 @@ def paper_ttc(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> F
     if cfg.ttc_scope == "ahead":
         ttc = np.where(a.ahead, ttc, np.inf)
     ttc = np.where(a.collided, 0.0, ttc)
-    return np.where(a.active, ttc, np.nan)
+    out = np.where(a.active, ttc, np.nan)
+    a.memo[key] = out
+    return out.copy()
 
 
 def ttc_zones(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> npt.NDArray[np.int8]:
@@ -73,6 +78,9 @@ def ttc_zones(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> n
     """
     cfg = _cfg(cfg)
     a = arrays(trace)
+    key = ("ttc_zones", cfg)
+    if key in a.memo:
+        return a.memo[key].copy()
     ttc = paper_ttc(a, cfg)
     zones = np.full(ttc.shape, ZONE_ALERT, dtype=np.int8)
     with np.errstate(invalid="ignore"):
@@ -80,7 +88,8 @@ def ttc_zones(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> n
         zones[ttc > cfg.safe_ttc_s] = ZONE_SAFE
     zones[a.collided] = ZONE_COLLISION
     zones[~a.active] = ZONE_INACTIVE
-    return zones
+    a.memo[key] = zones
+    return zones.copy()
 
 
 def zone_durations(

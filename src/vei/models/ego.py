@@ -87,7 +87,11 @@ class PathTable:
                 "sin": slope(sin_yaw),
             },
         )
-        object.__setattr__(self, "_values", {"x": self.x_m, "y": self.y_m, "yaw": self.yaw_rad, "cos": cos_yaw, "sin": sin_yaw})
+        object.__setattr__(
+            self,
+            "_values",
+            {"x": self.x_m, "y": self.y_m, "yaw": self.yaw_rad, "cos": cos_yaw, "sin": sin_yaw},
+        )
         ex, ey, _ = self.lookup(self.length_m)
         object.__setattr__(self, "end_x_m", float(ex))
         object.__setattr__(self, "end_y_m", float(ey))
@@ -313,7 +317,9 @@ def pid_reset_where(state: PIDState, mask: ArrayLike, error_mps: ArrayLike) -> P
     return PIDState(np.where(m, 0.0, state.integral_m), np.where(m, e, state.prev_error_mps))
 
 
-def command_to_accel(u: ArrayLike, max_accel_mps2: ArrayLike, max_decel_mps2: ArrayLike) -> FloatArray:
+def command_to_accel(
+    u: ArrayLike, max_accel_mps2: ArrayLike, max_decel_mps2: ArrayLike
+) -> FloatArray:
     """Acceleration demanded by a command u in [-1, 1]: u * max_accel (u >= 0), u * max_decel (u < 0).
 
     Args:
@@ -325,13 +331,17 @@ def command_to_accel(u: ArrayLike, max_accel_mps2: ArrayLike, max_decel_mps2: Ar
     return u * np.where(u >= 0.0, max_accel_mps2, max_decel_mps2)
 
 
-def accel_to_command(a_mps2: ArrayLike, max_accel_mps2: ArrayLike, max_decel_mps2: ArrayLike) -> FloatArray:
+def accel_to_command(
+    a_mps2: ArrayLike, max_accel_mps2: ArrayLike, max_decel_mps2: ArrayLike
+) -> FloatArray:
     """The command u in [-1, 1] that demands acceleration a (inverse of command_to_accel, clipped)."""
     a = np.asarray(a_mps2, dtype=np.float64)
     return np.clip(a / np.where(a >= 0.0, max_accel_mps2, max_decel_mps2), -1.0, 1.0)
 
 
-def actuator_step(a_mps2: ArrayLike, a_cmd_mps2: ArrayLike, lag_s: ArrayLike, dt_s: float) -> FloatArray:
+def actuator_step(
+    a_mps2: ArrayLike, a_cmd_mps2: ArrayLike, lag_s: ArrayLike, dt_s: float
+) -> FloatArray:
     """First-order lag of the actual acceleration towards the demanded one (exact discretisation).
 
     ``a' = a + (1 - exp(-dt / tau)) (a_cmd - a)``; tau = 0 means no lag (a' = a_cmd).
@@ -355,13 +365,17 @@ def speed_step(v_mps: ArrayLike, a_mps2: ArrayLike, dt_s: float) -> FloatArray:
 # --------------------------------------------------------------------------------------
 # CAP
 # --------------------------------------------------------------------------------------
-def safe_distance(v_mps: ArrayLike, t_safe_s: ArrayLike, d_buf_m: ArrayLike, a_min_mps2: ArrayLike) -> FloatArray:
+def safe_distance(
+    v_mps: ArrayLike, t_safe_s: ArrayLike, d_buf_m: ArrayLike, a_min_mps2: ArrayLike
+) -> FloatArray:
     """``d_safe = max(v^2 / (2 |a_min|), T_safe v) + d_buf`` [m] (paper eq. cap_safe_dist)."""
     v = np.asarray(v_mps, dtype=np.float64)
     return np.maximum(v * v / (2.0 * np.abs(a_min_mps2)), np.asarray(t_safe_s) * v) + d_buf_m
 
 
-def gap_braking_accel(v_mps: ArrayLike, gap_m: ArrayLike, d_buf_m: ArrayLike, a_min_mps2: ArrayLike) -> FloatArray:
+def gap_braking_accel(
+    v_mps: ArrayLike, gap_m: ArrayLike, d_buf_m: ArrayLike, a_min_mps2: ArrayLike
+) -> FloatArray:
     """Gap law ``a = -v^2 / (2 (d - d_buf))`` saturated at a_min (a_min where d <= d_buf).
 
     The constant deceleration that stops the car exactly d_buf short of an obstacle at gap
@@ -461,10 +475,13 @@ def corridor_check(
     if idx.size:
         yaw = flat(rider_yaw_rad)[idx]
         cr, sr, pci, psi = np.cos(yaw), np.sin(yaw), pc[idx], ps[idx]
+
         def at(a: FloatArray) -> FloatArray:
             return a if a.ndim == 0 else a[idx]
 
-        ext = 0.5 * at(l_r) * np.abs(cr * pci + sr * psi) + 0.5 * at(w_r) * np.abs(sr * pci - cr * psi)
+        ext = 0.5 * at(l_r) * np.abs(cr * pci + sr * psi) + 0.5 * at(w_r) * np.abs(
+            sr * pci - cr * psi
+        )
         dfc = d_front[idx]
         g = dfc - ext
         ok = (dfc + ext > 0.0) & (g <= at(flat(detection_range_m)))
@@ -514,7 +531,9 @@ def cap_step(
     trigger = ahead & (gap < d_safe)
     release = (st == BRAKE) & ~trigger & (~ahead | (gap > d_safe + release_margin_m))
     recovered = (st == RECOVER) & (np.abs(v - v_cruise_mps) <= recover_tolerance_mps)
-    new = np.where(trigger, BRAKE, np.where(release, RECOVER, np.where(recovered, CRUISE, st))).astype(np.int8)
+    new = np.where(
+        trigger, BRAKE, np.where(release, RECOVER, np.where(recovered, CRUISE, st))
+    ).astype(np.int8)
     braking = new == BRAKE
     paper = np.asarray(paper_per_step, dtype=bool)
     if paper.ndim == 0 and not bool(paper):

@@ -149,8 +149,12 @@ def box_gap(
             px, py = p[..., i, 0], p[..., i, 1]
             for j in range(4):
                 k = (j + 1) % 4
-                d = _point_segment_distance(px, py, q[..., j, 0], q[..., j, 1], q[..., k, 0], q[..., k, 1])
+                d = _point_segment_distance(
+                    px, py, q[..., j, 0], q[..., j, 1], q[..., k, 0], q[..., k, 1]
+                )
                 best = d if best is None else np.minimum(best, d)
     assert best is not None
-    inside = boxes_overlap(ax_m, ay_m, ayaw_rad, alength_m, awidth_m, bx_m, by_m, byaw_rad, blength_m, bwidth_m)
+    inside = boxes_overlap(
+        ax_m, ay_m, ayaw_rad, alength_m, awidth_m, bx_m, by_m, byaw_rad, blength_m, bwidth_m
+    )
     return np.where(inside, 0.0, best)

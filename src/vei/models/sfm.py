@@ -105,7 +105,9 @@ def influential_point(
     if fb.ndim == 0 and bool(fb):
         hl = 0.5 * np.asarray(ego_length_m, dtype=np.float64)
         return ego_x_m + hl * np.cos(ego_yaw_rad), ego_y_m + hl * np.sin(ego_yaw_rad)
-    qx, qy = closest_point_on_box(px_m, py_m, ego_x_m, ego_y_m, ego_yaw_rad, ego_length_m, ego_width_m)
+    qx, qy = closest_point_on_box(
+        px_m, py_m, ego_x_m, ego_y_m, ego_yaw_rad, ego_length_m, ego_width_m
+    )
     if fb.ndim == 0 or not fb.any():
         return qx, qy
     hl = 0.5 * np.asarray(ego_length_m, dtype=np.float64)
@@ -227,7 +229,9 @@ def social_force(
     use = np.asarray(use_vehicle_force, dtype=bool)
     if use.ndim == 0 and not bool(use):
         return fx, fy
-    qx, qy = influential_point(px_m, py_m, ego_x_m, ego_y_m, ego_yaw_rad, ego_length_m, ego_width_m, front_bumper)
+    qx, qy = influential_point(
+        px_m, py_m, ego_x_m, ego_y_m, ego_yaw_rad, ego_length_m, ego_width_m, front_bumper
+    )
     hx, hy = vehicle_force(px_m, py_m, qx, qy, a_veh_n, b_veh_per_m, ego_x_m, ego_y_m, ego_yaw_rad)
     if use.ndim == 0:
         return fx + hx, fy + hy

@@ -45,7 +45,9 @@ def plot_birdseye(
         sim_tracks: optional simulated trajectories (columns agent_id, t_s, x_m, y_m), drawn
             dashed over the recorded ones.
         title: axes title (default: the scenario id).
-        roads: optional callable roads(ax) drawing the map underneath.
+        roads: optional callable roads(ax) drawing the map underneath. When None and the
+            scenario was read from a folder whose scenario.json names an OpenDRIVE map, that
+            map's roads are drawn.
     Returns:
         The matplotlib Figure.
     """
@@ -56,6 +58,8 @@ def plot_birdseye(
         ax = fig.add_subplot()
     else:
         fig = ax.figure
+    if roads is None:
+        roads = scenario_roads(scenario)
     if roads is not None:
         roads(ax)
     traj = scenario.trajectories
@@ -141,6 +145,17 @@ def plot_birdseye(
             handles=handles, loc="best", fontsize=7, title="o start   x keyframes", title_fontsize=7
         )
     return fig
+
+
+def scenario_roads(scenario: Scenario) -> Callable | None:
+    """A roads(ax) drawer for the scenario's own OpenDRIVE map, or None if it has none."""
+    name = scenario.maps.get("opendrive")
+    if not name or scenario.root is None or not (Path(scenario.root) / name).is_file():
+        return None
+    from vei.maps import draw_roads, load_roads
+
+    geometry = load_roads(Path(scenario.root) / name)
+    return lambda ax: draw_roads(ax, geometry)
 
 
 def save_figure(fig, path: str | Path, dpi: int = 150) -> Path:

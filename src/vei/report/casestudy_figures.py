@@ -302,7 +302,7 @@ def plot_birdseye_configs(
     if axes:
         axes[0].legend(fontsize=7, loc="best")
     fig.suptitle(
-        "Bird's-eye view: ego (red), original keyframes (dashed black), simulated e-scooter (dashed green)",
+        f"Bird's-eye view: ego (red), original keyframes (dashed black), simulated {other_id} (dashed green)",
         fontsize=10,
     )
     fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.97))

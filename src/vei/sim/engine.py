@@ -166,7 +166,8 @@ def batch_flags(params: VariantParams, dt_s: float) -> BatchFlags:
                 vehicle_force=_switch(bp.use_vehicle_force) if sfm else False,
                 front_bumper=_switch(bp.front_bumper) if sfm else False,
                 paper_per_step=_switch(bp.paper_per_step) if cap else False,
-                rider_limits=sfm and bool((np.isfinite(bp.max_speed_mps) | np.isfinite(bp.max_accel_mps2)).any()),
+                rider_limits=sfm
+                and bool((np.isfinite(bp.max_speed_mps) | np.isfinite(bp.max_accel_mps2)).any()),
             )
         )
     return BatchFlags(
@@ -204,7 +205,12 @@ def _sub(a: npt.ArrayLike, idx: npt.NDArray[np.intp] | None) -> npt.ArrayLike:
 
 
 def _collide_others(
-    arrays: ScenarioArrays, k: int, ex: FloatArray, ey: FloatArray, eyaw: FloatArray, hit: npt.NDArray[np.bool_]
+    arrays: ScenarioArrays,
+    k: int,
+    ex: FloatArray,
+    ey: FloatArray,
+    eyaw: FloatArray,
+    hit: npt.NDArray[np.bool_],
 ) -> npt.NDArray[np.bool_]:
     """Latch ego contacts with the replayed others at step k ([B, n_o]; copy if changed)."""
     if hit.shape[1] == 0:
@@ -212,7 +218,10 @@ def _collide_others(
     act = np.flatnonzero(arrays.other_active[k])
     if act.size == 0:
         return hit
-    reach = 0.5 * (np.hypot(arrays.ego_length_m, arrays.ego_width_m) + np.hypot(arrays.other_length_m, arrays.other_width_m))
+    reach = 0.5 * (
+        np.hypot(arrays.ego_length_m, arrays.ego_width_m)
+        + np.hypot(arrays.other_length_m, arrays.other_width_m)
+    )
     out = hit
     for j in act:
         dx = arrays.other_x_m[k, j] - ex
@@ -232,7 +241,9 @@ def _collide_others(
     return out
 
 
-def initial_state(arrays: ScenarioArrays, params: VariantParams, flags: BatchFlags | None = None) -> SimState:
+def initial_state(
+    arrays: ScenarioArrays, params: VariantParams, flags: BatchFlags | None = None
+) -> SimState:
     """The state at k = 0 (t = 0) for B variants.
 
     Ego at the start of its path (s = 0) with ``initial_speed_mps``; CAP in CRUISE; PID
@@ -254,10 +265,21 @@ def initial_state(arrays: ScenarioArrays, params: VariantParams, flags: BatchFla
     t_rec = -params.time_shift_s
     tr = arrays.rider_track
     i, w = tr.index(t_rec)
-    rx, ry, ryaw, rsp, rvx, rvy, rarc = tr.values_at(i, w, "x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps", "arc_m")
+    rx, ry, ryaw, rsp, rvx, rvy, rarc = tr.values_at(
+        i, w, "x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps", "arc_m"
+    )
     inside = _rider_span(arrays, t_rec)
     collided = inside & boxes_overlap(
-        ex, ey, eyaw, arrays.ego_length_m, arrays.ego_width_m, rx, ry, ryaw, arrays.rider_length_m, arrays.rider_width_m
+        ex,
+        ey,
+        eyaw,
+        arrays.ego_length_m,
+        arrays.ego_width_m,
+        rx,
+        ry,
+        ryaw,
+        arrays.rider_length_m,
+        arrays.rider_width_m,
     )
     moving = inside & ~collided
     hist = np.zeros((4, fl.hist_len, b))
@@ -320,14 +342,20 @@ def step(
     fl = flags or batch_flags(params, arrays.dt_s)
     if len(fl.blocks) == 1:
         return SimState(k=state.k + 1, **_step_block(state, arrays, fl.blocks[0], fl.hist_len))
-    outs = [_step_block(_slice_state(state, blk.start, blk.stop), arrays, blk, fl.hist_len) for blk in fl.blocks]
+    outs = [
+        _step_block(_slice_state(state, blk.start, blk.stop), arrays, blk, fl.hist_len)
+        for blk in fl.blocks
+    ]
     merged = {
-        name: np.concatenate([o[name] for o in outs], axis=-1 if name == "hist" else 0) for name in outs[0]
+        name: np.concatenate([o[name] for o in outs], axis=-1 if name == "hist" else 0)
+        for name in outs[0]
     }
     return SimState(k=state.k + 1, **merged)
 
 
-def _step_block(st: SimState, arrays: ScenarioArrays, blk: Block, hist_len: int) -> dict[str, np.ndarray]:
+def _step_block(
+    st: SimState, arrays: ScenarioArrays, blk: Block, hist_len: int
+) -> dict[str, np.ndarray]:
     """One step of one homogeneous block; returns the new state's fields (k excluded)."""
     p = blk.params
     dt = arrays.dt_s
@@ -393,10 +421,16 @@ def _step_block(st: SimState, arrays: ScenarioArrays, blk: Block, hist_len: int)
             cap_state = np.where(collided, cap_state, new_cap) if any_coll else new_cap
             if entered.any():
                 pid = ego_model.pid_reset_where(pid, entered, err)
-        u, pid_new = ego_model.pid_step(pid, err, dt, p.kp, p.ki, p.kd, p.integral_limit, p.integral_window_s)
+        u, pid_new = ego_model.pid_step(
+            pid, err, dt, p.kp, p.ki, p.kd, p.integral_limit, p.integral_window_s
+        )
         pid_i, pid_e = pid_new.integral_m, pid_new.prev_error_mps
         if braking is not None and braking.any():
-            u = np.where(braking, ego_model.accel_to_command(a_brake, p.max_accel_mps2_ego, p.max_decel_mps2_ego), u)
+            u = np.where(
+                braking,
+                ego_model.accel_to_command(a_brake, p.max_accel_mps2_ego, p.max_decel_mps2_ego),
+                u,
+            )
         a_cmd = ego_model.command_to_accel(u, p.max_accel_mps2_ego, p.max_decel_mps2_ego)
         a_act = ego_model.actuator_step(st.ego_act_mps2, a_cmd, p.actuator_lag_s, dt)
         v_new = ego_model.speed_step(v, a_act, dt)
@@ -421,7 +455,9 @@ def _step_block(st: SimState, arrays: ScenarioArrays, blk: Block, hist_len: int)
         iidx = np.flatnonzero(in_span)
         if iidx.size == b:
             ri, rw = tr.index(t_rec)
-            rx, ry, ryaw, rsp, rvx, rvy = tr.values_at(ri, rw, "x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps")
+            rx, ry, ryaw, rsp, rvx, rvy = tr.values_at(
+                ri, rw, "x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps"
+            )
         else:
             # Outside the span: the recorded first pose (before) or last pose (after), at rest.
             before = t_rec < tr.t0_s
@@ -433,7 +469,9 @@ def _step_block(st: SimState, arrays: ScenarioArrays, blk: Block, hist_len: int)
             rsp, rvx, rvy = np.zeros(b), np.zeros(b), np.zeros(b)
             if iidx.size:
                 ri, rw = tr.index(t_rec[iidx])
-                vals = tr.values_at(ri, rw, "x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps")
+                vals = tr.values_at(
+                    ri, rw, "x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps"
+                )
                 for arr, val in zip((rx, ry, ryaw, rsp, rvx, rvy), vals, strict=True):
                     arr[iidx] = val
         r_active = in_span
@@ -448,14 +486,18 @@ def _step_block(st: SimState, arrays: ScenarioArrays, blk: Block, hist_len: int)
         idx = np.flatnonzero(moving)
         if idx.size:
             sel = None if idx.size == b else idx
-            _social_force_update(st, arrays, blk, sel, t_rec, dt, (rx, ry, ryaw, rvx, rvy, rsp, r_prog, r_active))
+            _social_force_update(
+                st, arrays, blk, sel, t_rec, dt, (rx, ry, ryaw, rvx, rvy, rsp, r_prog, r_active)
+            )
             r_done = r_done | (st.rider_active & ~r_active)
         not_started = ~r_started
         if not_started.any():
             entering = np.flatnonzero(not_started & _rider_span(arrays, t_rec))
             if entering.size:
                 ei, ew = tr.index(t_rec[entering])
-                vals = tr.values_at(ei, ew, "x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps", "arc_m")
+                vals = tr.values_at(
+                    ei, ew, "x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps", "arc_m"
+                )
                 for arr, val in zip((rx, ry, ryaw, rsp, rvx, rvy, r_prog), vals, strict=True):
                     arr[entering] = val
                 r_active[entering] = True
@@ -482,13 +524,19 @@ def _step_block(st: SimState, arrays: ScenarioArrays, blk: Block, hist_len: int)
     cidx = np.flatnonzero(cand)
     collided_new = collided
     if cidx.size:
-        ov = boxes_overlap(ex[cidx], ey[cidx], eyaw[cidx], L_e, W_e, rx[cidx], ry[cidx], ryaw[cidx], L_r, W_r)
+        ov = boxes_overlap(
+            ex[cidx], ey[cidx], eyaw[cidx], L_e, W_e, rx[cidx], ry[cidx], ryaw[cidx], L_r, W_r
+        )
         hits = cidx[ov]
         if hits.size:
             collided_new = collided.copy()
             collided_new[hits] = True
             # Fresh arrays of this step (never shared with the previous state) or copies.
-            v_new, a_act, a_rep = v_new.copy(), np.array(a_act, copy=True), np.array(a_rep, copy=True)
+            v_new, a_act, a_rep = (
+                v_new.copy(),
+                np.array(a_act, copy=True),
+                np.array(a_rep, copy=True),
+            )
             rvx, rvy, rsp, r_acc = rvx.copy(), rvy.copy(), rsp.copy(), r_acc.copy()
             for arr in (v_new, a_act, a_rep, rvx, rvy, rsp, r_acc):
                 arr[hits] = 0.0
@@ -557,15 +605,26 @@ def _social_force_update(
     prog = np.maximum(prog0 + (x0 - px) * pc + (y0 - py) * ps, prog0)
     i, w = rp.index(np.minimum(prog + g(p.lookahead_m, sel), rp.length_m))
     gx, gy = rp.values_at(i, w, "x", "y")
-    vdx, vdy = sfm_model.desired_velocity(x0, y0, gx, gy, g(p.v0_mps, sel), g(p.sigma_m, sel), _sub(blk.paper_vdes, sel))
+    vdx, vdy = sfm_model.desired_velocity(
+        x0, y0, gx, gy, g(p.v0_mps, sel), g(p.sigma_m, sel), _sub(blk.paper_vdes, sel)
+    )
     fx, fy = sfm_model.destination_force(vdx, vdy, vx0, vy0, g(p.k_des_nspm, sel))
     vf = blk.vehicle_force
     if vf is not False:
         ex, ey, eyaw = g(st.ego_x_m, sel), g(st.ego_y_m, sel), g(st.ego_yaw_rad, sel)
         qx, qy = sfm_model.influential_point(
-            x0, y0, ex, ey, eyaw, arrays.ego_length_m, arrays.ego_width_m, _sub(blk.front_bumper, sel)
+            x0,
+            y0,
+            ex,
+            ey,
+            eyaw,
+            arrays.ego_length_m,
+            arrays.ego_width_m,
+            _sub(blk.front_bumper, sel),
         )
-        hx, hy = sfm_model.vehicle_force(x0, y0, qx, qy, g(p.a_veh_n, sel), g(p.b_veh_per_m, sel), ex, ey, eyaw)
+        hx, hy = sfm_model.vehicle_force(
+            x0, y0, qx, qy, g(p.a_veh_n, sel), g(p.b_veh_per_m, sel), ex, ey, eyaw
+        )
         if vf is True:
             fx, fy = fx + hx, fy + hy
         else:
@@ -924,9 +983,11 @@ def simulate(
 
     if use_numba:
         out = compiled.run(arrays, run_params, state, fl.hist_len, record == "full")
+        # Variant-major [B, T] series: store as time-major views so that the common
+        # code below ([T, B] buffers, transposed at the end) applies.
         if out["series"] is not None:
-            bufs = out["series"]
-            hit_buf = out["hit"]
+            bufs = {name: arr.T for name, arr in out["series"].items()}
+            hit_buf = out["hit"].transpose(1, 0, 2)
         coll_t, min_d = out["collision_time_s"], out["min_center_distance_m"]
         state = SimState(**out["final"])
     else:
@@ -965,7 +1026,9 @@ def simulate(
                 for name, val in zip(SimState._fields, state, strict=True)
             }
         )
-    series: dict[str, np.ndarray | None] = {name: (bufs[name].T if bufs else None) for name, _, _ in _RECORDED}
+    series: dict[str, np.ndarray | None] = {
+        name: (bufs[name].T if bufs else None) for name, _, _ in _RECORDED
+    }
     return SimResult(
         t_s=arrays.t_s.copy(),
         labels=params.labels.copy(),

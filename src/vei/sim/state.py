@@ -56,8 +56,14 @@ class TimeTable:
         slope = np.zeros_like(d)
         if d.shape[0] > 1:
             slope[:-1] = np.diff(d, axis=0)
-        object.__setattr__(self, "_cols", {c: np.ascontiguousarray(d[:, j]) for j, c in enumerate(self.columns)})
-        object.__setattr__(self, "_slopes", {c: np.ascontiguousarray(slope[:, j]) for j, c in enumerate(self.columns)})
+        object.__setattr__(
+            self, "_cols", {c: np.ascontiguousarray(d[:, j]) for j, c in enumerate(self.columns)}
+        )
+        object.__setattr__(
+            self,
+            "_slopes",
+            {c: np.ascontiguousarray(slope[:, j]) for j, c in enumerate(self.columns)},
+        )
 
     def index(self, t_s: npt.ArrayLike) -> tuple[npt.NDArray[np.intp], FloatArray]:
         """Sample index and weight of times t (clamped): t lies between samples i and i + 1."""
@@ -201,7 +207,11 @@ def prepare_scenario(
     traj = scenario.trajectories
     rid = rider_id or scenario.primary_threat
     if rid is None:
-        raise InputError("scenario has no primary threat: nothing to simulate", path=where, field="primary_threat")
+        raise InputError(
+            "scenario has no primary threat: nothing to simulate",
+            path=where,
+            field="primary_threat",
+        )
     ids = set(traj["agent_id"].unique())
     if EGO_ID not in ids:
         raise InputError("scenario trajectories have no agent 'ego'", path=where, field="agent_id")
@@ -251,7 +261,9 @@ def prepare_scenario(
     rdf = rider.assign(yaw_rad=ryaw, speed_mps=rspeed, vx_mps=vx, vy_mps=vy, arc_m=arc)
     cols = ("x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps", "arc_m")
     r0, drt, rdata = _uniform_track(rdf, cols, f"{where}: {rid}")
-    rider_path = build_path(rx, ry, yaw_hint_rad=float(ryaw[0]), extend_m=50.0, where=f"{where}: {rid}")
+    rider_path = build_path(
+        rx, ry, yaw_hint_rad=float(ryaw[0]), extend_m=50.0, where=f"{where}: {rid}"
+    )
 
     # Others, replayed on the engine grid.
     others = [a for a in scenario.agents if a.agent_id not in (EGO_ID, rid) and a.agent_id in ids]
@@ -387,15 +399,39 @@ class VariantParams:
                 raise ConfigError(f"VariantParams.{f.name} has NaN or -inf values")
         if b == 0:
             raise ConfigError("VariantParams needs at least one variant")
-        for name in ("mass_kg", "sigma_m", "lookahead_m", "arrive_radius_m", "k_des_nspm",
-                     "max_accel_mps2_ego", "max_decel_mps2_ego", "corridor_half_width_m",
-                     "detection_range_m", "recover_tolerance_mps", "max_speed_mps", "max_accel_mps2",
-                     "integral_window_s"):
+        for name in (
+            "mass_kg",
+            "sigma_m",
+            "lookahead_m",
+            "arrive_radius_m",
+            "k_des_nspm",
+            "max_accel_mps2_ego",
+            "max_decel_mps2_ego",
+            "corridor_half_width_m",
+            "detection_range_m",
+            "recover_tolerance_mps",
+            "max_speed_mps",
+            "max_accel_mps2",
+            "integral_window_s",
+        ):
             if np.any(getattr(self, name) <= 0):
                 raise ConfigError(f"VariantParams.{name} must be > 0")
-        for name in ("a_veh_n", "b_veh_per_m", "v0_mps", "cruise_speed_mps", "initial_speed_mps", "kp",
-                     "ki", "kd", "actuator_lag_s", "t_safe_s", "d_buf_m", "release_margin_m",
-                     "perception_delay_s", "integral_limit"):
+        for name in (
+            "a_veh_n",
+            "b_veh_per_m",
+            "v0_mps",
+            "cruise_speed_mps",
+            "initial_speed_mps",
+            "kp",
+            "ki",
+            "kd",
+            "actuator_lag_s",
+            "t_safe_s",
+            "d_buf_m",
+            "release_margin_m",
+            "perception_delay_s",
+            "integral_limit",
+        ):
             if np.any(getattr(self, name) < 0):
                 raise ConfigError(f"VariantParams.{name} must be >= 0")
         if np.any(self.a_min_mps2 >= 0):
@@ -516,14 +552,23 @@ class VariantParams:
         """Stack several VariantParams along the batch axis (in order)."""
         if not parts:
             raise ConfigError("concat needs at least one VariantParams")
-        return cls(**{f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in dataclasses.fields(cls)})
+        return cls(
+            **{
+                f.name: np.concatenate([getattr(p, f.name) for p in parts])
+                for f in dataclasses.fields(cls)
+            }
+        )
 
     def take(self, index: npt.ArrayLike) -> VariantParams:
         """The variants at ``index`` (int array, slice or bool mask) as a new VariantParams."""
         if isinstance(index, slice):
-            return VariantParams(**{f.name: getattr(self, f.name)[index].copy() for f in dataclasses.fields(self)})
+            return VariantParams(
+                **{f.name: getattr(self, f.name)[index].copy() for f in dataclasses.fields(self)}
+            )
         idx = np.atleast_1d(np.asarray(index))
-        return VariantParams(**{f.name: getattr(self, f.name)[idx] for f in dataclasses.fields(self)})
+        return VariantParams(
+            **{f.name: getattr(self, f.name)[idx] for f in dataclasses.fields(self)}
+        )
 
     def with_values(self, **values: npt.ArrayLike) -> VariantParams:
         """A copy with some fields replaced (scalars or [B] arrays, broadcast)."""

@@ -15,7 +15,14 @@ from datetime import UTC, datetime
 import numpy as np
 import pandas as pd
 
-from vei.types import DEFAULT_DIMENSIONS_M, EGO_CATEGORY, EGO_ID, TRAJECTORY_COLUMNS, AgentInfo, Scenario
+from vei.types import (
+    DEFAULT_DIMENSIONS_M,
+    EGO_CATEGORY,
+    EGO_ID,
+    TRAJECTORY_COLUMNS,
+    AgentInfo,
+    Scenario,
+)
 
 #: Origin of the constructed scenarios: downtown Indianapolis (the paper's city).
 ORIGIN_LAT_DEG = 39.7684
@@ -130,10 +137,19 @@ def make_scenario(
     )
 
 
-def ego_straight(speed_mps: float = 5.6, duration_s: float = 25.0, rate_hz: float = 20.0, x0_m: float = 0.0) -> TrackSpec:
+def ego_straight(
+    speed_mps: float = 5.6, duration_s: float = 25.0, rate_hz: float = 20.0, x0_m: float = 0.0
+) -> TrackSpec:
     """Ego at constant speed along +x on y = 0 from x0 over [0, duration]."""
     t = np.arange(int(round(duration_s * rate_hz)) + 1) / rate_hz
-    return TrackSpec(EGO_CATEGORY, t, x0_m + speed_mps * t, np.zeros_like(t), np.zeros_like(t), np.full_like(t, speed_mps))
+    return TrackSpec(
+        EGO_CATEGORY,
+        t,
+        x0_m + speed_mps * t,
+        np.zeros_like(t),
+        np.zeros_like(t),
+        np.full_like(t, speed_mps),
+    )
 
 
 def crossing_scenario(
@@ -191,6 +207,16 @@ def standing_rider_scenario(
     ego = ego_straight(ego_speed_mps, duration_s, rate_hz)
     t = ego.t_s
     rider = TrackSpec(
-        "escooter", t, np.full_like(t, rider_x_m), np.full_like(t, rider_y_m), np.full_like(t, rider_yaw_rad), np.zeros_like(t)
+        "escooter",
+        t,
+        np.full_like(t, rider_x_m),
+        np.full_like(t, rider_y_m),
+        np.full_like(t, rider_yaw_rad),
+        np.zeros_like(t),
     )
-    return make_scenario({EGO_ID: ego, "rider1": rider}, primary_threat="rider1", rate_hz=rate_hz, scenario_id="synthetic-standing")
+    return make_scenario(
+        {EGO_ID: ego, "rider1": rider},
+        primary_threat="rider1",
+        rate_hz=rate_hz,
+        scenario_id="synthetic-standing",
+    )
