@@ -80,13 +80,17 @@ def _quiet_psf():
     cwd = os.getcwd()
     with tempfile.TemporaryDirectory() as tmp:
         os.chdir(tmp)
+        logging.disable(logging.INFO)  # PySocialForce sets its logger to DEBUG on import
         try:
             import pysocialforce  # noqa: F401
         finally:
             os.chdir(cwd)
-        for name in ("root", "numba", "pysocialforce", ""):
+        for name in ("root", "numba", "pysocialforce", "matplotlib", ""):
             logging.getLogger(name).setLevel(logging.WARNING)
-        yield
+        try:
+            yield
+        finally:
+            logging.disable(logging.NOTSET)
 
 
 def _psf_rate(n_agents: int, steps: int, scenes: int = 1) -> float:
@@ -173,7 +177,9 @@ def main() -> None:
     rows = []
     for b in BATCHES:
         params = _params(arrays, auto, b)
-        t = _best(lambda p=params: simulate(arrays, p, record="none"), REPEATS if b <= 10_000 else 1)
+        t = _best(
+            lambda p=params: simulate(arrays, p, record="none"), REPEATS if b <= 10_000 else 1
+        )
         rate = b * AGENTS_PER_VARIANT * steps / t
         if b >= 10_000:
             peak = _peak_bytes(lambda p=params: _partial_run(arrays, p, 25))
@@ -199,7 +205,9 @@ def main() -> None:
             f"{b:>7} {t:8.3f} {rate:15.3g} {loop_rate:13.3g} {sc} {psf_pair:12.3g} "
             f"{rate / best_psf:8.0f} {rate / loop_rate:7.0f} {mem / 1024:9.1f} KiB"
         )
-    print(f"sweep chunk (1000 variants, full record + metrics): peak {chunk_mem / 1024:.0f} KiB per variant")
+    print(
+        f"sweep chunk (1000 variants, full record + metrics): peak {chunk_mem / 1024:.0f} KiB per variant"
+    )
     r4 = next(r for r in rows if r[0] == 10_000)
     print(
         f"target: >= {TARGET_RATE:.0e} agent-steps/s at B = 1e4: {r4[2]:.3g} "

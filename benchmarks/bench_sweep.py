@@ -70,12 +70,18 @@ def main() -> None:
         timings = []
         for w in (workers, 1) if workers > 1 else (1,):
             t0 = time.perf_counter()
-            res = run_sweep(scen, spec, Path(tmp) / f"out-{w}", workers=w, chunk_size=CHUNK, progress=False)
+            res = run_sweep(
+                scen, spec, Path(tmp) / f"out-{w}", workers=w, chunk_size=CHUNK, progress=False
+            )
             timings.append((w, time.perf_counter() - t0, res.n_run))
 
-    print(f"sweep of the 25 s demo scenario (20 Hz, 500 steps), {N_SIDE}x{N_SIDE} grid, chunks of {CHUNK}")
+    print(
+        f"sweep of the 25 s demo scenario (20 Hz, 500 steps), {N_SIDE}x{N_SIDE} grid, chunks of {CHUNK}"
+    )
     print(f"one chunk of {CHUNK}: engine {t_engine:.2f} s, metrics {t_metrics:.2f} s")
-    print(f"{'workers':>8} {'variants':>9} {'wall s':>8} {'variants/s':>11} {'target s':>9} {'status':>7}")
+    print(
+        f"{'workers':>8} {'variants':>9} {'wall s':>8} {'variants/s':>11} {'target s':>9} {'status':>7}"
+    )
     for w, t, n in timings:
         ok = "MET" if t < TARGET_S else "MISSED"
         print(f"{w:>8} {n:>9} {t:8.1f} {n / t:11.0f} {TARGET_S:9.0f} {ok:>7}")

@@ -37,7 +37,16 @@ def test_sweep_command_runs_and_resumes(demo_scenario, tmp_path, capsys):
     spec = tmp_path / "sweep.yaml"
     spec.write_text(SPEC)
     out = tmp_path / "out"
-    args = ["sweep", str(demo_scenario), "--spec", str(spec), "--out", str(out), "--chunk-size", "5"]
+    args = [
+        "sweep",
+        str(demo_scenario),
+        "--spec",
+        str(spec),
+        "--out",
+        str(out),
+        "--chunk-size",
+        "5",
+    ]
     assert main([*args, "--max-chunks", "1", "--no-progress"]) == 0
     assert "incomplete" in capsys.readouterr().out
     assert main([*args, "--no-progress"]) == 0
@@ -56,9 +65,23 @@ def test_boundary_option(demo_scenario, tmp_path, capsys):
     out = tmp_path / "bnd"
     rc = main(
         [
-            "sweep", str(demo_scenario), "--spec", str(spec), "--out", str(out),
-            "--x", "time_shift_s", "--y", "ego.cruise_speed_mps",
-            "--x-range=0.0,6.0", "--coarse", "3,3", "--levels", "1", "--critical", "3",
+            "sweep",
+            str(demo_scenario),
+            "--spec",
+            str(spec),
+            "--out",
+            str(out),
+            "--x",
+            "time_shift_s",
+            "--y",
+            "ego.cruise_speed_mps",
+            "--x-range=0.0,6.0",
+            "--coarse",
+            "3,3",
+            "--levels",
+            "1",
+            "--critical",
+            "3",
             "--no-progress",
         ]
     )
@@ -83,7 +106,9 @@ def test_boundary_option(demo_scenario, tmp_path, capsys):
 def test_errors_exit_2_with_a_clear_message(demo_scenario, tmp_path, capsys, text, extra, needle):
     spec = tmp_path / "sweep.yaml"
     spec.write_text(text)
-    rc = main(["sweep", str(demo_scenario), "--spec", str(spec), "--out", str(tmp_path / "o"), *extra])
+    rc = main(
+        ["sweep", str(demo_scenario), "--spec", str(spec), "--out", str(tmp_path / "o"), *extra]
+    )
     assert rc == 2
     assert needle in capsys.readouterr().err
 
@@ -100,11 +125,24 @@ def test_critical_config_runs_with_vei_run(demo_scenario, tmp_path, capsys):
     spec = tmp_path / "sweep.yaml"
     spec.write_text(SPEC)
     out = tmp_path / "out"
-    assert main(["sweep", str(demo_scenario), "--spec", str(spec), "--out", str(out), "--no-progress"]) == 0
+    assert (
+        main(["sweep", str(demo_scenario), "--spec", str(spec), "--out", str(out), "--no-progress"])
+        == 0
+    )
     crit = pd.read_csv(out / "critical.csv")
     for vid in crit["variant_id"][:2]:
         cfg = out / "configs" / f"{vid}.yaml"
-        rc = main(["run", str(demo_scenario), "--config", str(cfg), "--out", str(tmp_path / vid), "--no-figures"])
+        rc = main(
+            [
+                "run",
+                str(demo_scenario),
+                "--config",
+                str(cfg),
+                "--out",
+                str(tmp_path / vid),
+                "--no-figures",
+            ]
+        )
         assert rc == 0
         doc = json.loads((tmp_path / vid / "metrics.json").read_text())
         row = crit[crit["variant_id"] == vid].iloc[0]

@@ -175,8 +175,15 @@ def test_search_boundary_on_the_demo_scenario(demo_scenario, tmp_path):
     )
     out = tmp_path / "b"
     res = search_boundary(
-        demo_scenario, spec, "time_shift_s", "ego.cruise_speed_mps", out,
-        coarse=(5, 5), levels=2, k_critical=6, progress=False,
+        demo_scenario,
+        spec,
+        "time_shift_s",
+        "ego.cruise_speed_mps",
+        out,
+        coarse=(5, 5),
+        levels=2,
+        k_critical=6,
+        progress=False,
     )
     s = res.samples
     assert res.grid_evaluations == 17 * 17
@@ -185,7 +192,9 @@ def test_search_boundary_on_the_demo_scenario(demo_scenario, tmp_path):
     assert (s["time_shift_s"] == s["x"]).all() and (s["ego.cruise_speed_mps"] == s["y"]).all()
     assert not s["cap.enabled"].any()
     # every crossing sits on a lattice edge between a colliding and a safe sample
-    key = {(int(i), int(j)): bool(c) for i, j, c in zip(s["i"], s["j"], s["collision"], strict=True)}
+    key = {
+        (int(i), int(j)): bool(c) for i, j, c in zip(s["i"], s["j"], s["collision"], strict=True)
+    }
     hx = res.x_values[1] - res.x_values[0]
     hy = res.y_values[1] - res.y_values[0]
     assert len(res.crossings) > 5
@@ -201,7 +210,12 @@ def test_search_boundary_on_the_demo_scenario(demo_scenario, tmp_path):
     doc = json.loads((out / "boundary.json").read_text())
     assert doc["n_evaluations"] == res.n_evaluations and len(doc["segments"]) == len(res.segments)
     crit = pd.read_csv(out / "critical.csv")
-    assert len(crit) == 6 and list(crit.columns[:4]) == ["variant_id", "scenario_id", "variant_index", "seed"]
+    assert len(crit) == 6 and list(crit.columns[:4]) == [
+        "variant_id",
+        "scenario_id",
+        "variant_index",
+        "seed",
+    ]
     assert (out / "riskmap.png").stat().st_size > 10_000
     # each critical variant's config file reproduces its outcome
     arrays = prepare_scenario(read_scenario(demo_scenario))
@@ -228,13 +242,21 @@ def test_search_boundary_rejects_a_varying_third_parameter(demo_scenario, tmp_pa
         }
     )
     with pytest.raises(ConfigError, match="rider_model"):
-        search_boundary(demo_scenario, spec, "time_shift_s", "ego.cruise_speed_mps", tmp_path,
-                        y_range=(3.0, 9.0))
+        search_boundary(
+            demo_scenario,
+            spec,
+            "time_shift_s",
+            "ego.cruise_speed_mps",
+            tmp_path,
+            y_range=(3.0, 9.0),
+        )
     with pytest.raises(ConfigError, match="float parameter"):
         search_boundary(demo_scenario, spec, "time_shift_s", "rider_model", tmp_path)
     with pytest.raises(ConfigError, match="needs a range"):
         search_boundary(
             demo_scenario,
             spec_from_dict({"design": "grid", "parameters": {"time_shift_s": 0.0}}),
-            "time_shift_s", "ego.cruise_speed_mps", tmp_path,
+            "time_shift_s",
+            "ego.cruise_speed_mps",
+            tmp_path,
         )

@@ -65,7 +65,14 @@ def test_small_sweep_writes_every_row_and_the_outputs(demo_scenario, tmp_path):
     table = variants_table(spec, "demo-indianapolis-synthetic")
     assert list(df["variant_id"]) == list(table["variant_id"])  # sorted by variant_index
     assert df["variant_id"].is_unique
-    for col in ("seed", "time_shift_s", "ego.cruise_speed_mps", "collision", "safety_index", "min_gap_m"):
+    for col in (
+        "seed",
+        "time_shift_s",
+        "ego.cruise_speed_mps",
+        "collision",
+        "safety_index",
+        "min_gap_m",
+    ):
         assert col in df.columns
     assert df["collision"].dtype == bool
     # paper's override: safety index 0 exactly where there is a collision
@@ -135,7 +142,11 @@ def test_variant_params_equal_each_rows_own_configuration(demo_scenario):
     prep = ev.prepare(demo_scenario)
     table = variants_table(spec, prep.scenario_id)
     batch = variant_params(
-        table, prep.arrays, base="normal-cap", time_shift_reference="auto", auto_shift_s=prep.auto_shift_s
+        table,
+        prep.arrays,
+        base="normal-cap",
+        time_shift_reference="auto",
+        auto_shift_s=prep.auto_shift_s,
     )
     assert batch.batch_size == 24
     for i, row in table.iterrows():
@@ -144,7 +155,9 @@ def test_variant_params_equal_each_rows_own_configuration(demo_scenario):
         for f in dataclasses.fields(one):
             if f.name == "labels":
                 continue
-            assert getattr(batch, f.name)[i] == pytest.approx(getattr(one, f.name)[0], rel=1e-15), f.name
+            assert getattr(batch, f.name)[i] == pytest.approx(getattr(one, f.name)[0], rel=1e-15), (
+                f.name
+            )
 
 
 def test_results_do_not_depend_on_chunking_or_workers(demo_scenario, tmp_path):
@@ -179,7 +192,10 @@ def test_resume_after_partial_run_neither_loses_nor_duplicates(demo_scenario, tm
     second = run_sweep(demo_scenario, spec, out, chunk_size=10, progress=False)
     assert (second.n_run, second.n_skipped) == (14, 10)
     assert sorted(p.name for p in (out / "parts").glob("part-*.parquet")) == [
-        "part-000000.parquet", "part-000001.parquet", "part-000002.parquet"]
+        "part-000000.parquet",
+        "part-000001.parquet",
+        "part-000002.parquet",
+    ]
     assert not list((out / "parts").glob(".*.tmp"))
     whole = run_sweep(demo_scenario, spec, tmp_path / "whole", chunk_size=24, progress=False)
     assert whole.n_run == 24
@@ -193,7 +209,9 @@ def test_refuses_another_spec_in_the_same_folder(demo_scenario, tmp_path):
     z = {"time_shift_reference": "zero"}
     run_sweep(demo_scenario, spec_from_dict(_plane_spec(2, 2, **z)), tmp_path / "o", progress=False)
     with pytest.raises(ConfigError, match="different spec"):
-        run_sweep(demo_scenario, spec_from_dict(_plane_spec(3, 2, **z)), tmp_path / "o", progress=False)
+        run_sweep(
+            demo_scenario, spec_from_dict(_plane_spec(3, 2, **z)), tmp_path / "o", progress=False
+        )
 
 
 def test_bad_arguments_and_missing_scenarios(demo_scenario, tmp_path):
@@ -228,11 +246,18 @@ def test_fast_gap_equals_the_metrics_gap(demo_scenario):
     # and on engine traces, through the metrics' own trace wrapper
     ev = EngineEvaluator(time_shift_reference="zero", base="replay")
     prep = ev.prepare(demo_scenario)
-    spec = spec_from_dict({"design": "grid", "time_shift_reference": "zero", "base": "replay",
-                           "parameters": {"time_shift_s": {"min": 0.0, "max": 6.0, "num": 7}}})
+    spec = spec_from_dict(
+        {
+            "design": "grid",
+            "time_shift_reference": "zero",
+            "base": "replay",
+            "parameters": {"time_shift_s": {"min": 0.0, "max": 6.0, "num": 7}},
+        }
+    )
     table = variants_table(spec, prep.scenario_id)
-    trace = simulate(prep.arrays, variant_params(table, prep.arrays, base="replay",
-                                                 time_shift_reference="zero")).to_trace()
+    trace = simulate(
+        prep.arrays, variant_params(table, prep.arrays, base="replay", time_shift_reference="zero")
+    ).to_trace()
     np.testing.assert_allclose(fast_trace_arrays(trace).gap, arrays(trace).gap, atol=1e-12)
 
 
@@ -274,10 +299,23 @@ def test_ten_thousand_variants_killed_and_resumed(demo_scenario, tmp_path):
         "  ego.cruise_speed_mps: {min: 3.0, max: 9.0, num: 100}\n"
     )
     out = tmp_path / "killed"
-    cmd = [sys.executable, "-m", "vei.cli.main", "sweep", str(demo_scenario), "--spec", str(spec_path),
-           "--out", str(out), "--chunk-size", "1000", "--no-progress"]
-    proc = subprocess.Popen(cmd, cwd=REPO, start_new_session=True,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    cmd = [
+        sys.executable,
+        "-m",
+        "vei.cli.main",
+        "sweep",
+        str(demo_scenario),
+        "--spec",
+        str(spec_path),
+        "--out",
+        str(out),
+        "--chunk-size",
+        "1000",
+        "--no-progress",
+    ]
+    proc = subprocess.Popen(
+        cmd, cwd=REPO, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+    )
     deadline = time.monotonic() + 120
     try:
         while len(list((out / "parts").glob("part-*.parquet"))) < 3:
@@ -299,7 +337,7 @@ def test_ten_thousand_variants_killed_and_resumed(demo_scenario, tmp_path):
     spec = load_spec(spec_path)
     resumed = run_sweep(demo_scenario, spec, out, chunk_size=1000, workers=2, progress=False)
     assert resumed.n_skipped == len(done) and resumed.n_run == 10_000 - len(done)
-    whole = run_sweep(demo_scenario, spec, tmp_path / "whole", chunk_size=2500, workers=2, progress=False)
+    run_sweep(demo_scenario, spec, tmp_path / "whole", chunk_size=2500, workers=2, progress=False)
     a, b = read_results(out), read_results(tmp_path / "whole")
     assert len(a) == 10_000 and a["variant_id"].is_unique
     pd.testing.assert_frame_equal(a, b)
@@ -308,7 +346,9 @@ def test_ten_thousand_variants_killed_and_resumed(demo_scenario, tmp_path):
     from vei.experiments.sweep import sweep_risk_map
 
     drawn = sweep_risk_map(a, spec, tmp_path / "riskmap.png")
-    assert drawn is not None and drawn["x"] == "time_shift_s" and drawn["y"] == "ego.cruise_speed_mps"
+    assert (
+        drawn is not None and drawn["x"] == "time_shift_s" and drawn["y"] == "ego.cruise_speed_mps"
+    )
     assert len(drawn["crossings"]) > 50 and len(drawn["segments"]) > 50
     _grid_neighbours_disagree(a, drawn["crossings"], "time_shift_s", "ego.cruise_speed_mps")
 
@@ -336,8 +376,9 @@ def test_ray_gives_the_local_results_on_a_folder_of_scenarios(demo_scenario, tmp
         }
     )
     local = run_sweep(folder, spec, tmp_path / "local", chunk_size=16, progress=False)
-    ray_run = run_sweep(folder, spec, tmp_path / "ray", engine="ray", workers=2, chunk_size=16,
-                        progress=False)
+    ray_run = run_sweep(
+        folder, spec, tmp_path / "ray", engine="ray", workers=2, chunk_size=16, progress=False
+    )
     assert local.n_variants == ray_run.n_variants == 120
     a, b = read_results(tmp_path / "local"), read_results(tmp_path / "ray")
     assert set(a["scenario_id"]) == {"demo-indianapolis-synthetic", "demo-copy-2"}

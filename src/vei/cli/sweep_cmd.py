@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
 
 import typer
 
@@ -22,43 +23,89 @@ def _pair(text: str | None, name: str, cast: type = float) -> tuple | None:
 
 
 def sweep(
-    scenario: Path = typer.Argument(
-        ..., help="A scenario folder (scenario.json) or a folder of scenario folders."
-    ),
-    spec: Path = typer.Option(
-        ..., "--spec", help="Sweep spec (YAML): design, n_samples, seed, base, parameters (docs/sweeps.md)."
-    ),
-    out: Path = typer.Option(..., "--out", help="Output folder; running again with the same spec resumes."),
-    engine: str = typer.Option(
-        "local", "--engine", help="local (this machine; --workers processes) or ray (ray.init(num_cpus=workers))."
-    ),
-    workers: int = typer.Option(1, "--workers", help="Parallel workers (processes or Ray CPUs), >= 1."),
-    chunk_size: int = typer.Option(
-        2048, "--chunk-size", help="Variants per engine batch; bounds memory (one chunk per worker)."
-    ),
-    max_chunks: int | None = typer.Option(
-        None, "--max-chunks", help="Stop after this many chunks (the sweep stays resumable)."
-    ),
-    x: str | None = typer.Option(
-        None, "--x", help="Boundary search: parameter on the x axis (e.g. time_shift_s). Needs --y."
-    ),
-    y: str | None = typer.Option(
-        None, "--y", help="Boundary search: parameter on the y axis (e.g. ego.cruise_speed_mps)."
-    ),
-    x_range: str | None = typer.Option(
-        None, "--x-range", help="Boundary search: MIN,MAX of x (default: its min/max in the spec)."
-    ),
-    y_range: str | None = typer.Option(
-        None, "--y-range", help="Boundary search: MIN,MAX of y (default: its min/max in the spec)."
-    ),
-    coarse: str = typer.Option("9,9", "--coarse", help="Boundary search: coarse grid points NX,NY (>= 2)."),
-    levels: int = typer.Option(
-        4, "--levels", help="Boundary search: refinement levels (finest step = coarse step / 2^levels)."
-    ),
-    critical: int = typer.Option(20, "--critical", help="How many most-critical variants to list (>= 1)."),
-    progress: bool | None = typer.Option(
-        None, "--progress/--no-progress", help="Progress bar (default: when stderr is a terminal)."
-    ),
+    scenario: Annotated[
+        Path,
+        typer.Argument(help="A scenario folder (scenario.json) or a folder of scenario folders."),
+    ],
+    spec: Annotated[
+        Path,
+        typer.Option(
+            "--spec",
+            help="Sweep spec (YAML): design, n_samples, seed, base, parameters (docs/sweeps.md).",
+        ),
+    ],
+    out: Annotated[
+        Path, typer.Option("--out", help="Output folder; running again with the same spec resumes.")
+    ],
+    engine: Annotated[
+        str,
+        typer.Option(
+            "--engine",
+            help="local (this machine; --workers processes) or ray (ray.init(num_cpus=workers)).",
+        ),
+    ] = "local",
+    workers: Annotated[
+        int, typer.Option("--workers", help="Parallel workers (processes or Ray CPUs), >= 1.")
+    ] = 1,
+    chunk_size: Annotated[
+        int,
+        typer.Option(
+            "--chunk-size", help="Variants per engine batch; bounds memory (one chunk per worker)."
+        ),
+    ] = 2048,
+    max_chunks: Annotated[
+        int | None,
+        typer.Option(
+            "--max-chunks", help="Stop after this many chunks (the sweep stays resumable)."
+        ),
+    ] = None,
+    x: Annotated[
+        str | None,
+        typer.Option(
+            "--x", help="Boundary search: parameter on the x axis (e.g. time_shift_s). Needs --y."
+        ),
+    ] = None,
+    y: Annotated[
+        str | None,
+        typer.Option(
+            "--y", help="Boundary search: parameter on the y axis (e.g. ego.cruise_speed_mps)."
+        ),
+    ] = None,
+    x_range: Annotated[
+        str | None,
+        typer.Option(
+            "--x-range", help="Boundary search: MIN,MAX of x (default: its min/max in the spec)."
+        ),
+    ] = None,
+    y_range: Annotated[
+        str | None,
+        typer.Option(
+            "--y-range", help="Boundary search: MIN,MAX of y (default: its min/max in the spec)."
+        ),
+    ] = None,
+    coarse: Annotated[
+        str, typer.Option("--coarse", help="Boundary search: coarse grid points NX,NY (>= 2).")
+    ] = "9,9",
+    levels: Annotated[
+        int,
+        typer.Option(
+            "--levels",
+            help="Boundary search: refinement levels (finest step = coarse step / 2^levels).",
+        ),
+    ] = 4,
+    critical: Annotated[
+        int,
+        typer.Option(
+            "--critical",
+            help="How many most-critical variants to list and write configs for (>= 1).",
+        ),
+    ] = 20,
+    progress: Annotated[
+        bool | None,
+        typer.Option(
+            "--progress/--no-progress", help="Progress bar (default: when stderr is a terminal)."
+        ),
+    ] = None,
 ) -> None:
     """Run many variants of recorded scenarios and find where collisions begin.
 
@@ -85,7 +132,14 @@ def sweep(
         nxy = _pair(coarse, "--coarse", int)
         dirs = find_scenarios(scenario)
         table = Table(title="critical boundary")
-        for col in ("scenario", "evaluated", "grid of same resolution", "collisions", "boundary points", "folder"):
+        for col in (
+            "scenario",
+            "evaluated",
+            "grid of same resolution",
+            "collisions",
+            "boundary points",
+            "folder",
+        ):
             table.add_column(col)
         for d in dirs:
             target = Path(out) if len(dirs) == 1 else Path(out) / d.name
@@ -123,6 +177,7 @@ def sweep(
         chunk_size=chunk_size,
         progress=progress,
         max_chunks=max_chunks,
+        k_critical=critical,
     )
     table = Table(title="sweep")
     table.add_column("quantity")
@@ -134,7 +189,9 @@ def sweep(
     if result.n_run + result.n_skipped >= result.n_variants:
         res = read_results(out)
         if "collision" in res:
-            table.add_row("collisions", f"{int(res['collision'].sum())} ({res['collision'].mean():.1%})")
+            table.add_row(
+                "collisions", f"{int(res['collision'].sum())} ({res['collision'].mean():.1%})"
+            )
         if "safety_index" in res:
             table.add_row("mean safety index", f"{res['safety_index'].mean():.3f}")
         table.add_row("results", str(result.results))

@@ -128,9 +128,7 @@ def lattice_segments(
             continue
         # edges in order: bottom, right, top, left
         pts = [
-            cross(corners[k], corners[(k + 1) % 4])
-            for k in range(4)
-            if lab[k] != lab[(k + 1) % 4]
+            cross(corners[k], corners[(k + 1) % 4]) for k in range(4) if lab[k] != lab[(k + 1) % 4]
         ]
         if len(pts) == 2:
             segments.append((pts[0], pts[1]))
@@ -196,10 +194,19 @@ def adaptive_boundary(
             raise ConfigError("boundary oracle must return a 'collision' column")
         col = np.asarray(out.pop("collision"), dtype=bool).reshape(-1)
         if col.shape[0] != len(ij):
-            raise ConfigError(f"boundary oracle returned {col.shape[0]} values for {len(ij)} points")
+            raise ConfigError(
+                f"boundary oracle returned {col.shape[0]} values for {len(ij)} points"
+            )
         label[ij[:, 1], ij[:, 0]] = col.astype(np.int8)
         frame = pd.DataFrame(
-            {"x": pts[:, 0], "y": pts[:, 1], "i": ij[:, 0], "j": ij[:, 1], "level": level, "collision": col}
+            {
+                "x": pts[:, 0],
+                "y": pts[:, 1],
+                "i": ij[:, 0],
+                "j": ij[:, 1],
+                "level": level,
+                "collision": col,
+            }
         )
         for k, v in out.items():
             frame[k] = np.asarray(v).reshape(-1) if np.ndim(v) else v
@@ -211,8 +218,12 @@ def adaptive_boundary(
     evaluate(np.column_stack([ci.ravel(), cj.ravel()]), 0)
     cells = np.column_stack(
         [
-            np.meshgrid(np.arange(0, mx - 1, stride), np.arange(0, my - 1, stride), indexing="xy")[0].ravel(),
-            np.meshgrid(np.arange(0, mx - 1, stride), np.arange(0, my - 1, stride), indexing="xy")[1].ravel(),
+            np.meshgrid(np.arange(0, mx - 1, stride), np.arange(0, my - 1, stride), indexing="xy")[
+                0
+            ].ravel(),
+            np.meshgrid(np.arange(0, mx - 1, stride), np.arange(0, my - 1, stride), indexing="xy")[
+                1
+            ].ravel(),
         ]
     )
     s = stride
@@ -318,7 +329,9 @@ def share_boundary(binned: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.nda
     )
 
 
-def lattice_heatmap(result: BoundaryResult, column: str = "safety_index", max_cells: int = 257) -> dict[str, np.ndarray]:
+def lattice_heatmap(
+    result: BoundaryResult, column: str = "safety_index", max_cells: int = 257
+) -> dict[str, np.ndarray]:
     """A value field of the search on a regular lattice, for the risk map.
 
     Linear interpolation (Delaunay) of ``samples[column]`` over the lattice of the search
@@ -406,7 +419,9 @@ def search_boundary(
     for axis in (x, y):
         if axis not in PARAMETERS or PARAMETERS[axis].kind != "float":
             floats = [n for n, p in PARAMETERS.items() if p.kind == "float"]
-            raise ConfigError(f"boundary axis {axis!r} must be a float parameter: {', '.join(floats)}")
+            raise ConfigError(
+                f"boundary axis {axis!r} must be a float parameter: {', '.join(floats)}"
+            )
     if x == y:
         raise ConfigError(f"boundary axes must differ, got {x!r} twice")
 
@@ -417,7 +432,9 @@ def search_boundary(
         if axis in spec.names and spec.param(axis).is_range:
             p = spec.param(axis)
             return float(p.min), float(p.max)  # type: ignore[arg-type]
-        raise ConfigError(f"boundary axis {axis!r} needs a range: give it min/max in the spec or a range option")
+        raise ConfigError(
+            f"boundary axis {axis!r} needs a range: give it min/max in the spec or a range option"
+        )
 
     xr, yr = box(x, x_range), box(y, y_range)
     varying = [p.name for p in spec.parameters if p.name not in (x, y) and not p.is_fixed]
@@ -465,7 +482,9 @@ def search_boundary(
         def cb(level: int, n: int) -> None:
             console.print(f"boundary search: level {level}/{levels}, {n} variants evaluated")
 
-    res = adaptive_boundary(oracle, xr, yr, coarse=coarse, levels=levels, x_name=x, y_name=y, progress=cb)
+    res = adaptive_boundary(
+        oracle, xr, yr, coarse=coarse, levels=levels, x_name=x, y_name=y, progress=cb
+    )
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     lead = ["variant_id", "scenario_id", "variant_index", "seed"]
@@ -516,4 +535,3 @@ def search_boundary(
     write_json(out / "critical.json", json_records(crit))
     write_variant_configs(out / "configs", crit, spec, evaluator.auto_shift_s(prepared))
     return res
-

@@ -284,7 +284,8 @@ def write_casestudy(
 ) -> dict[str, Path]:
     """Write summary.json, summary.csv, timeseries.parquet and the figures into ``out_dir``.
 
-    Each file is written atomically. Returns {name: path} ('summary_json', 'summary_csv',
+    Each file is written atomically; the bird's-eye figure draws the scenario's OpenDRIVE
+    roads when it has a map (or ``roads(ax)`` when given). Returns {name: path} ('summary_json', 'summary_csv',
     'timeseries', and the figure keys of vei.report.casestudy_figures.FIGURE_FILES).
     """
     from vei.io.atomic import write_json, write_parquet, write_text
@@ -300,6 +301,11 @@ def write_casestudy(
     }
     if figures:
         from vei.report.casestudy_figures import write_casestudy_figures
+
+        if roads is None:  # draw the scenario's own map (vei reconstruct --map) when it has one
+            from vei.report.birdseye import scenario_roads
+
+            roads = scenario_roads(result.scenario)
 
         paths.update(
             write_casestudy_figures(

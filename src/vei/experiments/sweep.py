@@ -136,7 +136,9 @@ def done_ids(out_dir: str | Path) -> set[str]:
         try:
             col = pq.read_table(p, columns=["variant_id"]).column("variant_id").to_pylist()
         except Exception as exc:  # pyarrow raises several types for a damaged file
-            raise InputError(f"cannot read sweep part ({exc}); delete it to re-run its chunk", path=p) from exc
+            raise InputError(
+                f"cannot read sweep part ({exc}); delete it to re-run its chunk", path=p
+            ) from exc
         ids.update(col)
     return ids
 
@@ -184,6 +186,7 @@ def run_sweep(
     evaluator: Evaluator | None = None,
     progress: bool | None = None,
     max_chunks: int | None = None,
+    k_critical: int = 20,
 ) -> SweepResult:
     """Run (or resume) a sweep: every variant of ``spec`` on every scenario.
 
@@ -200,6 +203,7 @@ def run_sweep(
         progress: show a rich progress bar; default: when stderr is a terminal.
         max_chunks: stop after this many chunks (for tests and partial runs); the sweep
             stays resumable and results.parquet is only assembled once every variant is done.
+        k_critical: how many most-critical variants go to critical.csv/json and configs/.
 
     Returns:
         a :class:`SweepResult`. results.parquet: one row per variant, the variants-table
@@ -304,7 +308,7 @@ def run_sweep(
         manifest["status"] = "complete"
         manifest["updated_utc"] = datetime.now(UTC).isoformat(timespec="seconds")
         write_json(manifest_path, manifest)
-        crit = most_critical(results)
+        crit = most_critical(results, k_critical)
         from vei.io.atomic import write_text
 
         write_text(out / "critical.csv", crit.to_csv(index=False))
@@ -468,14 +472,18 @@ def read_results(out_dir: str | Path) -> pd.DataFrame:
     """
     path = Path(out_dir) / "results.parquet"
     if not path.is_file():
-        raise InputError("no results.parquet: the sweep has not finished (run it again to resume)", path=path)
+        raise InputError(
+            "no results.parquet: the sweep has not finished (run it again to resume)", path=path
+        )
     return pd.read_parquet(path)
 
 
 def numeric_metric_columns(results: pd.DataFrame, spec_names: Sequence[str]) -> list[str]:
     """Metric columns of a results table (those that are not variant columns)."""
     fixed = {"variant_id", "scenario_id", "variant_index", "seed", *spec_names}
-    return [c for c in results.columns if c not in fixed and np.issubdtype(results[c].dtype, np.number)]
+    return [
+        c for c in results.columns if c not in fixed and np.issubdtype(results[c].dtype, np.number)
+    ]
 
 
 def json_records(frame: pd.DataFrame) -> list[dict[str, Any]]:
@@ -515,14 +523,18 @@ def write_variant_configs(
     paths = []
     for row in variants.to_dict("records"):
         params = {n: row[n] for n in spec.names if n in row}
-        cfg = variant_config(params, spec, auto_shift_s=auto_shift_s, name=f"variant-{row['variant_id']}")
+        cfg = variant_config(
+            params, spec, auto_shift_s=auto_shift_s, name=f"variant-{row['variant_id']}"
+        )
         doc = config_to_dict(cfg)
         header = (
             f"# vei run configuration of sweep variant {row['variant_id']} "
             f"(scenario {row.get('scenario_id', '?')})\n"
         )
         paths.append(
-            write_text(folder / f"{row['variant_id']}.yaml", header + yaml.safe_dump(doc, sort_keys=False))
+            write_text(
+                folder / f"{row['variant_id']}.yaml", header + yaml.safe_dump(doc, sort_keys=False)
+            )
         )
     return paths
 
@@ -680,9 +692,16 @@ def fast_trace_arrays(trace: Any) -> Any:
             oy = np.where(act, xy[..., 1], 1e9)
             oyaw = np.where(np.isfinite(self.other_yaw), self.other_yaw, 0.0)
             g = box_gap_fast(
-                self.ego_xy[..., 0], self.ego_xy[..., 1], self.ego_yaw,
-                tr.ego_length_m, tr.ego_width_m,
-                ox, oy, oyaw, tr.other_length_m, tr.other_width_m,
+                self.ego_xy[..., 0],
+                self.ego_xy[..., 1],
+                self.ego_yaw,
+                tr.ego_length_m,
+                tr.ego_width_m,
+                ox,
+                oy,
+                oyaw,
+                tr.other_length_m,
+                tr.other_width_m,
             )
             return np.where(self.active, g, np.nan)
 
@@ -800,7 +819,11 @@ def variant_params(
                     f"cap.a_min_mps2 below -ego.max_decel_mps2 ({-case.ego.max_decel_mps2}): "
                     "the CAP would demand more than the car's full brake"
                 )
-        offset = grp["time_shift_s"].to_numpy(np.float64) if "time_shift_s" in grp else np.zeros(len(idx))
+        offset = (
+            grp["time_shift_s"].to_numpy(np.float64)
+            if "time_shift_s" in grp
+            else np.zeros(len(idx))
+        )
         shift = offset + (float(auto_shift_s or 0.0) if time_shift_reference == "auto" else 0.0)
         if time_shift_reference == "auto" and auto_shift_s is None:
             raise ConfigError("time_shift_reference 'auto' needs the scenario's automatic shift")

@@ -200,7 +200,9 @@ class SweepSpec:
     def __post_init__(self) -> None:
         where = self.source or "sweep spec"
         if self.design not in DESIGNS:
-            raise ConfigError(f"{where}: design must be one of {', '.join(DESIGNS)}, got {self.design!r}")
+            raise ConfigError(
+                f"{where}: design must be one of {', '.join(DESIGNS)}, got {self.design!r}"
+            )
         if self.time_shift_reference not in TIME_SHIFT_REFERENCES:
             raise ConfigError(
                 f"{where}: time_shift_reference must be auto or zero, got {self.time_shift_reference!r}"
@@ -305,9 +307,7 @@ def _flatten_params(raw: Any, where: str) -> dict[str, Any]:
 
 def _parse_param(name: str, raw: Any, where: str) -> ParamSpec:
     if name not in PARAMETERS:
-        raise ConfigError(
-            f"{where}: unknown parameter '{name}'; known: {', '.join(PARAMETERS)}"
-        )
+        raise ConfigError(f"{where}: unknown parameter '{name}'; known: {', '.join(PARAMETERS)}")
     pdef = PARAMETERS[name]
     loc = f"{where}: parameters.{name}"
     if not isinstance(raw, Mapping):

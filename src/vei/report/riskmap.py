@@ -49,17 +49,26 @@ def risk_map_figure(
     ax = fig.add_subplot(1, 1, 1)
     xc, yc = np.asarray(x_centres, float), np.asarray(y_centres, float)
     mesh = ax.pcolormesh(
-        _edges(xc), _edges(yc), np.ma.masked_invalid(np.asarray(value, float)),
-        cmap="RdYlGn", vmin=vmin, vmax=vmax, shading="flat",
+        _edges(xc),
+        _edges(yc),
+        np.ma.masked_invalid(np.asarray(value, float)),
+        cmap="RdYlGn",
+        vmin=vmin,
+        vmax=vmax,
+        shading="flat",
     )
     mesh.set_gid("heatmap")
     fig.colorbar(mesh, ax=ax, label=value_label)
     if sample_x is not None and sample_y is not None and sample_collided is not None:
         col = np.asarray(sample_collided, bool)
         sx, sy = np.asarray(sample_x, float), np.asarray(sample_y, float)
-        a = ax.scatter(sx[col], sy[col], marker="x", s=9, c="darkred", linewidths=0.7, label="collision")
+        a = ax.scatter(
+            sx[col], sy[col], marker="x", s=9, c="darkred", linewidths=0.7, label="collision"
+        )
         a.set_gid("collided")
-        b = ax.scatter(sx[~col], sy[~col], marker=".", s=6, c="white", edgecolors="none", label="no collision")
+        b = ax.scatter(
+            sx[~col], sy[~col], marker=".", s=6, c="white", edgecolors="none", label="no collision"
+        )
         b.set_gid("safe")
     seg = np.asarray(segments, float).reshape(-1, 2, 2)
     lc = LineCollection(seg, colors="black", linewidths=2.0, label="collision boundary")
