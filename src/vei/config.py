@@ -36,6 +36,10 @@ EgoMode = Literal["replay-speed", "pid", "cap"]
 PAPER_CRUISE_SPEED_MPS = 5.6
 #: Sentinel of EgoConfig.cruise_speed_mps: use the recording's median moving speed.
 MEDIAN_MOVING = "median-moving"
+#: EgoConfig.run_up_m value: derive the run-up from the scenario (see EgoConfig).
+AUTO = "auto"
+#: Longest run-up [m] (the engine's path tables extend 300 m before the recorded start).
+MAX_RUN_UP_M = 250.0
 
 
 def _finite(name: str, value: Any, *, positive: bool = False, nonneg: bool = False) -> None:
@@ -165,6 +169,22 @@ class EgoConfig:
         moving_threshold_mps: a recorded ego sample counts as moving above this [m/s].
         initial_speed: 'cruise' (default; the paper's ego drives at the constant desired
             velocity from the start) or 'recorded' (the recording's speed at t = 0).
+        run_up_m: the PID/CAP ego starts this far [m] before the first point of its
+            recorded path, on the path's straight backwards extension, driving at its
+            initial speed (0 = the paper's start at the recorded start). A run-up matters
+            when the rider's path meets the ego's near the recorded start (e.g. the
+            recorded car waited at a red light while the rider crossed right in front of
+            it): without one, a meeting comes within a second of the start and no planner
+            has room to react. 'auto' (default): just long enough that the ego, at the
+            cruise speed v_d, needs ``approach_time_s`` to reach the conflict point (the
+            point of its recorded path nearest to the primary rider's recorded path):
+            ``max(0, v_d * approach_time_s - s_conflict)``; 0 whenever the recording
+            already has that much approach (as in the paper's case). At most 250 m. The
+            replay-speed mode ignores it.
+        approach_time_s: with run_up_m='auto', the time [s] the ego cruises before the
+            conflict point. 6 s covers the CAP's reaction budget at the paper's settings:
+            headway T_safe = 2 s, braking from 8.3 m/s at 6 m/s^2 (1.4 s), actuator lag,
+            with margin; 0 = no run-up.
         kp, ki, kd: PID gains on the speed error [1/(m/s)], [1/m], [s/m]; paper: 0.05 each.
         integral_window_s: memory of the integral term [s]: the integral leaks with this
             time constant (``I <- I exp(-dt / window) + e dt``), i.e. it integrates over
@@ -189,6 +209,8 @@ class EgoConfig:
     cruise_speed_mps: float | str = MEDIAN_MOVING
     moving_threshold_mps: float = 0.5
     initial_speed: Literal["cruise", "recorded"] = "cruise"
+    run_up_m: float | str = AUTO
+    approach_time_s: float = 6.0
     kp: float = 0.05
     ki: float = 0.05
     kd: float = 0.05
@@ -205,6 +227,13 @@ class EgoConfig:
             _finite("cruise_speed_mps", self.cruise_speed_mps, positive=True)
         _finite("moving_threshold_mps", self.moving_threshold_mps, nonneg=True)
         _choice("initial_speed", self.initial_speed, ("cruise", "recorded"))
+        if isinstance(self.run_up_m, str):
+            _choice("run_up_m", self.run_up_m, (AUTO,))
+        else:
+            _finite("run_up_m", self.run_up_m, nonneg=True)
+            if self.run_up_m > MAX_RUN_UP_M:
+                raise ConfigError(f"run_up_m must be <= {MAX_RUN_UP_M:g} m, got {self.run_up_m}")
+        _finite("approach_time_s", self.approach_time_s, nonneg=True)
         for name in ("kp", "ki", "kd"):
             _finite(name, getattr(self, name), nonneg=True)
         if self.integral_window_s is not None:

@@ -389,3 +389,32 @@ def test_ray_gives_the_local_results_on_a_folder_of_scenarios(demo_scenario, tmp
         a[a["scenario_id"] == "demo-copy-2"][m].reset_index(drop=True),
         a[a["scenario_id"] == "demo-indianapolis-synthetic"][m].reset_index(drop=True),
     )
+
+
+def test_sweep_risk_map_of_a_scattered_design(tmp_path):
+    from vei.experiments.sweep import sweep_risk_map
+
+    spec = spec_from_dict(
+        {
+            "design": "random",
+            "n_samples": 4000,
+            "seed": 1,
+            "parameters": {
+                "time_shift_s": {"min": -3.0, "max": 3.0},
+                "sfm.k_des": {"min": 50.0, "max": 150.0},
+                "ego.cruise_speed_mps": {"min": 3.0, "max": 9.0},
+            },
+        }
+    )
+    df = variants_table(spec, "s")
+    x, y = df["time_shift_s"].to_numpy(), df["ego.cruise_speed_mps"].to_numpy()
+    df["collision"] = y > 6.0 + 0.5 * x  # known boundary in the plane the map picks
+    df["safety_index"] = np.where(df["collision"], 0.0, 1.0)
+    drawn = sweep_risk_map(df, spec, tmp_path / "rm.png")
+    assert (drawn["x"], drawn["y"]) == ("time_shift_s", "ego.cruise_speed_mps")
+    assert drawn["binned"]["count"].shape == (20, 20)  # sqrt(4000 / 10) bins per axis
+    cx, cy = drawn["crossings"][:, 0], drawn["crossings"][:, 1]
+    bin_h = 6.0 / 20
+    # the 0.5 level of the collision share follows the line within about one bin
+    assert np.abs(cy - (6.0 + 0.5 * cx)).max() < 1.5 * bin_h
+    assert (tmp_path / "rm.png").stat().st_size > 10_000

@@ -195,3 +195,15 @@ def test_every_documented_parameter_is_known():
         "cap.a_min_mps2",
         "perception_delay_s",
     }
+
+
+def test_shipped_example_spec_is_valid():
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "examples" / "sweep.yaml"
+    spec = load_spec(path)
+    assert spec.design == "lhs" and spec.n_samples == 2000 and spec.base == "normal-cap"
+    table = variants_table(spec, "example")
+    assert len(table) == 2000
+    assert table["cap.a_min_mps2"].between(-8.0, -4.0).all()
+    assert (table["sfm.b"] == 3.5).all()

@@ -42,9 +42,31 @@ def test_other_geometry_and_negative_shift() -> None:
         rider_y1_m=9.0,
         rider_t0_s=6.0,
     )
-    res = find_time_shift(sc)
+    plain = CaseConfig(name="replay", ego=EgoConfig(run_up_m=0.0))
+    res = find_time_shift(sc, case=plain)
     assert res.time_shift_s == pytest.approx(27.65 / 8.0 - 9.0, abs=2e-3)
     assert res.time_shift_s < 0
+
+
+def test_auto_run_up_gives_the_ego_its_approach_time() -> None:
+    # Same crossing: the conflict point lies 30 m along the ego path, but at 8 m/s the
+    # default approach time of 6 s needs 48 m, so 'auto' starts the ego 18 m earlier and
+    # the meeting moves 18 / 8 s later.
+    sc = crossing_scenario(
+        ego_speed_mps=8.0,
+        rider_speed_mps=3.0,
+        crossing_x_m=30.0,
+        rider_y0_m=-9.0,
+        rider_y1_m=9.0,
+        rider_t0_s=6.0,
+    )
+    res = find_time_shift(sc)
+    assert res.time_shift_s == pytest.approx((27.65 + 18.0) / 8.0 - 9.0, abs=2e-3)
+    r = run_cases(sc, ["replay", "normal-cap"], time_shift_s=res.time_shift_s)
+    assert r.ego_x_m[:, 0] == pytest.approx([-18.0, -18.0])
+    assert bool(r.collision[0]) and not bool(r.collision[1])
+    # The paper's case (conflict 60 m ahead at 5.6 m/s: 33.6 m needed) gets no run-up.
+    assert run_cases(crossing_scenario(), ["replay"]).ego_x_m[0, 0] == pytest.approx(0.0)
 
 
 def test_ego_motion_is_the_replay_configuration() -> None:
@@ -71,3 +93,14 @@ def test_search_range_and_parse() -> None:
         with pytest.raises(InputError):
             parse_time_shift(bad)
     assert np.isfinite(res.as_dict()["meet_time_s"])
+
+
+def test_run_up_moves_the_meeting_later() -> None:
+    # Starting 20 m before the recorded start adds 20 / 5.6 s to the ego's arrival.
+    sc = crossing_scenario()
+    case = CaseConfig(name="replay", ego=EgoConfig(run_up_m=20.0))
+    res = find_time_shift(sc, case=case)
+    assert res.time_shift_s == pytest.approx(77.65 / 5.6 - (2.0 + 15.0 / 4.4), abs=2e-3)
+    r = run_cases(sc, [case], time_shift_s=res.time_shift_s)
+    assert r.ego_x_m[0, 0] == pytest.approx(-20.0)
+    assert bool(r.collision[0])

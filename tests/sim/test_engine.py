@@ -40,10 +40,17 @@ def _mixed_params(arrays) -> VariantParams:
     p = VariantParams.concat(parts)
     # Vary a few per-variant parameters too (perception delay, k_des, cruise speed).
     b = p.batch_size
+    i = np.arange(b)
     return p.with_values(
-        perception_delay_s=np.where(np.arange(b) % 2 == 0, 0.0, 0.4),
-        k_des_nspm=p.k_des_nspm * (1.0 + 0.1 * (np.arange(b) % 3)),
-        cruise_speed_mps=5.6 + 0.2 * (np.arange(b) % 4),
+        perception_delay_s=np.where(i % 2 == 0, 0.0, 0.4),
+        k_des_nspm=p.k_des_nspm * (1.0 + 0.1 * (i % 3)),
+        cruise_speed_mps=5.6 + 0.2 * (i % 4),
+        # Every model option somewhere in the batch.
+        front_bumper=i % 5 == 1,
+        paper_vdes=i == 7,
+        paper_per_step=i % 3 == 2,
+        max_speed_mps=np.where(i == 8, 4.0, np.inf),
+        max_accel_mps2=np.where(i == 10, 1.0, np.inf),
     )
 
 
@@ -146,7 +153,7 @@ def test_constant_speed_replay_20_mps_for_2_s_is_40_m() -> None:
     )
     sc = make_scenario({"ego": ego, "r": rider}, primary_threat="r")
     r = run_cases(
-        sc, ["replay-speed", CaseConfig(name="pid20", ego=EgoConfig(cruise_speed_mps=20.0))]
+        sc, ["replay-speed", CaseConfig(name="pid20", ego=EgoConfig(cruise_speed_mps=20.0, run_up_m=0.0))]
     )
     assert r.t_s[-1] == pytest.approx(2.0)
     assert r.ego_x_m[:, -1] == pytest.approx([40.0, 40.0], abs=1e-9)
@@ -279,3 +286,31 @@ def test_sim_config_span_and_step() -> None:
     arrays = prepare_scenario(crossing_scenario(), SimConfig(dt_s=0.1, duration_s=12.0))
     assert arrays.n_steps == 121
     assert arrays.t_s[-1] == pytest.approx(12.0)
+
+
+def test_rider_options_paper_velocity_and_limits(crossing_arrays) -> None:
+    normal = case_preset("normal")
+    p = VariantParams.concat(
+        [
+            VariantParams.from_case(normal, crossing_arrays, 1, time_shift_s=0.0),
+            VariantParams.from_case(normal, crossing_arrays, 1, time_shift_s=0.0, paper_vdes=True),
+            VariantParams.from_case(
+                normal, crossing_arrays, 1, time_shift_s=0.0, max_speed_mps=3.0
+            ),
+        ]
+    )
+    r = simulate(crossing_arrays, p)
+    act = r.rider_active
+    # Normalised form: ~v0 * 5 / sqrt(26) = 4.90 m/s cruising at the look-ahead distance.
+    k0 = int(np.argmax(act[0]))
+    assert np.median(r.rider_speed_mps[0, k0 + 80 : k0 + 110]) == pytest.approx(
+        5.0 * 5.0 / np.sqrt(26.0), abs=0.02
+    )
+    # The paper's literal form: v0 * 5 / (25 + 1) = 0.96 m/s (relaxation m / k_des = 0.95 s).
+    k1 = int(np.argmax(act[1]))
+    assert np.median(r.rider_speed_mps[1, k1 + 100 : k1 + 160]) == pytest.approx(
+        5.0 * 5.0 / 26.0, abs=0.02
+    )
+    # Speed cap from the first social-force step on.
+    k2 = int(np.argmax(act[2]))
+    assert r.rider_speed_mps[2, k2 + 1 :].max() <= 3.0 + 1e-12

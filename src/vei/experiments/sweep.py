@@ -27,6 +27,7 @@ outcome does not depend on the other variants of its batch.
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import re
 import sys
@@ -235,7 +236,77 @@ def run_sweep(
     parts_dir.mkdir(parents=True, exist_ok=True)
     _clean_temporaries(parts_dir)
 
-    prepared = {str(d): evaluator.prepare(d) for d in dirs}
+    with _runner(engine, workers, evaluator) as runner:
+        n_skipped, n_run, table, scen_meta, prepared = _run_jobs(
+            runner, dirs, spec, out, evaluator, chunk_size, max_chunks, bool(progress)
+        )
+    manifest_path = out / "sweep.json"
+    manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
+
+    results_path = out / "results.parquet"
+    if n_skipped + n_run >= len(table):
+        results = assemble_results(out, table.drop(columns="_dir"))
+        write_parquet(results_path, results)
+        crit = most_critical(results, k_critical)
+        from vei.io.atomic import write_text
+
+        write_text(out / "critical.csv", crit.to_csv(index=False))
+        write_json(out / "critical.json", json_records(crit))
+        for sid, rows in crit.groupby("scenario_id", sort=False):
+            d = next(m["path"] for m in scen_meta if m["id"] == sid)
+            write_variant_configs(
+                out / "configs", rows, spec, evaluator.auto_shift_s(prepared[_key_of(d, prepared)])
+            )
+        sweep_risk_map(results, spec, out / "riskmap.png")
+        manifest["status"] = "complete"
+        manifest["updated_utc"] = datetime.now(UTC).isoformat(timespec="seconds")
+        write_json(manifest_path, manifest)
+    return SweepResult(
+        out_dir=out,
+        results=results_path,
+        n_variants=len(table),
+        n_run=n_run,
+        n_skipped=n_skipped,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def _key_of(resolved: str, prepared: dict[str, Any]) -> str:
+    """The key of ``prepared`` whose folder resolves to ``resolved``."""
+    for k in prepared:
+        if str(Path(k).resolve()) == resolved:
+            return k
+    raise KeyError(resolved)
+
+
+def _evaluate_job(evaluator: Evaluator, prepared: Any, chunk: pd.DataFrame) -> pd.DataFrame:
+    """Run one chunk and join its metrics to its variant rows (same order)."""
+    metrics = evaluator.evaluate(prepared, chunk)
+    if len(metrics) != len(chunk) or list(metrics["variant_id"]) != list(chunk["variant_id"]):
+        raise RuntimeError("evaluator returned rows that do not match the chunk's variants")
+    rows = chunk.reset_index(drop=True)
+    extra = metrics.drop(columns=["variant_id"]).reset_index(drop=True)
+    clash = set(extra.columns) & set(rows.columns)
+    if clash:
+        raise RuntimeError(f"metric columns clash with variant columns: {sorted(clash)}")
+    return pd.concat([rows, extra], axis=1)
+
+
+def _run_jobs(
+    runner: Any,
+    dirs: Sequence[Path],
+    spec: SweepSpec,
+    out: Path,
+    evaluator: Evaluator,
+    chunk_size: int,
+    max_chunks: int | None,
+    progress: bool,
+) -> tuple[int, int, pd.DataFrame, list[dict[str, Any]], dict[str, Any]]:
+    """Prepare the scenarios, check / write the manifest, run the chunks not yet done and
+    write each as a part file. Returns (n_skipped, n_run, variants table, scenario
+    metadata, prepared scenarios)."""
+    parts_dir = out / "parts"
+    prepared = runner.prepare_all(dirs)
     tables = []
     scen_meta = []
     for d in dirs:
@@ -251,8 +322,6 @@ def run_sweep(
     manifest_path = out / "sweep.json"
     digest = spec.digest()
     if manifest_path.exists():
-        import json
-
         try:
             old = json.loads(manifest_path.read_text(encoding="utf-8"))
         except (OSError, ValueError) as exc:
@@ -296,142 +365,138 @@ def run_sweep(
         next_seq += 1
         n_run += len(rows)
 
-    with _progress(len(table), n_skipped, bool(progress)) as advance:
-        for rows in _execute(jobs, prepared, evaluator, engine, workers):
+    with _progress(len(table), n_skipped, progress) as advance:
+        for rows in runner.run(jobs, prepared):
             write_part(rows)
             advance(len(rows))
-
-    results_path = out / "results.parquet"
-    if n_skipped + n_run >= len(table):
-        results = assemble_results(out, table.drop(columns="_dir"))
-        write_parquet(results_path, results)
-        manifest["status"] = "complete"
-        manifest["updated_utc"] = datetime.now(UTC).isoformat(timespec="seconds")
-        write_json(manifest_path, manifest)
-        crit = most_critical(results, k_critical)
-        from vei.io.atomic import write_text
-
-        write_text(out / "critical.csv", crit.to_csv(index=False))
-        write_json(out / "critical.json", json_records(crit))
-        for sid, rows in crit.groupby("scenario_id", sort=False):
-            d = next(m["path"] for m in scen_meta if m["id"] == sid)
-            write_variant_configs(
-                out / "configs", rows, spec, evaluator.auto_shift_s(prepared[_key_of(d, prepared)])
-            )
-        sweep_risk_map(results, spec, out / "riskmap.png")
-    return SweepResult(
-        out_dir=out,
-        results=results_path,
-        n_variants=len(table),
-        n_run=n_run,
-        n_skipped=n_skipped,
-        seconds=time.perf_counter() - t0,
-    )
+    return n_skipped, n_run, table, scen_meta, prepared
 
 
-def _key_of(resolved: str, prepared: dict[str, Any]) -> str:
-    """The key of ``prepared`` whose folder resolves to ``resolved``."""
-    for k in prepared:
-        if str(Path(k).resolve()) == resolved:
-            return k
-    raise KeyError(resolved)
+def _prepare_job(evaluator: Evaluator, scenario_dir: str) -> Any:
+    """Prepare one scenario (runs in a worker)."""
+    return evaluator.prepare(Path(scenario_dir))
 
 
-def _evaluate_job(evaluator: Evaluator, prepared: Any, chunk: pd.DataFrame) -> pd.DataFrame:
-    """Run one chunk and join its metrics to its variant rows (same order)."""
-    metrics = evaluator.evaluate(prepared, chunk)
-    if len(metrics) != len(chunk) or list(metrics["variant_id"]) != list(chunk["variant_id"]):
-        raise RuntimeError("evaluator returned rows that do not match the chunk's variants")
-    rows = chunk.reset_index(drop=True)
-    extra = metrics.drop(columns=["variant_id"]).reset_index(drop=True)
-    clash = set(extra.columns) & set(rows.columns)
-    if clash:
-        raise RuntimeError(f"metric columns clash with variant columns: {sorted(clash)}")
-    return pd.concat([rows, extra], axis=1)
+class _SerialRunner:
+    """Everything in this process."""
 
+    def __init__(self, evaluator: Evaluator) -> None:
+        self.evaluator = evaluator
 
-def _execute(
-    jobs: list[tuple[str, pd.DataFrame]],
-    prepared: dict[str, Any],
-    evaluator: Evaluator,
-    engine: str,
-    workers: int,
-) -> Iterator[pd.DataFrame]:
-    """Yield each job's finished rows (order may differ from ``jobs`` when parallel)."""
-    if not jobs:
-        return
-    if engine == "ray":
-        yield from _execute_ray(jobs, prepared, evaluator, workers)
-        return
-    if workers == 1:
+    def prepare_all(self, dirs: Sequence[Path]) -> dict[str, Any]:
+        return {str(d): self.evaluator.prepare(Path(d)) for d in dirs}
+
+    def run(
+        self, jobs: list[tuple[str, pd.DataFrame]], prepared: dict[str, Any]
+    ) -> Iterator[pd.DataFrame]:
         for d, chunk in jobs:
-            yield _evaluate_job(evaluator, prepared[d], chunk)
-        return
-    import multiprocessing as mp
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+            yield _evaluate_job(self.evaluator, prepared[d], chunk)
 
-    ctx = mp.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        pending: set = set()
+
+class _PoolRunner:
+    """A pool of ``workers`` spawned processes; at most 2 chunks per worker in flight."""
+
+    def __init__(self, evaluator: Evaluator, pool: Any, workers: int) -> None:
+        self.evaluator, self.pool, self.workers = evaluator, pool, workers
+
+    def prepare_all(self, dirs: Sequence[Path]) -> dict[str, Any]:
+        futures = {str(d): self.pool.submit(_prepare_job, self.evaluator, str(d)) for d in dirs}
+        return {d: f.result() for d, f in futures.items()}
+
+    def run(
+        self, jobs: list[tuple[str, pd.DataFrame]], prepared: dict[str, Any]
+    ) -> Iterator[pd.DataFrame]:
+        from concurrent.futures import FIRST_COMPLETED, wait
+
         it = iter(jobs)
-        for d, chunk in it:
-            pending.add(pool.submit(_evaluate_job, evaluator, prepared[d], chunk))
-            if len(pending) >= 2 * workers:
-                break
+        pending: set = set()
+
+        def fill() -> None:
+            for d, chunk in it:
+                pending.add(self.pool.submit(_evaluate_job, self.evaluator, prepared[d], chunk))
+                if len(pending) >= 2 * self.workers:
+                    break
+
+        fill()
         while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            finished, rest = wait(pending, return_when=FIRST_COMPLETED)
+            pending.clear()
+            pending.update(rest)
             for f in finished:
                 yield f.result()
-            for d, chunk in it:
-                pending.add(pool.submit(_evaluate_job, evaluator, prepared[d], chunk))
-                if len(pending) >= 2 * workers:
-                    break
+            fill()
 
 
-def _execute_ray(
-    jobs: list[tuple[str, pd.DataFrame]],
-    prepared: dict[str, Any],
-    evaluator: Evaluator,
-    workers: int,
-) -> Iterator[pd.DataFrame]:
-    try:
-        import ray
-    except ImportError as exc:  # pragma: no cover - ray is in the 'distributed' extra
-        from vei.errors import DependencyError
+class _RayRunner:
+    """Ray tasks: scenarios prepared in parallel, each kept once in the object store."""
 
-        raise DependencyError("engine 'ray' needs Ray: pip install 'vei[distributed]'") from exc
-    started = False
-    if not ray.is_initialized():
-        os.environ.setdefault("RAY_DISABLE_IMPORT_WARNING", "1")
-        ray.init(
-            num_cpus=workers,
-            include_dashboard=False,
-            log_to_driver=False,
-            configure_logging=False,
-        )
-        started = True
-    try:
-        remote = ray.remote(num_cpus=1)(_evaluate_job)
-        ev_ref = ray.put(evaluator)
-        refs = {d: ray.put(p) for d, p in prepared.items()}
+    def __init__(self, evaluator: Evaluator, ray: Any, workers: int) -> None:
+        self.ray, self.workers = ray, workers
+        self.ev_ref = ray.put(evaluator)
+        self.refs: dict[str, Any] = {}
+
+    def prepare_all(self, dirs: Sequence[Path]) -> dict[str, Any]:
+        remote = self.ray.remote(num_cpus=1)(_prepare_job)
+        self.refs = {str(d): remote.remote(self.ev_ref, str(d)) for d in dirs}
+        return {d: self.ray.get(r) for d, r in self.refs.items()}
+
+    def run(
+        self, jobs: list[tuple[str, pd.DataFrame]], prepared: dict[str, Any]
+    ) -> Iterator[pd.DataFrame]:
+        remote = self.ray.remote(num_cpus=1)(_evaluate_job)
         it = iter(jobs)
         pending: list = []
-        limit = 2 * workers
-        for d, chunk in it:
-            pending.append(remote.remote(ev_ref, refs[d], chunk))
-            if len(pending) >= limit:
-                break
-        while pending:
-            ready, pending = ray.wait(pending, num_returns=1)
-            for r in ready:
-                yield ray.get(r)
+
+        def fill() -> None:
             for d, chunk in it:
-                pending.append(remote.remote(ev_ref, refs[d], chunk))
-                if len(pending) >= limit:
+                pending.append(remote.remote(self.ev_ref, self.refs[d], chunk))
+                if len(pending) >= 2 * self.workers:
                     break
-    finally:
-        if started:
-            ray.shutdown()
+
+        fill()
+        while pending:
+            ready, rest = self.ray.wait(pending, num_returns=1)
+            pending[:] = rest
+            for r in ready:
+                yield self.ray.get(r)
+            fill()
+
+
+@contextlib.contextmanager
+def _runner(engine: str, workers: int, evaluator: Evaluator) -> Iterator[Any]:
+    """The executor of a sweep: serial, a process pool, or a Ray session (started and shut
+    down here unless Ray is already initialised)."""
+    if engine == "ray":
+        try:
+            import ray
+        except ImportError as exc:  # pragma: no cover - ray is in the 'distributed' extra
+            from vei.errors import DependencyError
+
+            raise DependencyError("engine 'ray' needs Ray: pip install 'vei[distributed]'") from exc
+        started = False
+        if not ray.is_initialized():
+            os.environ.setdefault("RAY_DISABLE_IMPORT_WARNING", "1")
+            ray.init(
+                num_cpus=workers,
+                include_dashboard=False,
+                log_to_driver=False,
+                configure_logging=False,
+            )
+            started = True
+        try:
+            yield _RayRunner(evaluator, ray, workers)
+        finally:
+            if started:
+                ray.shutdown()
+        return
+    if workers == 1:
+        yield _SerialRunner(evaluator)
+        return
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
+        yield _PoolRunner(evaluator, pool, workers)
 
 
 def assemble_results(out_dir: str | Path, table: pd.DataFrame | None = None) -> pd.DataFrame:

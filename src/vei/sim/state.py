@@ -19,7 +19,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from vei.config import MEDIAN_MOVING, CaseConfig, SimConfig
+from vei.config import AUTO, MAX_RUN_UP_M, MEDIAN_MOVING, CaseConfig, SimConfig
 from vei.errors import ConfigError, InputError
 from vei.models.ego import PathTable, build_path, median_moving_speed_mps
 from vei.types import EGO_ID, Scenario
@@ -136,6 +136,8 @@ class ScenarioArrays:
             along ego_path), speed_mps.
         ego_length_m, ego_width_m: ego footprint [m].
         ego_speed0_mps: recorded ego speed at t = 0 [m/s].
+        conflict_s_m: arc length [m] along the ego's recorded path of its point nearest to
+            the rider's recorded path (where the paths meet, if they do).
         ego_median_moving_speed_mps: median recorded speed while moving (> threshold) [m/s]
             (NaN if the ego never moves).
         rider_id, rider_category: the primary threat (the simulated rider).
@@ -159,6 +161,7 @@ class ScenarioArrays:
     ego_width_m: float
     ego_speed0_mps: float
     ego_median_moving_speed_mps: float
+    conflict_s_m: float
     rider_id: str
     rider_category: str
     rider_track: TimeTable
@@ -293,6 +296,7 @@ def prepare_scenario(
         ego_width_m=float(sim.ego_width_m or ego_info.width_m),
         ego_speed0_mps=float(ego_track.lookup(np.array([0.0]))[0, 1]),
         ego_median_moving_speed_mps=med,
+        conflict_s_m=_conflict_arc_m(ex, ey, rx, ry),
         rider_id=rid,
         rider_category=rinfo.category,
         rider_track=TimeTable(r0, drt, rdata, cols),
@@ -309,6 +313,15 @@ def prepare_scenario(
         other_speed_mps=osp,
         other_active=oact,
     )
+
+
+def _conflict_arc_m(ex: FloatArray, ey: FloatArray, rx: FloatArray, ry: FloatArray) -> float:
+    """Arc length [m] along the ego path (ex, ey) [M] of its sample nearest to the rider path (rx, ry)."""
+    from scipy.spatial import cKDTree
+
+    dist, _ = cKDTree(np.column_stack([rx, ry])).query(np.column_stack([ex, ey]))
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(ex), np.diff(ey)))])
+    return float(arc[int(np.argmin(dist))])
 
 
 # --------------------------------------------------------------------------------------
@@ -338,6 +351,8 @@ class VariantParams:
         max_speed_mps, max_accel_mps2: rider limits; +inf = none.
         ego_mode: int8, 0 replay-speed, 1 pid, 2 cap.
         cruise_speed_mps: v_d [m/s]. initial_speed_mps: ego speed at t = 0 [m/s].
+        ego_start_s_m: ego arc length at t = 0 [m] (-run_up_m; 0 for replay-speed),
+            in [-250, 0].
         kp, ki, kd, integral_limit: PID. integral_window_s: the integral's memory [s]
             (+inf = plain integral). max_accel_mps2_ego, max_decel_mps2_ego,
             actuator_lag_s: actuator (EgoConfig).
@@ -366,6 +381,7 @@ class VariantParams:
     ego_mode: npt.NDArray[np.int8]
     cruise_speed_mps: FloatArray
     initial_speed_mps: FloatArray
+    ego_start_s_m: FloatArray
     kp: FloatArray
     ki: FloatArray
     kd: FloatArray
@@ -434,6 +450,8 @@ class VariantParams:
         ):
             if np.any(getattr(self, name) < 0):
                 raise ConfigError(f"VariantParams.{name} must be >= 0")
+        if np.any((self.ego_start_s_m > 0) | (self.ego_start_s_m < -250.0)):
+            raise ConfigError("VariantParams.ego_start_s_m must lie in [-250, 0] m")
         if np.any(self.a_min_mps2 >= 0):
             raise ConfigError("VariantParams.a_min_mps2 must be < 0")
         if np.any((self.ego_mode < 0) | (self.ego_mode > 2)):
@@ -485,6 +503,14 @@ class VariantParams:
             v_init = arrays.ego_speed0_mps
         else:
             v_init = overrides.get("cruise_speed_mps", vd)
+        if ego.run_up_m == AUTO:
+            # Per variant: the cruise speed may be overridden per variant (sweeps).
+            v_cruise = np.asarray(overrides.get("cruise_speed_mps", vd), dtype=np.float64)
+            run_up_m: Any = np.clip(
+                v_cruise * ego.approach_time_s - arrays.conflict_s_m, 0.0, MAX_RUN_UP_M
+            )
+        else:
+            run_up_m = float(ego.run_up_m)
         inf = math.inf
         base: dict[str, Any] = {
             "time_shift_s": time_shift_s,
@@ -505,6 +531,7 @@ class VariantParams:
             "ego_mode": EGO_MODE_CODES[case.ego_mode],
             "cruise_speed_mps": vd,
             "initial_speed_mps": v_init,
+            "ego_start_s_m": 0.0 if case.ego_mode == "replay-speed" else -run_up_m,
             "kp": ego.kp,
             "ki": ego.ki,
             "kd": ego.kd,
