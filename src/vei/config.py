@@ -325,6 +325,10 @@ class SimConfig:
             [m]; None = the scenario's agent dimensions.
         stop_on_collision: after an ego / primary-rider collision both stop and the run
             keeps recording (paper Fig. 5); false = record the contact only.
+        kernel: how the built-in engine steps: 'numpy' (the reference: the pure step
+            function in a loop), 'numba' (the same model compiled; extra ``vei[fast]``;
+            ~40x faster on small batches, compiled once per machine and cached on disk) or
+            'auto' (default: numba when installed, else numpy).
     """
 
     dt_s: float = 0.05
@@ -334,9 +338,11 @@ class SimConfig:
     rider_length_m: float | None = None
     rider_width_m: float | None = None
     stop_on_collision: bool = True
+    kernel: Literal["numpy", "numba", "auto"] = "auto"
 
     def __post_init__(self) -> None:
         _finite("dt_s", self.dt_s, positive=True)
+        _choice("kernel", self.kernel, ("numpy", "numba", "auto"))
         if self.dt_s > 1.0:
             raise ConfigError(f"dt_s must be <= 1 s, got {self.dt_s}")
         for name in (

@@ -123,7 +123,7 @@ def find_time_shift(
     # Ego alone: the rider shifted far beyond the span never enters.
     away = float(t[-1] - tr.t0_s + 1e3)
     params = VariantParams.from_case(cfg, arrays, 1, time_shift_s=away)
-    res = simulate(arrays, params)
+    res = simulate(arrays, params, kernel=sim.kernel)
     hl = 0.5 * arrays.ego_length_m
     ex, ey, eyaw = res.ego_x_m[0], res.ego_y_m[0], res.ego_yaw_rad[0]
     fx = ex + hl * np.cos(eyaw)
