@@ -47,6 +47,7 @@ def main() -> None:
     n_steps = result.t_s.size
 
     t_shift = _median_time(lambda: find_time_shift(scenario, sim=sim))
+
     def engine(kernel: str):
         return run_cases(scenario, list(PAPER_CASES), time_shift_s=shift, sim=sim, kernel=kernel)
 

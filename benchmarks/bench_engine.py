@@ -5,8 +5,12 @@ Scene: the built-in 25 s synthetic demo scenario at 20 Hz (ego + one e-scooter r
 every model branch active), B variants spread over time shifts around the automatic one.
 
 Columns (one row per batch size B):
-- ``engine``: agent-steps/s of ``vei.sim.engine.simulate(..., record="none")`` on B
-  variants in one batch = B * 2 agents * 500 steps / wall time (best of ``REPEATS``).
+- ``engine``: agent-steps/s of ``vei.sim.engine.simulate(..., record="none",
+  kernel="auto")`` (the compiled numba kernel when installed: extra ``vei[fast]``; its
+  one-time compilation is excluded) on B variants in one batch = B * 2 agents * 500 steps /
+  wall time (best of ``REPEATS``).
+- ``numpy``: the same with ``kernel="numpy"``, the reference implementation (the pure
+  ``step`` function in a Python loop over time, vectorised over B).
 - ``loop``: a plain per-variant Python loop, the same engine called with B = 1 for each
   variant; its rate does not depend on B, so it is measured on ``LOOP_VARIANTS`` variants.
 - ``psf scene``: PySocialForce 1.1 stepping the same number of agents (2 B) in one scene
@@ -171,6 +175,7 @@ def main() -> None:
             simulate(arrays, loop_params.take([i]), record="none")
 
     simulate(arrays, _params(arrays, auto, 10), record="none")  # warm-up
+    simulate(arrays, _params(arrays, auto, 10), record="none", kernel="auto")  # compile / load
     t_loop = _best(loop, 1)
     loop_rate = LOOP_VARIANTS * AGENTS_PER_VARIANT * steps / t_loop
 
@@ -178,31 +183,41 @@ def main() -> None:
     for b in BATCHES:
         params = _params(arrays, auto, b)
         t = _best(
-            lambda p=params: simulate(arrays, p, record="none"), REPEATS if b <= 10_000 else 1
+            lambda p=params: simulate(arrays, p, record="none", kernel="auto"),
+            REPEATS if b <= 10_000 else 1,
         )
         rate = b * AGENTS_PER_VARIANT * steps / t
+        t_np = _best(
+            lambda p=params: simulate(arrays, p, record="none", kernel="numpy"),
+            REPEATS if b <= 10_000 else 1,
+        )
+        rate_np = b * AGENTS_PER_VARIANT * steps / t_np
         if b >= 10_000:
             peak = _peak_bytes(lambda p=params: _partial_run(arrays, p, 25))
         else:
             peak = _peak_bytes(lambda p=params: simulate(arrays, p, record="none"))
         best_psf = max(psf_pair, psf_scene.get(b, 0.0))
-        rows.append((b, t, rate, psf_scene.get(b), best_psf, peak / b))
+        rows.append((b, t, rate, psf_scene.get(b), best_psf, peak / b, rate_np))
     chunk_mem = _sweep_chunk_peak(arrays, auto)
 
+    from vei.sim import kernel as compiled
+
+    kernel = "numba" if compiled.available() else "numpy"
     print(
         f"engine throughput, demo scenario: {AGENTS_PER_VARIANT} agents x {steps} steps per variant, "
-        f"normal-cap, {os.cpu_count()} CPU(s)"
+        f"normal-cap, {os.cpu_count()} CPU(s); engine kernel 'auto' = {kernel}"
     )
     hdr = (
-        f"{'B':>7} {'wall s':>8} {'engine ag-st/s':>15} {'loop ag-st/s':>13} {'psf scene':>10} "
+        f"{'B':>7} {'wall s':>8} {'engine ag-st/s':>15} {'numpy ag-st/s':>14} "
+        f"{'loop ag-st/s':>13} {'psf scene':>10} "
         f"{'psf 2-agent':>12} {'x psf':>8} {'x loop':>7} {'mem/variant':>12}"
     )
     print(hdr)
     print("-" * len(hdr))
-    for b, t, rate, scene, best_psf, mem in rows:
+    for b, t, rate, scene, best_psf, mem, rate_np in rows:
         sc = f"{scene:10.3g}" if scene is not None else f"{'-':>10}"
         print(
-            f"{b:>7} {t:8.3f} {rate:15.3g} {loop_rate:13.3g} {sc} {psf_pair:12.3g} "
+            f"{b:>7} {t:8.3f} {rate:15.3g} {rate_np:14.3g} {loop_rate:13.3g} {sc} {psf_pair:12.3g} "
             f"{rate / best_psf:8.0f} {rate / loop_rate:7.0f} {mem / 1024:9.1f} KiB"
         )
     print(

@@ -41,7 +41,7 @@ def main() -> None:
 
     matplotlib.use("Agg")
     from vei.experiments.demo_data import demo_interaction
-    from vei.experiments.sweep import EngineEvaluator, fast_trace_arrays, run_sweep, variant_params
+    from vei.experiments.sweep import EngineEvaluator, run_sweep, variant_params
     from vei.experiments.sweep_spec import variants_table
     from vei.io.scenario import write_scenario
     from vei.metrics import summarize
@@ -59,11 +59,12 @@ def main() -> None:
         prep = ev.prepare(scen)
         chunk = variants_table(spec, prep.scenario_id).iloc[:CHUNK]
         params = variant_params(chunk, prep.arrays, base=spec.base, auto_shift_s=prep.auto_shift_s)
+        simulate(prep.arrays, params.take([0]), record="full", kernel=ev.sim.kernel)  # compile
         t0 = time.perf_counter()
-        result = simulate(prep.arrays, params, record="full")
+        result = simulate(prep.arrays, params, record="full", kernel=ev.sim.kernel)
         t_engine = time.perf_counter() - t0
         t0 = time.perf_counter()
-        summarize(fast_trace_arrays(result.to_trace()), names=ev.metrics)
+        summarize(result.to_trace(), names=ev.metrics)
         t_metrics = time.perf_counter() - t0
         del result
 

@@ -19,9 +19,7 @@ from vei.config import RunConfig, load_config
 from vei.errors import ConfigError, InputError
 from vei.experiments.sweep import (
     EngineEvaluator,
-    box_gap_fast,
     done_ids,
-    fast_trace_arrays,
     find_scenarios,
     most_critical,
     read_results,
@@ -225,40 +223,6 @@ def test_bad_arguments_and_missing_scenarios(demo_scenario, tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(InputError, match="scenario folder"):
         find_scenarios(tmp_path / "empty")
-
-
-def test_fast_gap_equals_the_metrics_gap(demo_scenario):
-    from vei.metrics._trace import arrays
-    from vei.metrics.geometry import box_corners, box_gap
-    from vei.sim.engine import simulate
-
-    rng = np.random.default_rng(4)
-    n = 5000
-    ax, ay, bx, by = rng.uniform(-4, 4, (4, n))
-    ayaw, byaw = rng.uniform(-4, 4, (2, n))
-    ref = box_gap(
-        box_corners(np.stack([ax, ay], -1), ayaw, 4.7, 1.85),
-        box_corners(np.stack([bx, by], -1), byaw, 1.2, 0.6),
-    )
-    got = box_gap_fast(ax, ay, ayaw, 4.7, 1.85, bx, by, byaw, 1.2, 0.6)
-    assert 0.05 < (ref == 0).mean() < 0.5
-    assert got == pytest.approx(ref, abs=1e-12)
-    # and on engine traces, through the metrics' own trace wrapper
-    ev = EngineEvaluator(time_shift_reference="zero", base="replay")
-    prep = ev.prepare(demo_scenario)
-    spec = spec_from_dict(
-        {
-            "design": "grid",
-            "time_shift_reference": "zero",
-            "base": "replay",
-            "parameters": {"time_shift_s": {"min": 0.0, "max": 6.0, "num": 7}},
-        }
-    )
-    table = variants_table(spec, prep.scenario_id)
-    trace = simulate(
-        prep.arrays, variant_params(table, prep.arrays, base="replay", time_shift_reference="zero")
-    ).to_trace()
-    np.testing.assert_allclose(fast_trace_arrays(trace).gap, arrays(trace).gap, atol=1e-12)
 
 
 def test_most_critical_order():

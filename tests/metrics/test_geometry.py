@@ -3,7 +3,27 @@ import math
 import numpy as np
 import pytest
 
-from vei.metrics.geometry import box_corners, box_gap, boxes_overlap, time_to_contact
+from vei.metrics.geometry import box_corners, boxes_overlap, time_to_contact
+from vei.models.geometry import box_gap as _box_gap
+
+
+def box_gap(corners_a, corners_b):
+    """The single box gap of vei, called with the centre/heading/size of corner sets."""
+
+    def parts(c):
+        centre = c.mean(axis=-2)
+        length = np.linalg.norm(c[..., 1, :] - c[..., 0, :], axis=-1)
+        width = np.linalg.norm(c[..., 2, :] - c[..., 1, :], axis=-1)
+        front = c[..., 1, :] - c[..., 0, :]
+        return (
+            centre[..., 0],
+            centre[..., 1],
+            np.arctan2(front[..., 1], front[..., 0]),
+            length,
+            width,
+        )
+
+    return _box_gap(*parts(corners_a), *parts(corners_b))
 
 
 def test_corners_counter_clockwise_from_rear_right():

@@ -74,3 +74,31 @@ def test_closest_point_on_box() -> None:
     # Rotated 90 deg: length along y.
     qx, qy = closest_point_on_box(3.0, 0.0, 0.0, 0.0, math.pi / 2, 2.0, 1.0)
     assert (float(qx), float(qy)) == pytest.approx((0.5, 0.0))
+
+
+def _brute_force_gap(a, b):
+    """Reference: min corner-to-edge distance over both boxes' corners (0 on overlap)."""
+
+    def seg(p, q0, q1):
+        d = q1 - q0
+        t = np.clip(np.sum((p - q0) * d, -1) / np.sum(d * d, -1), 0.0, 1.0)
+        return np.linalg.norm(p - (q0 + t[..., None] * d), axis=-1)
+
+    ca, cb = box_corners(*a), box_corners(*b)
+    best = np.full(ca.shape[:-2], np.inf)
+    for p, q in ((ca, cb), (cb, ca)):
+        for i in range(4):
+            for j in range(4):
+                best = np.minimum(best, seg(p[..., i, :], q[..., j, :], q[..., (j + 1) % 4, :]))
+    return np.where(boxes_overlap(*a, *b), 0.0, best)
+
+
+def test_box_gap_equals_the_brute_force_corner_to_edge_distance() -> None:
+    rng = np.random.default_rng(4)
+    n = 5000
+    ax, ay, bx, by = rng.uniform(-4, 4, (4, n))
+    ayaw, byaw = rng.uniform(-4, 4, (2, n))
+    a, b = (ax, ay, ayaw, 4.7, 1.85), (bx, by, byaw, 1.2, 0.6)
+    ref = _brute_force_gap(a, b)
+    assert 0.05 < (ref == 0).mean() < 0.5  # both overlapping and apart cases
+    assert box_gap(*a, *b) == pytest.approx(ref, abs=1e-12)

@@ -153,7 +153,11 @@ def test_constant_speed_replay_20_mps_for_2_s_is_40_m() -> None:
     )
     sc = make_scenario({"ego": ego, "r": rider}, primary_threat="r")
     r = run_cases(
-        sc, ["replay-speed", CaseConfig(name="pid20", ego=EgoConfig(cruise_speed_mps=20.0, run_up_m=0.0))]
+        sc,
+        [
+            "replay-speed",
+            CaseConfig(name="pid20", ego=EgoConfig(cruise_speed_mps=20.0, run_up_m=0.0)),
+        ],
     )
     assert r.t_s[-1] == pytest.approx(2.0)
     assert r.ego_x_m[:, -1] == pytest.approx([40.0, 40.0], abs=1e-9)

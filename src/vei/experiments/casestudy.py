@@ -138,9 +138,7 @@ def _run_builtin(
     """Built-in engine: all configurations in one batch."""
     from vei.sim.engine import run_cases
 
-    result = run_cases(
-        scenario, list(cases), time_shift_s=time_shift_s, sim=sim, kernel=sim.kernel
-    )
+    result = run_cases(scenario, list(cases), time_shift_s=time_shift_s, sim=sim, kernel=sim.kernel)
     return result.to_frame()
 
 

@@ -85,7 +85,9 @@ class LocalFrame:
     def _inv(self) -> Transformer:
         return Transformer.from_crs(self.proj_string, "EPSG:4326", always_xy=True)
 
-    def to_xy(self, lat_deg: npt.ArrayLike, lon_deg: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
+    def to_xy(
+        self, lat_deg: npt.ArrayLike, lon_deg: npt.ArrayLike
+    ) -> tuple[FloatArray, FloatArray]:
         """WGS84 latitude/longitude [deg] (any shape) -> plane x east, y north [m] (same shape)."""
         x, y = self._fwd.transform(_as_float_array(lon_deg), _as_float_array(lat_deg))
         return _as_float_array(x), _as_float_array(y)
@@ -111,13 +113,17 @@ class LocalFrame:
         x2, y2 = self.to_xy(np.asarray(lat2), np.asarray(lon2))
         return np.arctan2(y2 - y1, x2 - x1)
 
-    def yaw_to_bearing(self, yaw_rad: npt.ArrayLike, x_m: npt.ArrayLike, y_m: npt.ArrayLike) -> FloatArray:
+    def yaw_to_bearing(
+        self, yaw_rad: npt.ArrayLike, x_m: npt.ArrayLike, y_m: npt.ArrayLike
+    ) -> FloatArray:
         """Plane yaw [rad] at plane point (x, y) -> true bearing [deg, clockwise from north, [0, 360)]."""
         yaw = _as_float_array(yaw_rad)
         x = np.broadcast_to(_as_float_array(x_m), yaw.shape)
         y = np.broadcast_to(_as_float_array(y_m), yaw.shape)
         lat1, lon1 = self.to_latlon(x, y)
-        lat2, lon2 = self.to_latlon(x + _BEARING_PROBE_M * np.cos(yaw), y + _BEARING_PROBE_M * np.sin(yaw))
+        lat2, lon2 = self.to_latlon(
+            x + _BEARING_PROBE_M * np.cos(yaw), y + _BEARING_PROBE_M * np.sin(yaw)
+        )
         az, _, _ = _GEOD.inv(lon1, lat1, lon2, lat2)
         return np.mod(np.asarray(az, dtype=np.float64), 360.0)
 
@@ -169,12 +175,18 @@ class Bounds:
 
     def __post_init__(self) -> None:
         if not (-90 <= self.south_deg <= self.north_deg <= 90):
-            raise InputError(f"invalid latitude bounds: south={self.south_deg}, north={self.north_deg}")
+            raise InputError(
+                f"invalid latitude bounds: south={self.south_deg}, north={self.north_deg}"
+            )
         if not (-180 <= self.west_deg <= self.east_deg <= 180):
-            raise InputError(f"invalid longitude bounds: west={self.west_deg}, east={self.east_deg}")
+            raise InputError(
+                f"invalid longitude bounds: west={self.west_deg}, east={self.east_deg}"
+            )
 
     @classmethod
-    def around(cls, lat_deg: npt.ArrayLike, lon_deg: npt.ArrayLike, margin_m: float = 50.0) -> Bounds:
+    def around(
+        cls, lat_deg: npt.ArrayLike, lon_deg: npt.ArrayLike, margin_m: float = 50.0
+    ) -> Bounds:
         """Smallest box holding all finite points, grown by ``margin_m`` metres on each side."""
         lat = _as_float_array(lat_deg).ravel()
         lon = _as_float_array(lon_deg).ravel()
@@ -208,7 +220,9 @@ class Bounds:
 
     @classmethod
     def from_dict(cls, d: dict[str, float]) -> Bounds:
-        return cls(float(d["south_deg"]), float(d["west_deg"]), float(d["north_deg"]), float(d["east_deg"]))
+        return cls(
+            float(d["south_deg"]), float(d["west_deg"]), float(d["north_deg"]), float(d["east_deg"])
+        )
 
     def as_sw_ne(self) -> str:
         """'S,W,N,E' as the CLI's --bbox takes it (and Overpass uses)."""

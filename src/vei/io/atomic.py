@@ -68,7 +68,9 @@ def write_bytes(target: str | Path, data: bytes) -> Path:
 
 def write_json(target: str | Path, obj: Any) -> Path:
     """Atomically write ``obj`` as indented JSON (keys in insertion order)."""
-    return write_text(target, json.dumps(obj, indent=2, allow_nan=False, default=_json_default) + "\n")
+    return write_text(
+        target, json.dumps(obj, indent=2, allow_nan=False, default=_json_default) + "\n"
+    )
 
 
 def _json_default(obj: Any) -> Any:

@@ -9,7 +9,8 @@ import numpy as np
 import numpy.typing as npt
 
 from vei.errors import InputError
-from vei.metrics.geometry import box_corners, box_gap
+from vei.metrics.geometry import box_corners
+from vei.models.geometry import box_gap
 from vei.types import Trace
 
 FloatArray = npt.NDArray[np.float64]
@@ -118,7 +119,21 @@ class TraceArrays:
     @cached_property
     def gap(self) -> FloatArray:
         """[B, T] box-to-box gap (m); NaN where the other road user is inactive."""
-        g = box_gap(self.ego_corners, self.other_corners)
+        tr = self.trace
+        # Inactive steps may hold NaN positions: park them far away (results are masked).
+        ok = self.active & np.isfinite(self.other_xy).all(axis=-1)
+        g = box_gap(
+            self.ego_xy[..., 0],
+            self.ego_xy[..., 1],
+            self.ego_yaw,
+            tr.ego_length_m,
+            tr.ego_width_m,
+            np.where(ok, self.other_xy[..., 0], 1e9),
+            np.where(ok, self.other_xy[..., 1], 1e9),
+            np.where(np.isfinite(self.other_yaw), self.other_yaw, 0.0),
+            tr.other_length_m,
+            tr.other_width_m,
+        )
         return np.where(self.active, g, np.nan)
 
     @cached_property

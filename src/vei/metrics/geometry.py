@@ -1,4 +1,7 @@
-"""Oriented-box geometry for the metrics: corners, overlap, gap, time to contact.
+"""Oriented-box geometry for the metrics: corners, overlap of corner sets, time to contact.
+
+The box-to-box gap is :func:`vei.models.geometry.box_gap` (one implementation for the
+engine, the metrics and the sweeps).
 
 Pure NumPy, broadcasting over any leading axes (typically ``[B, T]``). A box is given by
 its centre ``xy`` [..., 2] (m), heading ``yaw`` [...] (rad, CCW from +x), length along the
@@ -11,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from vei.models.geometry import box_corners as _model_box_corners
+
 FloatArray = npt.NDArray[np.float64]
 
 _EPS = 1e-12
@@ -19,7 +24,7 @@ _EPS = 1e-12
 def box_corners(
     xy: npt.ArrayLike, yaw: npt.ArrayLike, length_m: float, width_m: float
 ) -> FloatArray:
-    """Corners of oriented boxes.
+    """Corners of oriented boxes (the models' :func:`vei.models.geometry.box_corners`).
 
     Args:
         xy: centres [..., 2] (m). yaw: headings [...] (rad).
@@ -28,14 +33,7 @@ def box_corners(
         [..., 4, 2] corners (m), counter-clockwise from rear-right.
     """
     xy = np.asarray(xy, dtype=np.float64)
-    yaw = np.asarray(yaw, dtype=np.float64)
-    c, s = np.cos(yaw)[..., None], np.sin(yaw)[..., None]
-    hl, hw = 0.5 * length_m, 0.5 * width_m
-    lx = np.array([-hl, hl, hl, -hl])
-    ly = np.array([-hw, -hw, hw, hw])
-    x = xy[..., 0:1] + c * lx - s * ly
-    y = xy[..., 1:2] + s * lx + c * ly
-    return np.stack([x, y], axis=-1)
+    return _model_box_corners(xy[..., 0], xy[..., 1], yaw, length_m, width_m)
 
 
 def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -64,33 +62,6 @@ def boxes_overlap(corners_a: FloatArray, corners_b: FloatArray) -> npt.NDArray[n
             )
             result &= ~separated
     return result
-
-
-def _point_segment_distance(p: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
-    d = b - a
-    denom = np.maximum(np.sum(d * d, axis=-1), _EPS)
-    t = np.clip(np.sum((p - a) * d, axis=-1) / denom, 0.0, 1.0)
-    closest = a + t[..., None] * d
-    return np.linalg.norm(p - closest, axis=-1)
-
-
-def box_gap(corners_a: FloatArray, corners_b: FloatArray) -> FloatArray:
-    """Shortest distance between two oriented boxes (0 where they overlap or touch).
-
-    Args:
-        corners_a, corners_b: [..., 4, 2] corners (m).
-    Returns:
-        [...] gap (m), >= 0.
-    """
-    best = None
-    for p_set, q_set in ((corners_a, corners_b), (corners_b, corners_a)):
-        p = p_set[..., :, None, :]  # [..., 4, 1, 2] vertices
-        a = q_set[..., None, :, :]  # [..., 1, 4, 2] edge starts
-        b = np.roll(q_set, -1, axis=-2)[..., None, :, :]
-        d = _point_segment_distance(p, a, b).min(axis=(-1, -2))
-        best = d if best is None else np.minimum(best, d)
-    assert best is not None
-    return np.where(boxes_overlap(corners_a, corners_b), 0.0, best)
 
 
 def time_to_contact(

@@ -108,16 +108,6 @@ def closest_point_on_box(
     return cx_m + lx * c - ly * s, cy_m + lx * s + ly * c
 
 
-def _point_segment_distance(
-    px: FloatArray, py: FloatArray, ax: FloatArray, ay: FloatArray, bx: FloatArray, by: FloatArray
-) -> FloatArray:
-    ex, ey = bx - ax, by - ay
-    den = ex * ex + ey * ey
-    t = np.clip(((px - ax) * ex + (py - ay) * ey) / np.where(den > 0, den, 1.0), 0.0, 1.0)
-    qx, qy = ax + t * ex - px, ay + t * ey - py
-    return np.sqrt(qx * qx + qy * qy)
-
-
 def box_gap(
     ax_m: ArrayLike,
     ay_m: ArrayLike,
@@ -130,31 +120,41 @@ def box_gap(
     blength_m: ArrayLike,
     bwidth_m: ArrayLike,
 ) -> FloatArray:
-    """Euclidean distance between two oriented rectangles; 0 where they overlap.
+    """Euclidean distance between two oriented rectangles; 0 where they overlap or touch.
 
-    The minimum over the corner-to-edge distances of both boxes (exact for disjoint
-    convex polygons).
+    Overlap by the separating-axis test (:func:`boxes_overlap`). Otherwise the gap of two
+    disjoint convex polygons is attained at a vertex of one of them, so it is the smallest
+    of the 8 vertex-to-box distances; a point's distance to a box is
+    ``hypot(max(|u| - l/2, 0), max(|v| - w/2, 0))`` in the box's frame (u along, v across).
+    Component-wise, no corner arrays: cheap enough to score 10^4 runs x 500 steps.
 
     Args:
         As :func:`boxes_overlap`.
     Returns:
         [...] gap [m] >= 0.
     """
-    ca = box_corners(ax_m, ay_m, ayaw_rad, alength_m, awidth_m)
-    cb = box_corners(bx_m, by_m, byaw_rad, blength_m, bwidth_m)
-    ca, cb = np.broadcast_arrays(ca, cb)
-    best = None
-    for p, q in ((ca, cb), (cb, ca)):
-        for i in range(4):
-            px, py = p[..., i, 0], p[..., i, 1]
-            for j in range(4):
-                k = (j + 1) % 4
-                d = _point_segment_distance(
-                    px, py, q[..., j, 0], q[..., j, 1], q[..., k, 0], q[..., k, 1]
-                )
-                best = d if best is None else np.minimum(best, d)
-    assert best is not None
+    ayaw = np.asarray(ayaw_rad, dtype=np.float64)
+    byaw = np.asarray(byaw_rad, dtype=np.float64)
+    ca, sa, cb, sb = np.cos(ayaw), np.sin(ayaw), np.cos(byaw), np.sin(byaw)
+    dx = np.subtract(bx_m, ax_m, dtype=np.float64)
+    dy = np.subtract(by_m, ay_m, dtype=np.float64)
+    ha, wa = 0.5 * np.asarray(alength_m), 0.5 * np.asarray(awidth_m)
+    hb, wb = 0.5 * np.asarray(blength_m), 0.5 * np.asarray(bwidth_m)
+    shape = np.broadcast_shapes(dx.shape, dy.shape, ca.shape, cb.shape, ha.shape, hb.shape)
+    best = np.full(shape, np.inf)
+    # Vertices of box 2 in box 1's frame, for (1, 2) = (A, B) and (B, A).
+    for (c1, s1, h1, w1), (c2, s2, h2, w2), sign in (
+        ((ca, sa, ha, wa), (cb, sb, hb, wb), 1.0),
+        ((cb, sb, hb, wb), (ca, sa, ha, wa), -1.0),
+    ):
+        ru = sign * (dx * c1 + dy * s1)  # centre of box 2 relative to box 1, box-1 frame
+        rv = sign * (-dx * s1 + dy * c1)
+        cu, cv = c2 * c1 + s2 * s1, -c2 * s1 + s2 * c1  # box 2's heading in box 1's frame
+        for el, ew in ((h2, w2), (h2, -w2), (-h2, w2), (-h2, -w2)):
+            pu = np.maximum(np.abs(ru + (el * cu - ew * cv)) - h1, 0.0)
+            pv = np.maximum(np.abs(rv + (el * cv + ew * cu)) - w1, 0.0)
+            np.minimum(best, pu * pu + pv * pv, out=best)
     inside = boxes_overlap(
         ax_m, ay_m, ayaw_rad, alength_m, awidth_m, bx_m, by_m, byaw_rad, blength_m, bwidth_m
     )
-    return np.where(inside, 0.0, best)
+    return np.where(inside, 0.0, np.sqrt(best))

@@ -100,7 +100,9 @@ def sat(ax, ay, ayaw, al, aw, bx, by, byaw, bl, bw) -> bool:  # type: ignore[no-
     return True
 
 
-@numba.njit(cache=True)
+# parallel=True: variants are independent (per-variant scratch, no reduction across them),
+# so the prange loop spreads them over the cores without changing any result.
+@numba.njit(cache=True, parallel=True)
 def kernel(  # type: ignore[no-untyped-def]
     T, dt, hist_len, record,
     path, p_s0, p_ds,  # ego path [10, N]: x y yaw cos sin, then their slopes
@@ -128,7 +130,7 @@ def kernel(  # type: ignore[no-untyped-def]
     n_rp = rpath.shape[1]
     no = oL.shape[0]
     reach = 0.5 * (math.hypot(Le, We) + math.hypot(Lr, Wr))
-    for b in range(B):
+    for b in numba.prange(B):
         shift = P[P_SHIFT, b]
         sfm = P[P_SFM, b] > 0.5
         mode = int(P[P_MODE, b])
