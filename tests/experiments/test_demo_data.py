@@ -10,7 +10,7 @@ from vei.experiments.demo_data import (
 )
 from vei.geo.frame import LocalFrame
 from vei.io.interaction import read_interaction
-from vei.metrics.geometry import box_corners, box_gap
+from vei.models.geometry import box_gap
 
 SPEC = DemoSpec()
 FRAME = LocalFrame(SPEC.origin_lat_deg, SPEC.origin_lon_deg)
@@ -79,9 +79,7 @@ def test_recording_itself_has_no_collision(demo):
     ego = demo.ego
     ex, ey = FRAME.to_xy(ego["lat_deg"].to_numpy(), ego["lon_deg"].to_numpy())
     gx, gy = FRAME.to_xy(gt["lat_deg"].to_numpy(), gt["lon_deg"].to_numpy())
-    a = box_corners(np.stack([ex, ey], 1), np.zeros(ex.size), 4.7, 1.85)
-    b = box_corners(np.stack([gx, gy], 1), np.zeros(gx.size), 1.2, 0.6)
-    assert box_gap(a, b).min() > 5.0
+    assert box_gap(ex, ey, 0.0, 4.7, 1.85, gx, gy, 0.0, 1.2, 0.6).min() > 5.0
 
 
 def test_written_folder_reads_back(tmp_path, demo):
