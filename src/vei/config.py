@@ -266,10 +266,10 @@ class CAPConfig:
             -6.0 is an emergency-braking level a passenger car reaches on dry asphalt with
             margin (full ABS braking ~ -8 to -9), the order of Euro NCAP AEB peak
             decelerations.
-        corridor_half_width_m: the rider counts as "in front of the vehicle" when its
-            centre lies ahead of the ego's front bumper and within this lateral distance
-            [m] of the ego's path (measured across the path at the rider's along-path
-            position). 3.5 m = one lane width each side of the ego's centre line: the ego's
+        corridor_half_width_m: the rider counts as "in front of the vehicle" when some
+            part of its box (its along-path extent) lies ahead of the ego's front bumper
+            and its centre lies within this lateral distance [m] of the ego's path
+            (measured across the path at the rider's along-path position). 3.5 m = one lane width each side of the ego's centre line: the ego's
             lane and half of each neighbouring lane, so a crossing rider is seen when it
             enters the carriageway ahead, not only once it is already in the car's swept
             width (1.2 m), where no brake can help at urban speed.
