@@ -41,6 +41,28 @@ CAP_STATE_NAMES: tuple[str, ...] = ("CRUISE", "BRAKE", "RECOVER")
 # --------------------------------------------------------------------------------------
 # Path
 # --------------------------------------------------------------------------------------
+def uniform_grid_index(
+    x: ArrayLike, x0: float, dx: float, n: int
+) -> tuple[npt.NDArray[np.intp], FloatArray]:
+    """Cell index and interpolation weight of x on the uniform grid ``x0 + k * dx``, k < n.
+
+    Clamped to the grid; shared by the arc-length (PathTable) and time (TimeTable) tables.
+
+    Args:
+        x: [...] query values (same unit as x0, dx). x0: first grid value. dx: spacing (> 0).
+        n: number of grid entries.
+    Returns:
+        (i [...] intp, w [...] in [0, 1]): x lies between entries i and i + 1.
+    """
+    f = (np.asarray(x, dtype=np.float64) - x0) * (1.0 / dx)
+    if np.ndim(f) == 0:
+        f = np.array(f)
+    np.clip(f, 0.0, n - 1.0, out=f)
+    i = np.minimum(f.astype(np.intp), max(n - 2, 0))
+    f -= i
+    return i, f
+
+
 @dataclass(frozen=True)
 class PathTable:
     """An arc-length parametrised path, resampled on a uniform grid of arc length.
@@ -104,14 +126,7 @@ class PathTable:
         Returns:
             (i [...] intp, w [...] in [0, 1)): s lies between entries i and i + 1.
         """
-        f = (np.asarray(s_m, dtype=np.float64) - self.s_start_m) * (1.0 / self.ds_m)
-        if np.ndim(f) == 0:
-            f = np.array(f)
-        n = self.x_m.shape[0]
-        np.clip(f, 0.0, n - 1.0, out=f)
-        i = np.minimum(f.astype(np.intp), max(n - 2, 0))
-        f -= i
-        return i, f
+        return uniform_grid_index(s_m, self.s_start_m, self.ds_m, self.x_m.shape[0])
 
     def values_at(self, i: npt.NDArray[np.intp], w: FloatArray, *names: str) -> list[FloatArray]:
         """Linearly interpolated columns ('x', 'y', 'yaw', 'cos', 'sin') at (i, w) from :meth:`index`.

@@ -21,7 +21,7 @@ import numpy.typing as npt
 
 from vei.config import AUTO, MAX_RUN_UP_M, MEDIAN_MOVING, CaseConfig, SimConfig
 from vei.errors import ConfigError, InputError
-from vei.models.ego import PathTable, build_path, median_moving_speed_mps
+from vei.models.ego import PathTable, build_path, median_moving_speed_mps, uniform_grid_index
 from vei.types import EGO_ID, Scenario
 
 FloatArray = npt.NDArray[np.float64]
@@ -67,14 +67,7 @@ class TimeTable:
 
     def index(self, t_s: npt.ArrayLike) -> tuple[npt.NDArray[np.intp], FloatArray]:
         """Sample index and weight of times t (clamped): t lies between samples i and i + 1."""
-        f = (np.asarray(t_s, dtype=np.float64) - self.t0_s) * (1.0 / self.dt_s)
-        if np.ndim(f) == 0:
-            f = np.array(f)
-        n = self.data.shape[0]
-        np.clip(f, 0.0, n - 1.0, out=f)
-        i = np.minimum(f.astype(np.intp), max(n - 2, 0))
-        f -= i
-        return i, f
+        return uniform_grid_index(t_s, self.t0_s, self.dt_s, self.data.shape[0])
 
     def values_at(self, i: npt.NDArray[np.intp], w: FloatArray, *names: str) -> list[FloatArray]:
         """Linearly interpolated named columns at (i, w) from :meth:`index`."""
