@@ -40,3 +40,33 @@ def data_dir() -> Path:
 def trafficmonitoring_root() -> Path:
     """The trafficmonitoring dataset root (the folder holding data/measurements)."""
     return require_data("trafficmonitoring")
+
+
+def _esmini_dir() -> Path:
+    env = os.environ.get("VEI_ESMINI")
+    return Path(env) if env else REPO_ROOT.parent / "shared" / "tools" / "esmini"
+
+
+def require_esmini():
+    """The esmini installation ($VEI_ESMINI, default ../shared/tools/esmini) as a
+    :class:`vei.esmini.Esmini`; skip without it (fail under VEI_REQUIRE_ESMINI=1)."""
+    from vei.errors import DependencyError
+    from vei.esmini import find_esmini
+
+    try:
+        found = find_esmini(_esmini_dir())
+        found.require_player()
+        found.require_dat2csv()
+        found.require_library()
+    except DependencyError as exc:
+        msg = f"esmini not found: {exc}"
+        if os.environ.get("VEI_REQUIRE_ESMINI") == "1":
+            pytest.fail(msg)
+        pytest.skip(msg)
+    return found
+
+
+@pytest.fixture(scope="session")
+def esmini():
+    """The esmini installation used by the tests (see :func:`require_esmini`)."""
+    return require_esmini()
