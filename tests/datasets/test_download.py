@@ -90,20 +90,29 @@ def test_default_url_is_the_pinned_commit():
 def test_downloads_exactly_the_needed_files_equal_to_originals(
     server, trafficmonitoring_root, tmp_path
 ):
+    # Every scenario the shared copy holds (nine of the dataset's fourteen), fetched by name.
+    names = list_scenarios(trafficmonitoring_root)
+    assert set(DEFAULT_SCENARIOS) <= set(names) and len(names) >= 9
     lines: list[str] = []
     dest = download_trafficmonitoring(
-        tmp_path / "tm", base_url=server["url"], progress=lines.append
+        tmp_path / "tm", base_url=server["url"], scenarios=names, progress=lines.append
     )
     got = _files(dest)
     assert got == [f for f in _files(trafficmonitoring_root) if f.startswith("data/")]
-    assert len(got) == 9
+    assert len(got) == 3 * len(names)  # matching, camera trajectories, INS per scenario
     for rel in got:
         assert filecmp.cmp(dest / rel, trafficmonitoring_root / rel, shallow=False), rel
-    assert list_scenarios(dest) == list(DEFAULT_SCENARIOS)
+    assert list_scenarios(dest) == names
     # apostrophes are URL-quoted on the wire
     ins = [r for r in server["requests"] if "INSSOL" in r]
-    assert len(ins) == 3 and all("%27" in r and "'" not in r for r in ins)
-    assert len(lines) == 9 and all(line.startswith("got ") for line in lines)
+    assert len(ins) == len(names) and all("%27" in r and "'" not in r for r in ins)
+    assert len(lines) == 3 * len(names) and all(line.startswith("got ") for line in lines)
+
+
+def test_default_download_is_the_three_default_scenarios(server, tmp_path):
+    dest = download_trafficmonitoring(tmp_path / "tm", base_url=server["url"])
+    assert list_scenarios(dest) == list(DEFAULT_SCENARIOS)
+    assert len(_files(dest)) == 3 * len(DEFAULT_SCENARIOS)
 
 
 def test_resume_skips_complete_files(server, tmp_path):
