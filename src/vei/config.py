@@ -329,6 +329,11 @@ class SimConfig:
             function in a loop), 'numba' (the same model compiled; extra ``vei[fast]``;
             ~40x faster on small batches, compiled once per machine and cached on disk) or
             'auto' (default: numba when installed, else numpy).
+        ego_max_lat_accel_mps2: the ego path is smoothed until its curvature keeps the
+            lateral acceleration at ``ego_path_speed_mps`` within this [m/s^2]
+            (vei.models.drivable_path; default 4).
+        ego_path_speed_mps: speed of that bound [m/s]; None = the recorded ego's median
+            moving speed (the default cruise speed v_d).
     """
 
     dt_s: float = 0.05
@@ -339,9 +344,12 @@ class SimConfig:
     rider_width_m: float | None = None
     stop_on_collision: bool = True
     kernel: Literal["numpy", "numba", "auto"] = "auto"
+    ego_max_lat_accel_mps2: float = 4.0
+    ego_path_speed_mps: float | None = None
 
     def __post_init__(self) -> None:
         _finite("dt_s", self.dt_s, positive=True)
+        _finite("ego_max_lat_accel_mps2", self.ego_max_lat_accel_mps2, positive=True)
         _choice("kernel", self.kernel, ("numpy", "numba", "auto"))
         if self.dt_s > 1.0:
             raise ConfigError(f"dt_s must be <= 1 s, got {self.dt_s}")
@@ -351,6 +359,7 @@ class SimConfig:
             "ego_width_m",
             "rider_length_m",
             "rider_width_m",
+            "ego_path_speed_mps",
         ):
             v = getattr(self, name)
             if v is not None:

@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from vei.errors import ConfigError
-from vei.metrics import conflict, kinematics, ttc
+from vei.metrics import conflict, ego_dynamics, kinematics, ttc
 from vei.metrics._trace import TraceArrays, arrays
 from vei.metrics.config import MetricsConfig
 from vei.types import Trace
@@ -168,6 +168,27 @@ _ALL: tuple[Metric, ...] = (
         "m/s",
         "lowest ego speed over the run",
         lambda a, c: kinematics.ego_speed_min(a, c),
+    ),
+    Metric(
+        "ego_max_yaw_step_rad",
+        "scalar",
+        "rad",
+        "largest ego yaw change between two steps (a path kink shows here)",
+        lambda a, c: ego_dynamics.max_yaw_step(a, c),
+    ),
+    Metric(
+        "ego_max_yaw_rate_radps",
+        "scalar",
+        "rad/s",
+        "largest ego yaw rate",
+        lambda a, c: ego_dynamics.max_yaw_rate(a, c),
+    ),
+    Metric(
+        "ego_max_lat_accel_mps2",
+        "scalar",
+        "m/s^2",
+        "largest ego lateral acceleration (yaw rate x speed)",
+        lambda a, c: ego_dynamics.max_lateral_accel(a, c),
     ),
     Metric("ttc_s", "series", "s", "paper TTC per step", lambda a, c: ttc.paper_ttc(a, c)),
     Metric(

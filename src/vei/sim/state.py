@@ -21,6 +21,7 @@ import numpy.typing as npt
 
 from vei.config import AUTO, MAX_RUN_UP_M, MEDIAN_MOVING, CaseConfig, SimConfig
 from vei.errors import ConfigError, InputError
+from vei.models.drivable_path import EgoPathInfo, build_ego_path, recorded_arc_length
 from vei.models.ego import PathTable, build_path, median_moving_speed_mps, uniform_grid_index
 from vei.types import EGO_ID, Scenario
 
@@ -124,9 +125,12 @@ class ScenarioArrays:
     Attributes:
         scenario_id: the scenario's id.
         dt_s: engine step [s]. t_s: [T] step times k * dt_s [s].
-        ego_path: the ego's recorded path (arc-length table; s = 0 at its first sample).
+        ego_path: the ego's recorded path made drivable (arc-length table; s = 0 at its
+            first sample; vei.models.drivable_path: standstill jitter collapsed, smoothing
+            spline with curvature <= sim.ego_max_lat_accel_mps2 / v^2, straight
+            extensions along the end tangents, the backwards one being the run-up).
         ego_track: the ego's recording on a uniform time grid, columns s_m (arc length
-            along ego_path), speed_mps.
+            along ego_path of the recorded positions, never decreasing), speed_mps.
         ego_length_m, ego_width_m: ego footprint [m].
         ego_speed0_mps: recorded ego speed at t = 0 [m/s].
         conflict_s_m: arc length [m] along the ego's recorded path of its point nearest to
@@ -143,6 +147,7 @@ class ScenarioArrays:
         other_length_m, other_width_m: [n_o] footprints [m].
         other_x_m, other_y_m, other_yaw_rad, other_speed_mps: [T, n_o] at the engine steps
             (last known values where inactive), other_active: [T, n_o] bool.
+        ego_path_info: how ego_path was built (curvature bound, deviation, headings).
     """
 
     scenario_id: str
@@ -170,6 +175,7 @@ class ScenarioArrays:
     other_yaw_rad: FloatArray
     other_speed_mps: FloatArray
     other_active: BoolArray
+    ego_path_info: EgoPathInfo | None = None
 
     @property
     def n_steps(self) -> int:
@@ -224,20 +230,28 @@ def prepare_scenario(
     ex = ego["x_m"].to_numpy(dtype=np.float64)
     ey = ego["y_m"].to_numpy(dtype=np.float64)
     eyaw = ego["yaw_rad"].to_numpy(dtype=np.float64)
-    ego_path = build_path(ex, ey, yaw_hint_rad=float(eyaw[0]), where=f"{where}: ego")
-    s_rec = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(ex), np.diff(ey)))])
-    ego_df = ego.assign(s_m=s_rec)
     espeed = ego["speed_mps"].to_numpy(dtype=np.float64)
     if not np.all(np.isfinite(espeed)):
         tt = ego["t_s"].to_numpy(dtype=np.float64)
-        espeed = np.gradient(s_rec, tt) if tt.size > 1 else np.zeros_like(s_rec)
-        ego_df = ego_df.assign(speed_mps=espeed)
-    t0, dte, edata = _uniform_track(ego_df, ("s_m", "speed_mps"), f"{where}: ego")
-    ego_track = TimeTable(t0, dte, edata, ("s_m", "speed_mps"))
+        raw_arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(ex), np.diff(ey)))])
+        espeed = np.gradient(raw_arc, tt) if tt.size > 1 else np.zeros_like(raw_arc)
     try:
         med = median_moving_speed_mps(espeed, moving_threshold_mps)
     except InputError:
         med = float("nan")
+    path_speed = sim.ego_path_speed_mps or (med if math.isfinite(med) else 1.0)
+    ego_path, ego_path_info = build_ego_path(
+        ex,
+        ey,
+        yaw_hint_rad=float(eyaw[0]),
+        path_speed_mps=path_speed,
+        max_lat_accel_mps2=sim.ego_max_lat_accel_mps2,
+        where=f"{where}: ego",
+    )
+    s_rec = recorded_arc_length(ego_path, ex, ey)
+    ego_df = ego.assign(s_m=s_rec, speed_mps=espeed)
+    t0, dte, edata = _uniform_track(ego_df, ("s_m", "speed_mps"), f"{where}: ego")
+    ego_track = TimeTable(t0, dte, edata, ("s_m", "speed_mps"))
     ego_info = scenario.agent(EGO_ID)
 
     # Rider.
@@ -289,7 +303,7 @@ def prepare_scenario(
         ego_width_m=float(sim.ego_width_m or ego_info.width_m),
         ego_speed0_mps=float(ego_track.lookup(np.array([0.0]))[0, 1]),
         ego_median_moving_speed_mps=med,
-        conflict_s_m=_conflict_arc_m(ex, ey, rx, ry),
+        conflict_s_m=_conflict_arc_m(ex, ey, s_rec, rx, ry),
         rider_id=rid,
         rider_category=rinfo.category,
         rider_track=TimeTable(r0, drt, rdata, cols),
@@ -305,16 +319,19 @@ def prepare_scenario(
         other_yaw_rad=oyaw,
         other_speed_mps=osp,
         other_active=oact,
+        ego_path_info=ego_path_info,
     )
 
 
-def _conflict_arc_m(ex: FloatArray, ey: FloatArray, rx: FloatArray, ry: FloatArray) -> float:
-    """Arc length [m] along the ego path (ex, ey) [M] of its sample nearest to the rider path (rx, ry)."""
+def _conflict_arc_m(
+    ex: FloatArray, ey: FloatArray, s_m: FloatArray, rx: FloatArray, ry: FloatArray
+) -> float:
+    """Arc length [m] (s_m [M], along the ego path) of the ego sample (ex, ey) [M]
+    nearest to the rider path (rx, ry)."""
     from scipy.spatial import cKDTree
 
     dist, _ = cKDTree(np.column_stack([rx, ry])).query(np.column_stack([ex, ey]))
-    arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(ex), np.diff(ey)))])
-    return float(arc[int(np.argmin(dist))])
+    return float(max(s_m[int(np.argmin(dist))], 0.0))
 
 
 # --------------------------------------------------------------------------------------
