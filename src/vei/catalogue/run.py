@@ -1,0 +1,272 @@
+"""Run a whole catalogue: every recording, every encounter, in parallel, resumably.
+
+Two phases, each a set of independent jobs: (1) one job per recording
+(:func:`vei.catalogue.pipeline.process_recording`), (2) one job per encounter found
+(:func:`vei.catalogue.pipeline.process_encounter`). The jobs run in this process
+(``workers=1``), in a pool of spawned local processes, or as Ray tasks
+(``engine='ray'``): the same functions with the same arguments, so results do not depend
+on where they ran. Progress bars (rich) show both phases when stderr is a terminal.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from vei.catalogue.config import CatalogueConfig
+from vei.catalogue.pipeline import list_recordings, process_encounter, process_recording
+from vei.catalogue.store import (
+    CATALOGUE_FORMAT,
+    assemble,
+    check_manifest,
+    write_manifest,
+)
+from vei.errors import ConfigError, InputError
+
+ENGINES: tuple[str, ...] = ("local", "ray")
+
+
+@dataclass(frozen=True)
+class CatalogueResult:
+    """What :func:`run_catalogue` did.
+
+    Attributes:
+        out_dir: the catalogue folder. rows: catalogue table (one row per encounter x
+        configuration, ranked). encounters: one row per encounter, ranked.
+        recordings: per recording {'recording', 'status', 'reason', 'encounters', ...}.
+        failed_encounters: [{'encounter_id', 'reason'}]. n_done_before: encounters a
+        previous (interrupted) run had finished. seconds: wall time of this call.
+        complete: every job finished (no encounter left undone by ``max_encounters``).
+    """
+
+    out_dir: Path
+    rows: pd.DataFrame
+    encounters: pd.DataFrame
+    recordings: list[dict[str, Any]]
+    failed_encounters: list[dict[str, Any]]
+    n_done_before: int
+    seconds: float
+    complete: bool
+
+
+class _Serial:
+    def map(self, fn: Callable, calls: Sequence[tuple]) -> Iterator[Any]:
+        for args in calls:
+            yield fn(*args)
+
+
+class _Pool:
+    def __init__(self, pool: Any) -> None:
+        self.pool = pool
+
+    def map(self, fn: Callable, calls: Sequence[tuple]) -> Iterator[Any]:
+        from concurrent.futures import as_completed
+
+        futures = [self.pool.submit(fn, *args) for args in calls]
+        for f in as_completed(futures):
+            yield f.result()
+
+
+class _Ray:
+    def __init__(self, ray: Any) -> None:
+        self.ray = ray
+
+    def map(self, fn: Callable, calls: Sequence[tuple]) -> Iterator[Any]:
+        remote = self.ray.remote(num_cpus=1, max_retries=0)(fn)
+        pending = [remote.remote(*args) for args in calls]
+        while pending:
+            ready, pending = self.ray.wait(pending, num_returns=1)
+            for r in ready:
+                yield self.ray.get(r)
+
+
+@contextlib.contextmanager
+def executor(engine: str, workers: int) -> Iterator[Any]:
+    """A job executor with ``map(fn, calls)`` yielding results as jobs finish.
+
+    'local': this process (workers == 1) or a pool of ``workers`` spawned processes;
+    'ray': Ray tasks (``ray.init(num_cpus=workers)`` unless Ray is initialised already,
+    e.g. ``ray.init(address='auto')`` on a cluster: then the cluster's CPUs are used).
+    """
+    if engine not in ENGINES:
+        raise ConfigError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ConfigError(f"workers must be an integer >= 1, got {workers!r}")
+    if engine == "ray":
+        try:
+            import ray
+        except ImportError as exc:  # pragma: no cover - ray is in the 'distributed' extra
+            from vei.errors import DependencyError
+
+            raise DependencyError("engine 'ray' needs Ray: pip install 'vei[distributed]'") from exc
+        started = False
+        if not ray.is_initialized():
+            os.environ.setdefault("RAY_DISABLE_IMPORT_WARNING", "1")
+            address = os.environ.get("RAY_ADDRESS")
+            if address:
+                ray.init(address=address, log_to_driver=False, configure_logging=False)
+            else:
+                ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False,
+                         configure_logging=False)  # fmt: skip
+            started = True
+        try:
+            yield _Ray(ray)
+        finally:
+            if started:
+                ray.shutdown()
+        return
+    if workers == 1:
+        yield _Serial()
+        return
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
+        yield _Pool(pool)
+
+
+@contextlib.contextmanager
+def _progress(enabled: bool) -> Iterator[Callable[[str, int, int], None]]:
+    """update(phase, done, total); a rich bar per phase when enabled."""
+    if not enabled:
+        yield lambda phase, done, total: None
+        return
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    with Progress(
+        TextColumn("{task.description:<12}"), BarColumn(), MofNCompleteColumn(),
+        TimeElapsedColumn(), transient=False,
+    ) as prog:  # fmt: skip
+        tasks: dict[str, Any] = {}
+
+        def update(phase: str, done: int, total: int) -> None:
+            if phase not in tasks:
+                tasks[phase] = prog.add_task(phase, total=total)
+            prog.update(tasks[phase], completed=done, total=total)
+
+        yield update
+
+
+def run_catalogue(
+    dataset: str | Path,
+    out_dir: str | Path,
+    config: CatalogueConfig | None = None,
+    *,
+    recordings: Sequence[str] | None = None,
+    engine: str = "local",
+    workers: int = 1,
+    progress: bool | None = None,
+    max_encounters: int | None = None,
+    on_event: Callable[[str, dict[str, Any]], None] | None = None,
+) -> CatalogueResult:
+    """Build (or resume) the catalogue of a dataset in ``out_dir`` (layout: vei.catalogue.store).
+
+    Args:
+        dataset: a TrafficMonitoring root or a folder of interaction folders.
+        out_dir: catalogue folder (created; a folder of another catalogue is refused).
+        config: what to compute (default CatalogueConfig()).
+        recordings: only these recordings (names as listed; default all).
+        engine, workers: where jobs run ('local' | 'ray'; >= 1 workers).
+        progress: progress bars; default when stderr is a terminal.
+        max_encounters: stop after this many encounter jobs (tests, partial runs); the
+            catalogue stays resumable and is assembled from what is done.
+        on_event: callback(kind, doc) for each finished job ('recording' / 'encounter').
+    Returns:
+        CatalogueResult.
+    Raises:
+        InputError: the dataset is unreadable or a named recording does not exist.
+        ConfigError: bad engine/workers, or ``out_dir`` holds another catalogue.
+    """
+    t0 = time.perf_counter()
+    config = config or CatalogueConfig()
+    dataset = Path(dataset).resolve()
+    kind, names = list_recordings(dataset)
+    if recordings is not None:
+        unknown = [r for r in recordings if r not in names]
+        if unknown:
+            raise InputError(
+                f"unknown recording {unknown[0]!r}; known: {', '.join(names)}", path=dataset
+            )
+        names = [n for n in names if n in set(recordings)]
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    digest = config.digest()
+    old = check_manifest(out, digest, str(dataset))
+    manifest: dict[str, Any] = {
+        "format": CATALOGUE_FORMAT,
+        "dataset": str(dataset),
+        "dataset_kind": kind,
+        "settings_digest": digest,
+        "settings": config.as_dict(),
+        "status": "running",
+        "started_utc": (old or {}).get("started_utc")
+        or datetime.now(UTC).isoformat(timespec="seconds"),
+        "recordings": (old or {}).get("recordings", {}),
+    }
+    write_manifest(out, manifest)
+    progress = sys.stderr.isatty() if progress is None else progress
+    emit = on_event or (lambda kind, doc: None)
+
+    rec_docs: list[dict[str, Any]] = []
+    enc_docs: list[dict[str, Any]] = []
+    with executor(engine, workers) as ex, _progress(bool(progress)) as update:
+        calls = [(str(dataset), kind, n, str(out), config) for n in names]
+        update("recordings", 0, len(calls))
+        for doc in ex.map(process_recording, calls):
+            rec_docs.append(doc)
+            update("recordings", len(rec_docs), len(calls))
+            emit("recording", doc)
+        rec_docs.sort(key=lambda d: d["recording"])
+        encounters = [e for d in rec_docs for e in d.get("encounters", [])]
+        jobs = [(str(out), e, config) for e in encounters]
+        if max_encounters is not None:
+            jobs = jobs[:max_encounters]
+        update("encounters", 0, len(jobs))
+        for doc in ex.map(process_encounter, jobs):
+            enc_docs.append(doc)
+            update("encounters", len(enc_docs), len(jobs))
+            emit("encounter", doc)
+
+    ids = [e["encounter_id"] for e in encounters]
+    rows, enc_table = assemble(out, ids)
+    failed = [
+        {"encounter_id": d["encounter_id"], "reason": d["reason"]}
+        for d in enc_docs
+        if d["status"] == "failed"
+    ]
+    complete = len(jobs) == len(encounters) and not failed
+    manifest["recordings"] = {
+        d["recording"]: {
+            "status": d["status"],
+            "reason": d.get("reason", ""),
+            "encounters": [e["encounter_id"] for e in d.get("encounters", [])],
+            "n_riders": d.get("n_riders", 0),
+        }
+        for d in rec_docs
+    }
+    manifest["failed_encounters"] = failed
+    manifest["n_encounters"] = len(encounters)
+    manifest["n_rows"] = len(rows)
+    manifest["status"] = "complete" if complete else "partial"
+    manifest["updated_utc"] = datetime.now(UTC).isoformat(timespec="seconds")
+    manifest["seconds_last_run"] = time.perf_counter() - t0
+    write_manifest(out, manifest)
+    return CatalogueResult(
+        out_dir=out,
+        rows=rows,
+        encounters=enc_table,
+        recordings=rec_docs,
+        failed_encounters=failed,
+        n_done_before=sum(d["status"] == "done-before" for d in enc_docs),
+        seconds=time.perf_counter() - t0,
+        complete=complete,
+    )
