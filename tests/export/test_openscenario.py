@@ -123,27 +123,63 @@ def test_entities_categories_dimensions_and_map_reference(tmp_path, run_df, stra
         assert timing.get("domainAbsoluteRelative") == "absolute"
         assert float(timing.get("scale")) == 1.0 and float(timing.get("offset")) == 0.0
         assert fta.find("TrajectoryFollowingMode").get("followingMode") == "position"
+    # the stop trigger marks the end time (1 ms early, so that a player step on 10 s fires it)
     stop = root.find("Storyboard/StopTrigger")
     cond = stop.find(".//SimulationTimeCondition")
-    assert float(cond.get("value")) == pytest.approx(10.0)
+    assert float(cond.get("value")) == pytest.approx(10.0 - 1e-3)
     assert cond.get("rule") == "greaterThan"
+    assert stop.find(".//Condition").get("conditionEdge") == "none"
+    # present from t = 0: trajectory in Init; the scooter (2 s .. 10 s) is added at 2 s
+    init_privs = {p.get("entityRef"): p for p in root.find("Storyboard/Init").iter("Private")}
+    assert set(init_privs) == {"ego", "c1"}
+    assert init_privs["ego"].find(".//FollowTrajectoryAction") is not None
+    adds = list(root.iter("AddEntityAction"))
+    assert len(adds) == 1 and not list(root.iter("DeleteEntityAction"))
+    event = [e for e in root.iter("Event") if e.find(".//AddEntityAction") is not None][0]
+    assert event.find(".//EntityAction").get("entityRef") == "7"
+    assert event.find(".//FollowTrajectoryAction") is not None
+    start = event.find(".//SimulationTimeCondition")
+    assert float(start.get("value")) == pytest.approx(2.0 - 1e-3)
+    # the reference point is the box centre and the rear axle sits on it
+    assert float(scooter.find("Axles/RearAxle").get("positionX")) == 0.0
+    assert scooter.get("model3d") == ""
 
 
-def test_ego_left_to_the_simulator_keeps_only_its_initial_state(tmp_path, run_df, straight_xodr):
+def test_ego_left_to_the_simulator_gets_its_path_without_timing(tmp_path, run_df, straight_xodr):
     path = export_openscenario(
         run_df, AGENTS, tmp_path, xodr=straight_xodr, ego_controller="simulator"
     )
     assert validate_openscenario(path) == []
     back = read_openscenario_trajectories(path)
     ego = back[back["agent_id"] == "ego"]
-    assert ego["kind"].tolist() == ["init"]
+    vx = ego[ego["kind"] == "vertex"]
+    # the path: samples 0.28 m apart, one kept each >= 0.5 m: every second one (0.56 m),
+    # 56 m / 0.56 m + 1 = 101 vertices, no times
+    assert len(vx) == 101 and vx["t_s"].isna().all()
+    assert vx["x_m"].iloc[-1] == pytest.approx(56.0)
     root = SafeET.parse(path).getroot()
-    actors = [e.get("entityRef") for e in root.iter("EntityRef")]
-    assert "ego" not in actors and {"7", "c1"} <= set(actors)
-    priv = [p for p in root.find("Storyboard/Init").iter("Private") if p.get("entityRef") == "ego"][
-        0
-    ]
-    assert float(priv.find(".//AbsoluteTargetSpeed").get("value")) == pytest.approx(5.6)
+    priv = [p for p in root.find("Storyboard/Init").iter("Private") if p.get("entityRef") == "ego"]
+    fta = priv[0].find(".//FollowTrajectoryAction")
+    assert fta.find("TimeReference/None") is not None
+    assert fta.find("TrajectoryFollowingMode").get("followingMode") == "follow"
+    assert float(priv[0].find(".//AbsoluteTargetSpeed").get("value")) == pytest.approx(5.6)
+    cruise = [e for e in root.iter("Event") if e.get("name") == "ego_cruise"][0]
+    assert float(cruise.find(".//AbsoluteTargetSpeed").get("value")) == pytest.approx(5.6)
+    assert cruise.find(".//SpeedActionDynamics").get("dynamicsShape") == "linear"
+
+
+def test_a_track_that_ends_early_is_deleted_then(tmp_path, run_df):
+    short = run_df[~((run_df["agent_id"] == "7") & (run_df["t_s"] > 7.0 + 1e-9))]
+    path = export_openscenario(short, AGENTS, tmp_path, osc_version="1.0")
+    assert validate_openscenario(path) == []
+    root = SafeET.parse(path).getroot()
+    dels = [e for e in root.iter("Event") if e.find(".//DeleteEntityAction") is not None]
+    assert len(dels) == 1
+    assert dels[0].find(".//EntityAction").get("entityRef") == "7"
+    assert float(dels[0].find(".//SimulationTimeCondition").get("value")) == pytest.approx(
+        7.0 - 1e-3
+    )
+    assert dels[0].get("priority") == "parallel"
 
 
 def test_export_is_deterministic(tmp_path, run_df, straight_xodr):
@@ -153,13 +189,16 @@ def test_export_is_deterministic(tmp_path, run_df, straight_xodr):
 
 
 def test_speed_is_derived_from_positions_when_absent(tmp_path, run_df):
-    path = export_openscenario(run_df.drop(columns="speed_mps"), AGENTS, tmp_path)
+    path = export_openscenario(
+        run_df.drop(columns="speed_mps"), AGENTS, tmp_path, ego_controller="simulator"
+    )
     root = SafeET.parse(path).getroot()
     speeds = {
         p.get("entityRef"): float(p.find(".//AbsoluteTargetSpeed").get("value"))
         for p in root.find("Storyboard/Init").iter("Private")
+        if p.find(".//AbsoluteTargetSpeed") is not None
     }
-    assert speeds == pytest.approx({"ego": 5.6, "7": 4.0, "c1": 5.0})
+    assert speeds == pytest.approx({"ego": 5.6})
 
 
 def test_timeseries_rows_of_one_config_and_active_only():

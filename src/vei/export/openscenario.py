@@ -13,14 +13,14 @@ What the exported ``.xosc`` holds:
   ``vei:category`` (``escooter`` | ``cyclist`` | ...); pedestrians are ``Pedestrian``s.
   The ``Vehicle``/``Pedestrian`` ``name`` is the CARLA blueprint (ScenarioRunner spawns
   that model) and the ego carries ``Property type=ego_vehicle`` (ScenarioRunner's marker).
-- ``Init``: a ``TeleportAction`` to each agent's first position (``WorldPosition``) and an
-  ``AbsoluteTargetSpeed`` step to its first speed.
-- One ``ManeuverGroup`` per moving agent with a ``FollowTrajectoryAction``: a ``Polyline``
-  with timed vertices, ``TimeReference/Timing domainAbsoluteRelative=absolute``
-  (vertex times are simulation times), ``followingMode=position``. The event starts
-  when the simulation time passes the agent's first sample time (an agent that appears
-  later waits at its first position until then).
-- ``StopTrigger``: simulation time greater than the last sample time.
+- The storyboard (:mod:`vei.export.osc_build`): an agent present from t = 0 starts its
+  ``FollowTrajectoryAction`` (a ``Polyline`` with timed vertices,
+  ``TimeReference/Timing domainAbsoluteRelative=absolute``: vertex times are simulation
+  times, ``followingMode=position``) in ``Init``; an agent that appears later is added
+  (``AddEntityAction``) at its first sample time and starts its trajectory then; an agent
+  whose samples end before the run does is deleted (``DeleteEntityAction``) at its last
+  sample time; so every entity exists only during its own span, in every version.
+- ``StopTrigger``: simulation time reaches the last sample time.
 
 Decimation: the vertices are the samples on a ``vertex_rate_hz`` grid (10 Hz by default,
 plus the last sample), refined so that the polyline, linearly interpolated in time, stays
@@ -41,7 +41,6 @@ from __future__ import annotations
 import math
 import shutil
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 from typing import Literal
@@ -50,8 +49,19 @@ import numpy as np
 import pandas as pd
 
 from vei.errors import ConfigError, DependencyError, InputError
+from vei.export.osc_build import (
+    ENTITY_MODELS,
+    PROP_AGENT_ID,
+    PROP_CATEGORY,
+    PROP_SOURCE_TRACK,
+    PROP_SPAN,
+    BuildOptions,
+    EntityModel,
+    build_scenario,
+    finish_element,
+)
 from vei.io.atomic import atomic_path
-from vei.types import EGO_CATEGORY, AgentInfo
+from vei.types import AgentInfo
 
 #: OpenSCENARIO versions the export writes (scenariogeneration >= 0.14 supports 1.0-1.3).
 OSC_VERSIONS: tuple[str, ...] = ("1.0", "1.1", "1.2", "1.3")
@@ -64,45 +74,21 @@ EgoController = Literal["trajectory", "simulator"]
 #: Columns the trajectories table must have (speed_mps optional).
 REQUIRED_COLUMNS: tuple[str, ...] = ("t_s", "agent_id", "category", "x_m", "y_m", "yaw_rad")
 
-#: Property names vei writes on every entity.
-PROP_AGENT_ID = "vei:agent_id"
-PROP_CATEGORY = "vei:category"
-PROP_SOURCE_TRACK = "vei:source_track_id"
-
-
-@dataclass(frozen=True)
-class EntityModel:
-    """How one vei category becomes an OpenSCENARIO entity.
-
-    Attributes:
-        kind: 'vehicle' or 'pedestrian' (the OpenSCENARIO entity element).
-        osc_category: VehicleCategory / PedestrianCategory value.
-        height_m: bounding-box height [m].
-        mass_kg: mass [kg] (written from OpenSCENARIO 1.1 on for vehicles).
-        max_speed_mps, max_accel_mps2, max_decel_mps2: Performance values (> 0).
-    """
-
-    kind: Literal["vehicle", "pedestrian"]
-    osc_category: str
-    height_m: float
-    mass_kg: float
-    max_speed_mps: float
-    max_accel_mps2: float
-    max_decel_mps2: float
-
-
-#: Entity models per vei category. Performance limits: a sedan (50 m/s, 5 m/s^2,
-#: 9 m/s^2), an e-scooter with rider (25 km/h class -> 10 m/s cap, 3 / 6 m/s^2), a
-#: cyclist (15 m/s, 3 / 6 m/s^2), a pedestrian (3 m/s, 2 / 3 m/s^2). With
-#: followingMode=position the trajectory governs; the limits only inform a simulator's
-#: own controller.
-ENTITY_MODELS: dict[str, EntityModel] = {
-    "ego": EntityModel("vehicle", "car", 1.5, 1600.0, 50.0, 5.0, 9.0),
-    "vehicle": EntityModel("vehicle", "car", 1.5, 1600.0, 50.0, 5.0, 9.0),
-    "escooter": EntityModel("vehicle", "bicycle", 1.8, 95.0, 10.0, 3.0, 6.0),
-    "cyclist": EntityModel("vehicle", "bicycle", 1.8, 95.0, 15.0, 3.0, 6.0),
-    "pedestrian": EntityModel("pedestrian", "pedestrian", 1.75, 75.0, 3.0, 2.0, 3.0),
-}
+# Entity models and property names live with the builder; re-exported here.
+__all__ = [
+    "DEFAULT_OSC_VERSION",
+    "ENTITY_MODELS",
+    "OSC_VERSIONS",
+    "PROP_AGENT_ID",
+    "PROP_CATEGORY",
+    "PROP_SOURCE_TRACK",
+    "PROP_SPAN",
+    "EntityModel",
+    "decimate_indices",
+    "export_openscenario",
+    "read_openscenario_trajectories",
+    "timeseries_to_trajectories",
+]
 
 
 def _xosc():
@@ -230,28 +216,6 @@ def _validate(trajectories: pd.DataFrame, agents: Sequence[AgentInfo]) -> pd.Dat
     return df.sort_values(["agent_id", "t_s"], kind="stable").reset_index(drop=True)
 
 
-def _speeds(track: pd.DataFrame) -> np.ndarray:
-    if "speed_mps" in track:
-        return track["speed_mps"].to_numpy(dtype=float)
-    t = track["t_s"].to_numpy(dtype=float)
-    if t.size < 2:
-        return np.zeros(t.size)
-    xy = track[["x_m", "y_m"]].to_numpy(dtype=float)
-    v = np.hypot(*np.gradient(xy, t, axis=0).T)
-    return v
-
-
-def _r(v: float, nd: int) -> float:
-    out = round(float(v), nd)
-    return 0.0 if out == 0 else out
-
-
-def _world_position(xosc, x_m: float, y_m: float, yaw_rad: float):
-    """WorldPosition (x, y [m], z = 0, h = yaw wrapped to [-pi, pi]) rounded as documented."""
-    h = math.remainder(float(yaw_rad), 2 * math.pi)
-    return xosc.WorldPosition(_r(x_m, 4), _r(y_m, 4), 0.0, _r(h, 5), 0.0, 0.0)
-
-
 def export_openscenario(
     trajectories: pd.DataFrame,
     agents: Sequence[AgentInfo],
@@ -322,30 +286,28 @@ def export_openscenario(
                 shutil.copyfile(xodr, tmp)
 
     present = [a for a in agents if a.agent_id in set(df["agent_id"])]
-    t_end = float(df["t_s"].max())
+    opts = BuildOptions(
+        minor=minor,
+        ego_controller=ego_controller,
+        blueprints=bps,
+        map_name=map_name,
+        name=name,
+        description=description,
+        author=author,
+        creation_date=creation_date or datetime(1970, 1, 1),
+        vertex_rate_hz=vertex_rate_hz,
+        max_position_error_m=max_position_error_m,
+        max_yaw_error_rad=max_yaw_error_rad,
+    )
     # scenariogeneration's version is class-level state: set it, build, restore.
     base = xosc.VersionBase()
     saved = (xosc.VersionBase.version_major, xosc.VersionBase.version_minor)
     base.setVersion(major=1, minor=minor)
     try:
-        scenario = _build(
-            xosc,
-            df,
-            present,
-            minor,
-            ego_controller,
-            bps,
-            map_name,
-            t_end,
-            name=name,
-            description=description,
-            author=author,
-            creation_date=creation_date or datetime(1970, 1, 1),
-            decimation=(vertex_rate_hz, max_position_error_m, max_yaw_error_rad),
-        )
+        scenario = build_scenario(xosc, df, present, opts, decimate_indices)
         from scenariogeneration.helpers import prettify
 
-        xml = prettify(scenario.get_element(), encoding="utf-8")
+        xml = prettify(finish_element(scenario.get_element(), minor), encoding="utf-8")
     finally:
         xosc.VersionBase.version_major, xosc.VersionBase.version_minor = saved
     path = out_dir / f"{name}.xosc"
@@ -354,156 +316,13 @@ def export_openscenario(
     return path
 
 
-def _entity(xosc, agent: AgentInfo, minor: int, blueprint: str):
-    m = ENTITY_MODELS[agent.category]
-    bb = xosc.BoundingBox(agent.width_m, agent.length_m, m.height_m, 0.0, 0.0, m.height_m / 2)
-    if m.kind == "pedestrian":
-        ent = xosc.Pedestrian(
-            blueprint,
-            m.mass_kg,
-            getattr(xosc.PedestrianCategory, m.osc_category),
-            bb,
-            model=blueprint,
-        )
-    else:
-        # Axles relative to the reference point (box centre): wheelbase 0.6 * length,
-        # wheel diameter and track from the footprint (informative only).
-        half_wb = 0.3 * agent.length_m
-        wheel = 0.65 if m.osc_category == "car" else 0.5
-        front = xosc.Axle(0.52, wheel, agent.width_m * 0.85, half_wb, wheel / 2)
-        rear = xosc.Axle(0.0, wheel, agent.width_m * 0.85, -half_wb, wheel / 2)
-        ent = xosc.Vehicle(
-            blueprint,
-            getattr(xosc.VehicleCategory, m.osc_category),
-            bb,
-            front,
-            rear,
-            m.max_speed_mps,
-            m.max_accel_mps2,
-            m.max_decel_mps2,
-            mass=m.mass_kg if minor >= 1 else None,
-        )
-    ent.add_property("type", "ego_vehicle" if agent.category == EGO_CATEGORY else "simulation")
-    ent.add_property(PROP_AGENT_ID, agent.agent_id)
-    ent.add_property(PROP_CATEGORY, agent.category)
-    if agent.source_track_id is not None:
-        ent.add_property(PROP_SOURCE_TRACK, str(agent.source_track_id))
-    return ent
-
-
-def _build(
-    xosc,
-    df,
-    agents,
-    minor,
-    ego_controller,
-    bps,
-    map_name,
-    t_end,
-    *,
-    name,
-    description,
-    author,
-    creation_date,
-    decimation,
-):
-    rate, tol_p, tol_a = decimation
-    entities = xosc.Entities()
-    init = xosc.Init()
-    step = xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0.0)
-    groups = []
-    for agent in agents:
-        entities.add_scenario_object(
-            agent.agent_id, _entity(xosc, agent, minor, bps[agent.category])
-        )
-        track = df[df["agent_id"] == agent.agent_id]
-        t = track["t_s"].to_numpy(dtype=float)
-        xy = track[["x_m", "y_m"]].to_numpy(dtype=float)
-        yaw = track["yaw_rad"].to_numpy(dtype=float)
-        v = _speeds(track)
-
-        def pos(i: int, xy=xy, yaw=yaw) -> object:
-            return _world_position(xosc, xy[i, 0], xy[i, 1], yaw[i])
-
-        init.add_init_action(agent.agent_id, xosc.TeleportAction(pos(0)))
-        init.add_init_action(agent.agent_id, xosc.AbsoluteSpeedAction(_r(max(v[0], 0.0), 4), step))
-        if t.size < 2 or (agent.category == EGO_CATEGORY and ego_controller == "simulator"):
-            continue
-        idx = decimate_indices(
-            t, xy, yaw, vertex_rate_hz=rate, max_position_error_m=tol_p, max_yaw_error_rad=tol_a
-        )
-        poly = xosc.Polyline([_r(t[i], 4) for i in idx], [pos(int(i)) for i in idx])
-        traj = xosc.Trajectory(f"{agent.agent_id}_trajectory", False)
-        traj.add_shape(poly)
-        action = xosc.FollowTrajectoryAction(
-            traj,
-            xosc.FollowingMode.position,
-            xosc.ReferenceContext.absolute,
-            1.0,
-            0.0,
-        )
-        event = xosc.Event(
-            f"{agent.agent_id}_event",
-            xosc.Priority.override if minor >= 2 else xosc.Priority.overwrite,
-        )
-        event.add_action(f"{agent.agent_id}_follow_trajectory", action)
-        event.add_trigger(
-            xosc.ValueTrigger(
-                f"{agent.agent_id}_start",
-                0.0,
-                xosc.ConditionEdge.rising,
-                xosc.SimulationTimeCondition(_r(t[0], 4), xosc.Rule.greaterThan),
-            )
-        )
-        man = xosc.Maneuver(f"{agent.agent_id}_maneuver")
-        man.add_event(event)
-        grp = xosc.ManeuverGroup(f"{agent.agent_id}_maneuver_group")
-        grp.add_actor(agent.agent_id)
-        grp.add_maneuver(man)
-        groups.append(grp)
-
-    stop = xosc.ValueTrigger(
-        "vei_stop",
-        0.0,
-        xosc.ConditionEdge.rising,
-        xosc.SimulationTimeCondition(_r(t_end, 4), xosc.Rule.greaterThan),
-        triggeringpoint="stop",
-    )
-    act = xosc.Act(
-        "vei_act",
-        xosc.ValueTrigger(
-            "vei_act_start",
-            0.0,
-            xosc.ConditionEdge.none,
-            xosc.SimulationTimeCondition(0.0, xosc.Rule.greaterThan),
-        ),
-    )
-    for g in groups:
-        act.add_maneuver_group(g)
-    story = xosc.Story("vei_story")
-    story.add_act(act)
-    sb = xosc.StoryBoard(init, stop)
-    sb.add_story(story)
-    road = xosc.RoadNetwork(roadfile=map_name)
-    return xosc.Scenario(
-        description if description else name,
-        author,
-        xosc.ParameterDeclarations(),
-        entities,
-        sb,
-        road,
-        xosc.Catalog(),
-        osc_minor_version=minor,
-        creation_date=creation_date,
-    )
-
-
 def read_openscenario_trajectories(path: str | Path) -> pd.DataFrame:
     """Read back the timed polyline trajectories and initial poses of an exported .xosc.
 
-    Parses with defusedxml (no entity expansion). Every agent contributes its Init
-    TeleportAction pose (t_s = NaN when the agent also has a trajectory, else 0) and the
-    vertices of its FollowTrajectoryAction.
+    Parses with defusedxml (no entity expansion). Every agent contributes its initial
+    pose (the Init ``TeleportAction``, or the ``AddEntityAction`` of an agent that appears
+    later; t_s = NaN) and the vertices of its ``FollowTrajectoryAction`` (in Init or in
+    its maneuver group; t_s = NaN for a path without timing).
 
     Returns:
         DataFrame with columns agent_id, category (the entity's ``vei:category`` property,
@@ -539,19 +358,42 @@ def read_openscenario_trajectories(path: str | Path) -> pd.DataFrame:
             for tp in priv.iter("TeleportAction"):
                 x, y, h = wp(tp.find("Position"))
                 rows.append((ent, cats.get(ent, ""), math.nan, x, y, h, "init"))
+            for fta in priv.iter("FollowTrajectoryAction"):
+                rows.extend(_vertex_rows(fta, [ent], cats, wp))
     for grp in root.iter("ManeuverGroup"):
         actors = [e.get("entityRef", "") for e in grp.iter("EntityRef")]
+        for add in grp.iter("AddEntityAction"):
+            x, y, h = wp(add.find("Position"))
+            ent = _parent_entity_ref(grp, add) or (actors[0] if actors else "")
+            rows.append((ent, cats.get(ent, ""), math.nan, x, y, h, "init"))
         for fta in grp.iter("FollowTrajectoryAction"):
-            for ent in actors:
-                for vert in fta.iter("Vertex"):
-                    x, y, h = wp(vert.find("Position"))
-                    rows.append(
-                        (ent, cats.get(ent, ""), float(vert.get("time")), x, y, h, "vertex")
-                    )
+            rows.extend(_vertex_rows(fta, actors, cats, wp))
     out = pd.DataFrame(
         rows, columns=["agent_id", "category", "t_s", "x_m", "y_m", "yaw_rad", "kind"]
     )
     return out.sort_values(["agent_id", "kind", "t_s"], kind="stable").reset_index(drop=True)
+
+
+def _parent_entity_ref(scope, action) -> str | None:
+    """The ``entityRef`` of the ``EntityAction`` holding ``action`` (searched in ``scope``)."""
+    for ea in scope.iter("EntityAction"):
+        if any(child is action for child in ea):
+            return ea.get("entityRef")
+    return None
+
+
+def _vertex_rows(fta, actors, cats, wp) -> list[tuple]:
+    """Rows (agent, category, t_s, x, y, yaw, 'vertex') of one FollowTrajectoryAction;
+    t_s is NaN for a vertex without time (a path without timing)."""
+    out = []
+    for ent in actors:
+        for vert in fta.iter("Vertex"):
+            x, y, h = wp(vert.find("Position"))
+            t = vert.get("time")
+            out.append(
+                (ent, cats.get(ent, ""), math.nan if t is None else float(t), x, y, h, "vertex")
+            )
+    return out
 
 
 def timeseries_to_trajectories(
