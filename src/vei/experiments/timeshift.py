@@ -18,6 +18,14 @@ grid tau is refined by nested grids down to ~1 microsecond, with the times near 
 sampled at a twentieth of the step. Where
 several shifts are equally good (e.g. a rider riding along the ego's path), the smallest
 |tau| among those within ``tie_tolerance_m`` of the best wins.
+
+Honesty: the result says whether the paths *meet* (``paths_meet``: the miss distance is
+within ``meet_tolerance_m``, default half the ego's width plus half the rider's: the
+rider's centre then lies within the width of the ego's front). On most real recordings
+the rider's path never comes that close to the car's, and no shift makes it critical;
+the callers print that with the miss distance and flag it in summary.json.
+:func:`evaluate_time_shift` gives the same figures for a shift the user chose, and
+refuses (InputError) a shift that keeps the rider out of the simulated span entirely.
 """
 
 from __future__ import annotations
@@ -43,7 +51,11 @@ class TimeShiftResult:
         meet_time_s: engine time of that minimum [s].
         meet_x_m, meet_y_m: the ego's front centre then [m].
         cruise_speed_mps: the ego's cruise speed used [m/s].
-        search_min_s, search_max_s: the searched range of tau [s].
+        search_min_s, search_max_s: the searched range of tau [s] (both = tau for a
+            given shift).
+        meet_tolerance_m: miss distance up to which the paths count as meeting [m].
+        rider_id: the shifted rider.
+        rider_span_s: (start, end) of the rider's recording [s] (before the shift).
     """
 
     time_shift_s: float
@@ -54,6 +66,14 @@ class TimeShiftResult:
     cruise_speed_mps: float
     search_min_s: float
     search_max_s: float
+    meet_tolerance_m: float = 1.2
+    rider_id: str = ""
+    rider_span_s: tuple[float, float] = (float("nan"), float("nan"))
+
+    @property
+    def paths_meet(self) -> bool:
+        """The rider's centre comes within meet_tolerance_m of the ego's front centre."""
+        return bool(self.miss_distance_m <= self.meet_tolerance_m)
 
     def __float__(self) -> float:
         return self.time_shift_s
@@ -69,7 +89,29 @@ class TimeShiftResult:
             "cruise_speed_mps": self.cruise_speed_mps,
             "search_min_s": self.search_min_s,
             "search_max_s": self.search_max_s,
+            "meet_tolerance_m": self.meet_tolerance_m,
+            "paths_meet": self.paths_meet,
+            "rider_id": self.rider_id,
+            "rider_span_s": list(self.rider_span_s),
         }
+
+    def message(self) -> str:
+        """One line for the terminal: the shift and whether the paths meet."""
+        if self.paths_meet:
+            return (
+                f"time shift {self.time_shift_s:+.2f} s: {self.rider_id} meets the ego's front "
+                f"(miss {self.miss_distance_m:.2f} m at t = {self.meet_time_s:.2f} s)"
+            )
+        return (
+            f"NOT CRITICAL: no time shift makes the paths meet; at the best shift "
+            f"({self.time_shift_s:+.2f} s) {self.rider_id} passes {self.miss_distance_m:.2f} m from "
+            f"the ego's front (needs <= {self.meet_tolerance_m:.2f} m); try --make-critical "
+            "timing+path"
+            if self.search_min_s != self.search_max_s
+            else f"NOT CRITICAL: with the given time shift {self.time_shift_s:+.2f} s {self.rider_id} "
+            f"passes {self.miss_distance_m:.2f} m from the ego's front at best (t = "
+            f"{self.meet_time_s:.2f} s; needs <= {self.meet_tolerance_m:.2f} m)"
+        )
 
 
 def parse_time_shift(value: str | float) -> str | float:
@@ -91,6 +133,145 @@ def parse_time_shift(value: str | float) -> str | float:
     return v
 
 
+@dataclass(frozen=True)
+class EgoFront:
+    """The ego's front-centre trajectory under a configuration, rider kept away.
+
+    Attributes:
+        t_s: [T] engine times [s]. fx_m, fy_m: [T] front-centre positions [m].
+        cruise_speed_mps: v_d used [m/s]. rider_t0_s, rider_t_end_s: the rider's span [s].
+        t_tab_s, x_tab_m, y_tab_m: the rider's recording (uniform table) [M].
+        meet_tolerance_m: (ego width + rider width) / 2 [m]. rider_id: the rider.
+    """
+
+    t_s: np.ndarray
+    fx_m: np.ndarray
+    fy_m: np.ndarray
+    cruise_speed_mps: float
+    rider_t0_s: float
+    rider_t_end_s: float
+    t_tab_s: np.ndarray
+    x_tab_m: np.ndarray
+    y_tab_m: np.ndarray
+    meet_tolerance_m: float
+    rider_id: str
+    dt_s: float
+
+    def miss(
+        self, taus: np.ndarray, times: np.ndarray, fxs: np.ndarray, fys: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """[n_tau] miss distances (inf: rider never present) and the index of the closest time."""
+        out = np.full(taus.shape, np.inf)
+        arg = np.zeros(taus.shape, dtype=np.intp)
+        chunk = max(1, int(1_000_000 // max(times.size, 1)))
+        for i in range(0, taus.size, chunk):
+            tt = times[None, :] - taus[i : i + chunk, None]
+            inside = (tt >= self.rider_t0_s - 1e-9) & (tt <= self.rider_t_end_s + 1e-9)
+            dx = np.interp(tt, self.t_tab_s, self.x_tab_m) - fxs[None, :]
+            dy = np.interp(tt, self.t_tab_s, self.y_tab_m) - fys[None, :]
+            d = np.where(inside, np.hypot(dx, dy), np.inf)
+            arg[i : i + chunk] = np.argmin(d, axis=1)
+            out[i : i + chunk] = d[np.arange(d.shape[0]), arg[i : i + chunk]]
+        return out, arg
+
+
+def ego_front(
+    scenario: Scenario, *, sim: SimConfig | None = None, case: CaseConfig | str = "replay"
+) -> EgoFront:
+    """Simulate the ego alone under ``case`` (rider shifted out of the span) and return its
+    front-centre trajectory with the rider's recording (see :class:`EgoFront`)."""
+    from vei.sim.engine import simulate
+    from vei.sim.state import VariantParams, prepare_scenario
+
+    sim = sim or SimConfig()
+    arrays = prepare_scenario(scenario, sim)
+    cfg = case if isinstance(case, CaseConfig) else case_preset(case)
+    t = arrays.t_s
+    tr = arrays.rider_track
+    away = float(t[-1] - tr.t0_s + 1e3)
+    params = VariantParams.from_case(cfg, arrays, 1, time_shift_s=away)
+    res = simulate(arrays, params, kernel=sim.kernel)
+    hl = 0.5 * arrays.ego_length_m
+    ex, ey, eyaw = res.ego_x_m[0], res.ego_y_m[0], res.ego_yaw_rad[0]
+    m = tr.data.shape[0]
+    return EgoFront(
+        t_s=t,
+        fx_m=ex + hl * np.cos(eyaw),
+        fy_m=ey + hl * np.sin(eyaw),
+        cruise_speed_mps=float(params.cruise_speed_mps[0]),
+        rider_t0_s=float(tr.t0_s),
+        rider_t_end_s=float(tr.t_end_s),
+        t_tab_s=tr.t0_s + np.arange(m) * tr.dt_s,
+        x_tab_m=tr.data[:, tr.col("x_m")],
+        y_tab_m=tr.data[:, tr.col("y_m")],
+        meet_tolerance_m=0.5 * (arrays.ego_width_m + arrays.rider_width_m),
+        rider_id=arrays.rider_id,
+        dt_s=arrays.dt_s,
+    )
+
+
+def _result(
+    front: EgoFront,
+    tau: float,
+    miss_m: float,
+    t_meet: float,
+    fx: float,
+    fy: float,
+    lo: float,
+    hi: float,
+) -> TimeShiftResult:
+    return TimeShiftResult(
+        time_shift_s=float(tau),
+        miss_distance_m=float(miss_m),
+        meet_time_s=float(t_meet),
+        meet_x_m=float(fx),
+        meet_y_m=float(fy),
+        cruise_speed_mps=front.cruise_speed_mps,
+        search_min_s=float(lo),
+        search_max_s=float(hi),
+        meet_tolerance_m=front.meet_tolerance_m,
+        rider_id=front.rider_id,
+        rider_span_s=(front.rider_t0_s, front.rider_t_end_s),
+    )
+
+
+def evaluate_time_shift(
+    scenario: Scenario,
+    time_shift_s: float,
+    *,
+    sim: SimConfig | None = None,
+    case: CaseConfig | str = "replay",
+    front: EgoFront | None = None,
+) -> TimeShiftResult:
+    """The miss distance of a given shift (same figures as :func:`find_time_shift`).
+
+    Raises InputError when the shift keeps the rider's recording entirely outside the
+    simulated span, naming both spans and the range of shifts that would not.
+
+    Args:
+        scenario: the scenario. time_shift_s: the shift [s]. sim, case: as find_time_shift.
+        front: a precomputed :func:`ego_front` (optional).
+    Returns:
+        TimeShiftResult with search_min_s = search_max_s = time_shift_s.
+    """
+    f = front or ego_front(scenario, sim=sim, case=case)
+    tau = float(time_shift_s)
+    t = f.t_s
+    a, b = f.rider_t0_s + tau, f.rider_t_end_s + tau
+    if b < t[0] - 1e-9 or a > t[-1] + 1e-9:
+        raise InputError(
+            f"time shift {tau:+g} s keeps rider {f.rider_id} out of the run: its recording spans "
+            f"[{f.rider_t0_s:.2f}, {f.rider_t_end_s:.2f}] s, shifted [{a:.2f}, {b:.2f}] s, the "
+            f"simulated span is [{t[0]:.2f}, {t[-1]:.2f}] s; shifts in "
+            f"[{t[0] - f.rider_t_end_s:.2f}, {t[-1] - f.rider_t0_s:.2f}] s keep it in",
+            path=f"scenario {scenario.id}",
+            field="time-shift",
+        )
+    d, arg = f.miss(np.array([tau]), t, f.fx_m, f.fy_m)
+    k = int(arg[0])
+    return _result(f, tau, float(d[0]), float(t[k]), f.fx_m[k], f.fy_m[k], tau, tau)
+
+
 def find_time_shift(
     scenario: Scenario,
     *,
@@ -98,6 +279,7 @@ def find_time_shift(
     case: CaseConfig | str = "replay",
     search_range_s: tuple[float, float] | None = None,
     tie_tolerance_m: float = 0.05,
+    front: EgoFront | None = None,
 ) -> TimeShiftResult:
     """The rider time shift that makes the replayed paths meet (see the module doc).
 
@@ -109,58 +291,24 @@ def find_time_shift(
         search_range_s: (min, max) shifts to search [s]; default: every shift that puts
             some of the rider's recorded span inside the simulated span.
         tie_tolerance_m: shifts within this miss distance of the best count as ties.
+        front: a precomputed :func:`ego_front` (optional).
     Returns:
-        TimeShiftResult (``float(result)`` is the shift).
+        TimeShiftResult (``float(result)`` is the shift; ``paths_meet`` says whether any
+        shift makes the rider's centre reach the ego's front).
     """
-    from vei.sim.engine import simulate
-    from vei.sim.state import VariantParams, prepare_scenario
-
-    sim = sim or SimConfig()
-    arrays = prepare_scenario(scenario, sim)
-    cfg = case if isinstance(case, CaseConfig) else case_preset(case)
-    t = arrays.t_s
-    tr = arrays.rider_track
-    # Ego alone: the rider shifted far beyond the span never enters.
-    away = float(t[-1] - tr.t0_s + 1e3)
-    params = VariantParams.from_case(cfg, arrays, 1, time_shift_s=away)
-    res = simulate(arrays, params, kernel=sim.kernel)
-    hl = 0.5 * arrays.ego_length_m
-    ex, ey, eyaw = res.ego_x_m[0], res.ego_y_m[0], res.ego_yaw_rad[0]
-    fx = ex + hl * np.cos(eyaw)
-    fy = ey + hl * np.sin(eyaw)
-
+    f = front or ego_front(scenario, sim=sim, case=case)
+    t, fx, fy = f.t_s, f.fx_m, f.fy_m
     lo, hi = (
-        (float(t[0] - tr.t_end_s), float(t[-1] - tr.t0_s))
+        (float(t[0] - f.rider_t_end_s), float(t[-1] - f.rider_t0_s))
         if search_range_s is None
         else search_range_s
     )
     if not (np.isfinite(lo) and np.isfinite(hi)) or hi < lo:
         raise InputError(f"invalid time-shift search range ({lo}, {hi})", field="search_range_s")
-    dt = arrays.dt_s
+    dt = f.dt_s
     taus = lo + np.arange(int(np.floor((hi - lo) / dt + 1e-9)) + 1) * dt
 
-    m = tr.data.shape[0]
-    t_tab = tr.t0_s + np.arange(m) * tr.dt_s
-    x_tab, y_tab = tr.data[:, tr.col("x_m")], tr.data[:, tr.col("y_m")]
-
-    def miss(
-        taus_: np.ndarray, times: np.ndarray, fxs: np.ndarray, fys: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """[n_tau] miss distances and the index of the closest time for each."""
-        out = np.full(taus_.shape, np.inf)
-        arg = np.zeros(taus_.shape, dtype=np.intp)
-        chunk = max(1, int(1_000_000 // max(times.size, 1)))
-        for i in range(0, taus_.size, chunk):
-            tt = times[None, :] - taus_[i : i + chunk, None]
-            inside = (tt >= tr.t0_s - 1e-9) & (tt <= tr.t_end_s + 1e-9)
-            dx = np.interp(tt, t_tab, x_tab) - fxs[None, :]
-            dy = np.interp(tt, t_tab, y_tab) - fys[None, :]
-            d = np.where(inside, np.hypot(dx, dy), np.inf)
-            arg[i : i + chunk] = np.argmin(d, axis=1)
-            out[i : i + chunk] = d[np.arange(d.shape[0]), arg[i : i + chunk]]
-        return out, arg
-
-    d_grid, arg_grid = miss(taus, t, fx, fy)
+    d_grid, arg_grid = f.miss(taus, t, fx, fy)
     if not np.isfinite(d_grid).any():
         raise InputError(
             "the rider's recording never overlaps the simulated span",
@@ -178,21 +326,11 @@ def find_time_shift(
     step_s, centre = dt / 4.0, tau0
     for _ in range(4):  # dt/4 -> dt/80 -> dt/1600 -> dt/32000 resolution
         cand = np.clip(centre + np.arange(-20, 21) * step_s, lo, hi)
-        d_fine, arg = miss(cand, fine_t, ffx, ffy)
+        d_fine, arg = f.miss(cand, fine_t, ffx, ffy)
         fbest = float(d_fine.min())
         fties = np.flatnonzero(d_fine <= fbest + 1e-9)
         j = int(fties[np.argmin(np.abs(cand[fties] - tau0))])
         centre = float(cand[j])
         step_s /= 20.0
-    fine_taus = cand
     k = int(arg[j])
-    return TimeShiftResult(
-        time_shift_s=float(fine_taus[j]),
-        miss_distance_m=float(d_fine[j]),
-        meet_time_s=float(fine_t[k]),
-        meet_x_m=float(ffx[k]),
-        meet_y_m=float(ffy[k]),
-        cruise_speed_mps=float(params.cruise_speed_mps[0]),
-        search_min_s=float(lo),
-        search_max_s=float(hi),
-    )
+    return _result(f, cand[j], d_fine[j], fine_t[k], ffx[k], ffy[k], lo, hi)

@@ -203,12 +203,19 @@ def _bounds(interaction: Interaction, margin_m: float) -> Bounds:
     return Bounds.around(np.concatenate(lats), np.concatenate(lons), margin_m=margin_m)
 
 
-def reconstruct(interaction: Interaction, config: ReconstructionConfig | None = None) -> Scenario:
+def reconstruct(
+    interaction: Interaction,
+    config: ReconstructionConfig | None = None,
+    *,
+    threat: str | None = None,
+) -> Scenario:
     """Reconstruct a world-frame scenario from an interaction.
 
     Args:
         interaction: ego GPS + ego-relative annotations (+ optional ground truth).
         config: settings (default ReconstructionConfig()).
+        threat: the primary threat chosen by the user (agent id or the annotations' track
+            id; :func:`vei.recon.threat.resolve_threat`); None = the module's rule.
     Returns:
         Scenario with trajectories (TRAJECTORY_COLUMNS; ego first, then every annotated
         track as '<category>_<track_id>') on t_s = k / rate_hz, keyframes (t_s, agent_id,
@@ -320,6 +327,7 @@ def reconstruct(interaction: Interaction, config: ReconstructionConfig | None = 
                 ego_yaw,
                 ego_speed,
                 cfg.corridor_half_width_m,
+                category=info["category"],
             )
         )
     primary = threat_mod.primary_threat(figures)
@@ -339,10 +347,12 @@ def reconstruct(interaction: Interaction, config: ReconstructionConfig | None = 
         "threat": {
             "criterion": (
                 "riders (escooter, cyclist) whose path comes within corridor_half_width_m of "
-                "the ego path conflict; primary = conflicting rider with the smallest "
-                "post-encroachment time (ties: min gap); without conflicts the rider with the "
-                "smallest same-time gap to the ego"
+                "the ego path conflict; primary = a conflicting rider, e-scooters before "
+                "cyclists, then the smallest post-encroachment time (ties: min gap); without "
+                "conflicts the rider with the smallest same-time gap to the ego (e-scooters "
+                "first among equal gaps); --threat TRACK_ID overrides"
             ),
+            "chosen_by": "rule",
             "corridor_half_width_m": cfg.corridor_half_width_m,
             "riders": [f.as_dict() for f in figures],
         },
@@ -353,7 +363,7 @@ def reconstruct(interaction: Interaction, config: ReconstructionConfig | None = 
             interaction.ground_truth, frame, keyframes, interpolants
         )
 
-    return Scenario(
+    scenario = Scenario(
         id=interaction.meta.id,
         projection=frame.proj_string,
         origin_lat_deg=frame.origin_lat_deg,
@@ -368,6 +378,7 @@ def reconstruct(interaction: Interaction, config: ReconstructionConfig | None = 
         maps={},
         extra=extra,
     )
+    return threat_mod.with_threat(scenario, threat)
 
 
 def evaluate(
