@@ -136,11 +136,23 @@ def test_closed_loop_around_an_ideal_plant_equals_the_engine(name):
 
 
 def test_contact_reported_by_the_simulator_latches_the_collision():
+    """A simulator's contact latches the collision while the rider is in the scene; before
+    it enters (recording from t = 2 s, shifted by 2.5 s) a contact is a phantom and ignored."""
     scenario = crossing_scenario()
     loop = ClosedLoop(scenario, case_preset("normal-cap"), time_shift_s=MEETING_SHIFT_S)
     st = loop.state
+    assert not bool(st.rider_active[0])
     loop.observe(
         EgoMeasurement(float(st.ego_x_m[0]), float(st.ego_y_m[0]), 0.0, 5.6, 0.0), contact=True
+    )
+    cmd = loop.command()
+    assert not cmd.hold and not bool(loop.state.collided[0])
+    while not cmd.rider_active:  # the ideal plant until the rider enters (t = 4.5 s)
+        loop.observe(EgoMeasurement(cmd.ego_x_m, cmd.ego_y_m, cmd.ego_yaw_rad, cmd.ego_v_mps, 0.0))
+        cmd = loop.command()
+    assert loop.state.k == round(4.5 / loop.dt_s)
+    loop.observe(
+        EgoMeasurement(cmd.ego_x_m, cmd.ego_y_m, cmd.ego_yaw_rad, cmd.ego_v_mps, 0.0), contact=True
     )
     cmd = loop.command()
     assert cmd.hold and cmd.u == -1.0

@@ -1,10 +1,10 @@
 """CARLA backend: the same scenario, controllers and time series, on a CARLA server.
 
-The built-in engine's pure step (:func:`vei.sim.engine.step`) is the controller: every
-tick the ego's pose and speed *measured in CARLA* replace the engine's kinematic ego in
-the state, the engine step computes the CAP perception and state machine, the PID /
-braking command u in [-1, 1], and the rider's next state (replay or social forces, with
-the measured ego box), and the backend applies them:
+:class:`CarlaBackend` implements :class:`vei.sim.backends.base.Backend`; the controller
+is :class:`~vei.sim.backends.base.ClosedLoop` (the engine's pure step), the same as for
+every backend: each tick the ego *measured in CARLA* replaces the engine's kinematic ego,
+the step computes the CAP, the command u in [-1, 1] and the rider's next state, and the
+backend applies them:
 
 - ego: ``carla.VehicleControl`` with ``throttle = max(u, 0)``, ``brake = max(-u, 0)``
   and ``steer`` from a pure-pursuit controller on the recorded ego path (look-ahead
@@ -30,17 +30,17 @@ clockwise): poses are converted at the boundary with :mod:`.carla_frame`.
 The output is the engine's long time series (:data:`vei.types.TIMESERIES_COLUMNS`), so
 metrics, figures and the case study work unchanged.
 
-Connection: ``host``/``port`` (defaults from ``$VEI_CARLA_HOST`` / ``$VEI_CARLA_PORT``,
-else 127.0.0.1:2000). Without a server the backend raises :class:`BackendError` naming
-host:port within the timeout (a TCP probe fails at once when nothing listens).
+Connection: ``host``/``port`` (defaults ``$VEI_CARLA_HOST`` / ``$VEI_CARLA_PORT``, else
+127.0.0.1:2000). :func:`connect` asks for the version from Python first
+(:mod:`.carla_rpc`): no server, no answer within the timeout, or a port that is not CARLA
+is a :class:`BackendError` naming host:port; the C++ client never sees such a port.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
-import socket
-import sys
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -49,20 +49,39 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from vei.config import CaseConfig, SimConfig, case_preset
+from vei.config import CaseConfig, SimConfig
 from vei.errors import BackendError, ConfigError, DependencyError, InputError
-from vei.models import ego as ego_model
-from vei.models.geometry import boxes_overlap
+from vei.sim.backends.base import (
+    Backend,
+    ClosedLoop,
+    EgoMeasurement,
+    Measurement,
+    TickCommand,
+    resolve_case_list,
+    run_backend,
+)
 from vei.sim.backends.carla_frame import (
     DEFAULT_BLUEPRINTS,
     carla_deg_to_yaw,
     carla_to_world_xy,
     command_to_pedals,
-    pure_pursuit_steer,
     world_to_carla_xy,
     yaw_to_carla_deg,
 )
+from vei.sim.backends.carla_rpc import probe_carla
 from vei.types import EGO_CATEGORY, Scenario
+
+__all__ = [
+    "CarlaBackend",
+    "CarlaSettings",
+    "ClosedLoop",
+    "EgoMeasurement",
+    "TickCommand",
+    "carla_runner",
+    "connect",
+    "run_carla",
+    "run_cases_frame",
+]
 
 #: Default CARLA RPC port.
 DEFAULT_PORT = 2000
@@ -173,23 +192,17 @@ def _carla():
 
 
 def connect(host: str, port: int, timeout_s: float) -> Any:
-    """A connected ``carla.Client``; BackendError naming host:port if no server answers.
+    """A connected ``carla.Client``; BackendError naming host:port if no CARLA answers.
 
-    A TCP probe of host:port first (fails at once when nothing listens, else within
-    ``timeout_s``), then the client's version handshake with ``client.set_timeout``.
+    First a probe from Python (:func:`.carla_rpc.probe_carla`): the TCP connection fails
+    at once when nothing listens, and the server must answer CARLA's version request with
+    a well-formed msgpack-rpc response within ``timeout_s``. Only then does the C++
+    client (which aborts the process on a peer that is not CARLA) get the port.
     """
     carla = _carla()
     where = f"{host}:{port}"
     start = time.monotonic()
-    try:
-        with socket.create_connection((host, port), timeout=timeout_s):
-            pass
-    except OSError as exc:
-        raise BackendError(
-            f"no CARLA server at {where}: {exc.strerror or exc} (after {time.monotonic() - start:.2f} s). "
-            "Start CARLA (CarlaUE4.sh / CarlaUnreal.sh) or point vei at one with --host/--port "
-            "or VEI_CARLA_HOST/VEI_CARLA_PORT."
-        ) from exc
+    server = probe_carla(host, port, timeout_s)
     client = carla.Client(host, port)
     remaining = max(0.1, timeout_s - (time.monotonic() - start))
     client.set_timeout(remaining)
@@ -209,202 +222,6 @@ def connect(host: str, port: int, timeout_s: float) -> Any:
             stacklevel=2,
         )
     return client
-
-
-# --------------------------------------------------------------------------------------
-# The closed loop, independent of CARLA's API (tested without a server)
-# --------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class EgoMeasurement:
-    """The ego as the simulator reports it (vei frame): position [m], yaw [rad], speed
-    [m/s] (>= 0, along the heading), longitudinal acceleration [m/s^2]."""
-
-    x_m: float
-    y_m: float
-    yaw_rad: float
-    speed_mps: float
-    accel_mps2: float
-
-
-@dataclass(frozen=True)
-class TickCommand:
-    """What to apply before the next tick: the ego's command u in [-1, 1] and steer
-    (CARLA sign), whether to hold it (after a collision), and the rider's next state."""
-
-    u: float
-    steer: float
-    hold: bool
-    rider_x_m: float
-    rider_y_m: float
-    rider_yaw_rad: float
-    rider_vx_mps: float
-    rider_vy_mps: float
-    rider_active: bool
-
-
-class ClosedLoop:
-    """The engine's step as a controller around a measured ego (one variant, B = 1).
-
-    ``observe(k, measurement, contact)`` puts the measured ego into the state at step k
-    (arc length by projection onto the recorded path) and records the time-series
-    sample; ``command()`` runs :func:`vei.sim.engine.step` and returns what to apply.
-    """
-
-    def __init__(
-        self,
-        scenario: Scenario,
-        case: CaseConfig,
-        *,
-        sim: SimConfig | None = None,
-        time_shift_s: float = 0.0,
-        lookahead_min_m: float = 4.0,
-        lookahead_time_s: float = 1.0,
-        wheelbase_m: float = 2.8,
-        max_steer_rad: float = math.radians(70.0),
-    ) -> None:
-        from vei.sim import engine
-        from vei.sim.state import VariantParams, prepare_scenario
-
-        self._engine = engine
-        self.case = case
-        self.arrays = prepare_scenario(scenario, sim or SimConfig())
-        self.params = VariantParams.from_case(case, self.arrays, 1, time_shift_s=time_shift_s)
-        self.flags = engine.batch_flags(self.params, self.arrays.dt_s)
-        self.state = engine.initial_state(self.arrays, self.params, self.flags)
-        self.lookahead_min_m = lookahead_min_m
-        self.lookahead_time_s = lookahead_time_s
-        self.wheelbase_m = wheelbase_m
-        self.max_steer_rad = max_steer_rad
-        path = self.arrays.ego_path
-        self._path_xy = np.stack([path.x_m, path.y_m], axis=1)
-        self._states: list[Any] = []
-
-    @property
-    def n_steps(self) -> int:
-        """T, the number of recorded steps (t = 0 included)."""
-        return self.arrays.n_steps
-
-    @property
-    def dt_s(self) -> float:
-        """The fixed step [s]."""
-        return self.arrays.dt_s
-
-    def observe(self, meas: EgoMeasurement, contact: bool = False) -> None:
-        """Replace the state's ego by the measurement at the current step and record it.
-
-        Args:
-            meas: the ego measured at t = k dt. contact: the simulator reported an
-                ego-rider contact since the previous step (latched with the box test).
-        """
-        st = self.state
-        a = self.arrays
-        s, _ = ego_model.project_onto_path(
-            a.ego_path, np.array([meas.x_m]), np.array([meas.y_m]), st.ego_s_m
-        )
-        ex, ey, eyaw = np.array([meas.x_m]), np.array([meas.y_m]), np.array([meas.yaw_rad])
-        overlap = st.rider_active & boxes_overlap(
-            ex, ey, eyaw, a.ego_length_m, a.ego_width_m,
-            st.rider_x_m, st.rider_y_m, st.rider_yaw_rad, a.rider_length_m, a.rider_width_m,
-        )  # fmt: skip
-        collided = st.collided | overlap | bool(contact)
-        new_hit = collided & ~st.collided
-        self.state = st._replace(
-            ego_s_m=np.maximum(s, st.ego_s_m),
-            ego_x_m=ex,
-            ego_y_m=ey,
-            ego_yaw_rad=eyaw,
-            ego_v_mps=np.array([max(meas.speed_mps, 0.0)]),
-            ego_a_mps2=np.array([meas.accel_mps2]),
-            collided=collided,
-            rider_vx_mps=np.where(new_hit, 0.0, st.rider_vx_mps),
-            rider_vy_mps=np.where(new_hit, 0.0, st.rider_vy_mps),
-            rider_speed_mps=np.where(new_hit, 0.0, st.rider_speed_mps),
-        )
-        self._record()
-
-    def command(self) -> TickCommand:
-        """Run the engine step from the observed state; returns the commands to apply."""
-        st = self.state
-        new = self._engine.step(st, self.params, self.arrays, self.flags)
-        collided = bool(st.collided[0])
-        v = float(st.ego_v_mps[0])
-        ld = max(self.lookahead_min_m, self.lookahead_time_s * v)
-        yaw = float(st.ego_yaw_rad[0])
-        rear_x = float(st.ego_x_m[0]) - 0.5 * self.wheelbase_m * math.cos(yaw)
-        rear_y = float(st.ego_y_m[0]) - 0.5 * self.wheelbase_m * math.sin(yaw)
-        steer = pure_pursuit_steer(
-            rear_x, rear_y, yaw, self._path_xy,
-            lookahead_m=ld, wheelbase_m=self.wheelbase_m, max_steer_rad=self.max_steer_rad,
-        )  # fmt: skip
-        self.state = new
-        return TickCommand(
-            u=-1.0 if collided else float(new.ego_cmd[0]),
-            steer=steer,
-            hold=collided,
-            rider_x_m=float(new.rider_x_m[0]),
-            rider_y_m=float(new.rider_y_m[0]),
-            rider_yaw_rad=float(new.rider_yaw_rad[0]),
-            rider_vx_mps=float(new.rider_vx_mps[0]),
-            rider_vy_mps=float(new.rider_vy_mps[0]),
-            rider_active=bool(new.rider_active[0]),
-        )
-
-    def mark_hit_other(self, index: int) -> None:
-        """Latch a contact of the ego with replayed other road user ``index``."""
-        hit = self.state.hit_other.copy()
-        hit[0, index] = True
-        self.state = self.state._replace(hit_other=hit)
-
-    def _record(self) -> None:
-        self._states.append(self.state)
-
-    def result(self) -> Any:
-        """The observed steps as a :class:`vei.sim.engine.SimResult` (B = 1)."""
-        eng, a = self._engine, self.arrays
-        if not self._states:
-            raise BackendError("no step was observed")
-        series = {
-            name: np.stack([getattr(st, attr) for st in self._states], axis=1).astype(dtype)
-            for name, attr, dtype in eng._RECORDED
-        }
-        t = np.array([st.k for st in self._states]) * a.dt_s
-        coll = series["collided"][0]
-        active = series["rider_active"][0]
-        d = np.hypot(
-            series["rider_x_m"][0] - series["ego_x_m"][0],
-            series["rider_y_m"][0] - series["ego_y_m"][0],
-        )
-        n = len(self._states)
-        return eng.SimResult(
-            t_s=t,
-            labels=self.params.labels.copy(),
-            params=self.params,
-            scenario_id=a.scenario_id,
-            rider_id=a.rider_id,
-            rider_category=a.rider_category,
-            ego_length_m=a.ego_length_m,
-            ego_width_m=a.ego_width_m,
-            rider_length_m=a.rider_length_m,
-            rider_width_m=a.rider_width_m,
-            hit_other=np.stack([st.hit_other for st in self._states], axis=1),
-            collision_time_s=np.array([t[np.argmax(coll)] if coll.any() else np.nan]),
-            min_center_distance_m=np.array([d[active].min() if active.any() else np.inf]),
-            other_ids=a.other_ids,
-            other_categories=a.other_categories,
-            other_length_m=a.other_length_m,
-            other_width_m=a.other_width_m,
-            other_x_m=a.other_x_m[:n],
-            other_y_m=a.other_y_m[:n],
-            other_yaw_rad=a.other_yaw_rad[:n],
-            other_speed_mps=a.other_speed_mps[:n],
-            other_active=a.other_active[:n],
-            final_state=self._states[-1],
-            **series,
-        )
-
-    def to_frame(self) -> pd.DataFrame:
-        """The observed steps as the engine's long time series (TIMESERIES_COLUMNS)."""
-        return self.result().to_frame(self.case.name)
 
 
 # --------------------------------------------------------------------------------------
@@ -554,6 +371,152 @@ def _measure(actor: Any) -> EgoMeasurement:
     return EgoMeasurement(float(x), float(y), yaw, max(float(v), 0.0), float(a))
 
 
+class CarlaBackend(Backend):
+    """vei's closed loop on a CARLA server (see the module doc)."""
+
+    name = "carla"
+
+    def __init__(self, settings: CarlaSettings | None = None) -> None:
+        self.settings = settings or CarlaSettings.from_env()
+        self._world: _World | None = None
+        self._run: dict[str, Any] | None = None
+
+    def start(self, scenario: Scenario, sim: SimConfig) -> None:
+        """Connect (probe first), generate the world from the map, synchronous mode."""
+        cfg = self.settings
+        client = connect(cfg.host, cfg.port, cfg.timeout_s)
+        xodr = _xodr_text(scenario) if cfg.generate_world else None
+        self._world = _World(client, cfg, sim.dt_s, xodr)
+
+    def close(self) -> None:
+        """Destroy what is left and restore the world's settings."""
+        self.unload()
+        if self._world is not None:
+            self._world.close()
+            self._world = None
+
+    def load(self, loop: ClosedLoop) -> Measurement:
+        """Spawn the ego (with a collision sensor) at its start, one tick, measure."""
+        world, cfg = self._require_world(), self.settings
+        carla = world.carla
+        st = loop.state
+        try:
+            ego = world.spawn(
+                cfg.blueprint(EGO_CATEGORY), "hero",
+                world.transform(float(st.ego_x_m[0]), float(st.ego_y_m[0]), float(st.ego_yaw_rad[0])),
+                kinematic=False,
+            )  # fmt: skip
+            loop.wheelbase_m, loop.max_steer_rad = _ego_geometry(ego, cfg)
+            contacts: list[int] = []
+            bp = world.library.find("sensor.other.collision")
+            sensor = world.world.spawn_actor(bp, carla.Transform(), attach_to=ego)
+            world.actors.append(sensor)
+            sensor.listen(lambda event: contacts.append(int(event.other_actor.id)))
+            self._run = {"loop": loop, "ego": ego, "sensor": sensor, "contacts": contacts,
+                         "rider": None, "others": {}, "k": 0}  # fmt: skip
+            yaw0 = float(st.ego_yaw_rad[0])
+            v0 = float(loop.params.initial_speed_mps[0])
+            vx, vy = world_to_carla_xy(v0 * math.cos(yaw0), v0 * math.sin(yaw0))
+            ego.set_target_velocity(carla.Vector3D(float(vx), float(vy), 0.0))
+            world.world.tick()
+            return self._place_and_measure(
+                float(st.rider_x_m[0]), float(st.rider_y_m[0]), float(st.rider_yaw_rad[0]),
+                bool(st.rider_active[0]), bool(st.rider_done[0]),
+            )  # fmt: skip
+        except RuntimeError as exc:
+            raise BackendError(f"CARLA server {cfg.host}:{cfg.port} failed: {exc}") from exc
+
+    def step(self, command: TickCommand) -> Measurement:
+        """VehicleControl from the command, tick, move others and the rider, measure."""
+        world, run = self._require_world(), self._run
+        if run is None:
+            raise BackendError("CARLA backend: no run loaded")
+        carla = world.carla
+        try:
+            throttle, brake = command_to_pedals(command.u)
+            run["ego"].apply_control(
+                carla.VehicleControl(
+                    throttle=float(throttle), brake=float(brake), steer=float(command.steer),
+                    hand_brake=command.hold,
+                )
+            )  # fmt: skip
+            world.world.tick()
+            run["k"] += 1
+            done = bool(run["loop"].state.rider_done[0])
+            return self._place_and_measure(
+                command.rider_x_m, command.rider_y_m, command.rider_yaw_rad,
+                command.rider_active, done,
+            )  # fmt: skip
+        except RuntimeError as exc:
+            cfg = self.settings
+            raise BackendError(
+                f"CARLA server {cfg.host}:{cfg.port} failed during the run: {exc}"
+            ) from exc
+
+    def unload(self) -> None:
+        """Destroy the run's actors."""
+        run, world = self._run, self._world
+        self._run = None
+        if run is None or world is None:
+            return
+        try:
+            run["sensor"].stop()
+        except RuntimeError:
+            pass
+        for actor in [*run["others"].values(), run["rider"], run["sensor"], run["ego"]]:
+            if actor is not None:
+                try:
+                    world.destroy(actor)
+                except RuntimeError:
+                    pass
+
+    def _require_world(self) -> _World:
+        if self._world is None:
+            raise BackendError("CARLA backend: start() was not called")
+        return self._world
+
+    def _place_and_measure(
+        self, rx: float, ry: float, ryaw: float, r_active: bool, r_done: bool
+    ) -> Measurement:
+        """Replayed others and the rider at the current step, then the ego's measurement."""
+        world, run, cfg = self._require_world(), self._run, self.settings
+        assert run is not None
+        loop, k, others = run["loop"], run["k"], run["others"]
+        a = loop.arrays
+        for j, oid in enumerate(a.other_ids):
+            active = bool(a.other_active[k, j])
+            if active and j not in others:
+                others[j] = world.spawn(
+                    cfg.blueprint(a.other_categories[j]), oid,
+                    world.transform(a.other_x_m[k, j], a.other_y_m[k, j], a.other_yaw_rad[k, j]),
+                    kinematic=True,
+                )  # fmt: skip
+            elif active:
+                others[j].set_transform(
+                    world.transform(a.other_x_m[k, j], a.other_y_m[k, j], a.other_yaw_rad[k, j])
+                )
+            elif j in others:
+                world.destroy(others.pop(j))
+        if r_active:
+            tf = world.transform(rx, ry, ryaw)
+            if run["rider"] is None:
+                run["rider"] = world.spawn(
+                    cfg.blueprint(a.rider_category), a.rider_id, tf, kinematic=True
+                )
+            else:
+                run["rider"].set_transform(tf)
+        elif run["rider"] is not None and r_done:
+            world.destroy(run["rider"])
+            run["rider"] = None
+        contacts = run["contacts"]
+        hit_rider = run["rider"] is not None and run["rider"].id in contacts
+        hit_others = tuple(j for j, actor in others.items() if actor.id in contacts)
+        contacts.clear()
+        return Measurement(
+            ego=_measure(run["ego"]), contact_rider=hit_rider, contact_others=hit_others
+        )
+
+
 def run_carla(
     scenario: Scenario,
     configs: Sequence[str | CaseConfig] | str | CaseConfig,
@@ -581,140 +544,18 @@ def run_carla(
         DataFrame with TIMESERIES_COLUMNS: one row per agent per step per configuration.
 
     Raises:
-        BackendError: no server at host:port (within the timeout), a blueprint missing,
-        an actor that cannot be spawned. InputError: the scenario has no map.
+        BackendError: no CARLA server at host:port (within the timeout; a port that
+        answers but is not CARLA too), a blueprint missing, an actor that cannot be
+        spawned. InputError: the scenario has no map.
     """
     settings = settings or CarlaSettings.from_env()
-    if host is not None or port is not None or timeout_s is not None:
-        settings = CarlaSettings(
-            **{
-                **{f: getattr(settings, f) for f in settings.__dataclass_fields__},
-                **{
-                    k: v
-                    for k, v in (("host", host), ("port", port), ("timeout_s", timeout_s))
-                    if v is not None
-                },
-            }
-        )
-    cases = [configs] if isinstance(configs, str | CaseConfig) else list(configs)
-    cases = [case_preset(c) if isinstance(c, str) else c for c in cases]
-    if not cases:
-        raise ConfigError("run_carla needs at least one configuration")
-    sim = sim or SimConfig()
-    client = connect(settings.host, settings.port, settings.timeout_s)
-    xodr = _xodr_text(scenario) if settings.generate_world else None
-    frames = []
-    world = _World(client, settings, sim.dt_s, xodr)
-    try:
-        for case in cases:
-            frames.append(_run_one(world, scenario, case, sim, time_shift_s, settings))
-    finally:
-        world.close()
-    return pd.concat(frames, ignore_index=True)
-
-
-def _run_one(
-    world: _World,
-    scenario: Scenario,
-    case: CaseConfig,
-    sim: SimConfig,
-    shift: float,
-    cfg: CarlaSettings,
-) -> pd.DataFrame:
-    loop = ClosedLoop(scenario, case, sim=sim, time_shift_s=shift)
-    a = loop.arrays
-    st = loop.state
-    carla = world.carla
-    ego = world.spawn(
-        cfg.blueprint(EGO_CATEGORY), "hero",
-        world.transform(float(st.ego_x_m[0]), float(st.ego_y_m[0]), float(st.ego_yaw_rad[0])),
-        kinematic=False,
-    )  # fmt: skip
-    wheelbase, max_steer = _ego_geometry(ego, cfg)
-    loop.wheelbase_m, loop.max_steer_rad = wheelbase, max_steer
-    contacts: list[int] = []
-    bp = world.library.find("sensor.other.collision")
-    sensor = world.world.spawn_actor(bp, carla.Transform(), attach_to=ego)
-    world.actors.append(sensor)
-    sensor.listen(lambda event: contacts.append(int(event.other_actor.id)))
-    rider_actor = None
-    others: dict[int, Any] = {}
-    bar = None
-    if sys.stderr.isatty():
-        from rich.progress import Progress
-
-        bar = Progress(transient=True)
-        bar.start()
-    try:
-        # initial speed along the heading, then one tick to settle
-        yaw0 = float(st.ego_yaw_rad[0])
-        v0 = float(loop.params.initial_speed_mps[0])
-        vx, vy = world_to_carla_xy(v0 * math.cos(yaw0), v0 * math.sin(yaw0))
-        ego.set_target_velocity(carla.Vector3D(float(vx), float(vy), 0.0))
-        world.world.tick()
-        if bar is not None:
-            task = bar.add_task(f"CARLA {case.name}", total=loop.n_steps)
-        for k in range(loop.n_steps):
-            if bar is not None:
-                bar.advance(task)
-            # replayed others and the rider at step k
-            for j, oid in enumerate(a.other_ids):
-                active = bool(a.other_active[k, j])
-                if active and j not in others:
-                    others[j] = world.spawn(
-                        cfg.blueprint(a.other_categories[j]), oid,
-                        world.transform(a.other_x_m[k, j], a.other_y_m[k, j], a.other_yaw_rad[k, j]),
-                        kinematic=True,
-                    )  # fmt: skip
-                elif active:
-                    others[j].set_transform(
-                        world.transform(a.other_x_m[k, j], a.other_y_m[k, j], a.other_yaw_rad[k, j])
-                    )
-                elif j in others:
-                    world.destroy(others.pop(j))
-            rs = loop.state
-            if bool(rs.rider_active[0]):
-                tf = world.transform(
-                    float(rs.rider_x_m[0]), float(rs.rider_y_m[0]), float(rs.rider_yaw_rad[0])
-                )
-                if rider_actor is None:
-                    rider_actor = world.spawn(
-                        cfg.blueprint(a.rider_category), a.rider_id, tf, kinematic=True
-                    )
-                else:
-                    rider_actor.set_transform(tf)
-            elif rider_actor is not None and bool(rs.rider_done[0]):
-                world.destroy(rider_actor)
-                rider_actor = None
-            hit_rider = rider_actor is not None and rider_actor.id in contacts
-            for j, actor in others.items():
-                if actor.id in contacts:
-                    loop.mark_hit_other(j)
-            contacts.clear()
-            loop.observe(_measure(ego), contact=hit_rider)
-            if k == loop.n_steps - 1:
-                break
-            cmd = loop.command()
-            throttle, brake = command_to_pedals(cmd.u)
-            ego.apply_control(
-                carla.VehicleControl(
-                    throttle=float(throttle), brake=float(brake), steer=float(cmd.steer),
-                    hand_brake=cmd.hold,
-                )
-            )  # fmt: skip
-            world.world.tick()
-    except RuntimeError as exc:
-        raise BackendError(
-            f"CARLA server {cfg.host}:{cfg.port} failed during the run: {exc}"
-        ) from exc
-    finally:
-        if bar is not None:
-            bar.stop()
-        sensor.stop()
-        for actor in [*others.values(), rider_actor, sensor, ego]:
-            if actor is not None:
-                world.destroy(actor)
-    return loop.to_frame()
+    overrides = {
+        k: v for k, v in (("host", host), ("port", port), ("timeout_s", timeout_s)) if v is not None
+    }
+    if overrides:
+        settings = dataclasses.replace(settings, **overrides)
+    cases = resolve_case_list(configs)
+    return run_backend(CarlaBackend(settings), scenario, cases, time_shift_s=time_shift_s, sim=sim)
 
 
 def run_cases_frame(
