@@ -40,7 +40,7 @@ Runner = Callable[[Scenario, Sequence[CaseConfig], float, SimConfig], pd.DataFra
 PAPER_COLLIDING: tuple[str, ...] = ("replay", "normal", "aggressive")
 PAPER_SAFE: tuple[str, ...] = ("normal-cap", "aggressive-cap")
 #: Backends that vei knows by name.
-BACKENDS: tuple[str, ...] = ("builtin", "carla")
+BACKENDS: tuple[str, ...] = ("builtin", "esmini", "carla")
 
 
 @dataclass(frozen=True)
@@ -143,9 +143,15 @@ def _run_builtin(
 
 
 def get_backend(name: str) -> Runner:
-    """The runner of a backend by name ('builtin'; 'carla' once vei.sim.backends.carla exists)."""
+    """The runner of a backend by name: 'builtin', 'esmini' (esmini found by $VEI_ESMINI,
+    else ../shared/tools/esmini; see vei.sim.backends.esmini.esmini_runner for a folder),
+    'carla' (host/port from $VEI_CARLA_HOST / $VEI_CARLA_PORT)."""
     if name == "builtin":
         return _run_builtin
+    if name == "esmini":
+        from vei.sim.backends.esmini import run_cases_frame as run_esmini
+
+        return run_esmini
     if name == "carla":
         if importlib.util.find_spec("vei.sim.backends.carla") is None:
             raise BackendError(
