@@ -27,24 +27,45 @@ _TIME_SHIFT_HELP = (
     "Time shift of the primary rider in seconds (positive: it comes later), or 'auto': the "
     "shift that makes the replayed paths meet in space-time (computed under replay's ego motion)."
 )
-_BACKEND_HELP = "Simulation backend: 'builtin' (the embedded engine) or 'carla' (a CARLA server; see --host/--port)."
+_BACKEND_HELP = (
+    "Simulation backend: 'builtin' (the embedded engine), 'esmini' (vei's closed loop inside "
+    "esmini through its C library; see --esmini) or 'carla' (a CARLA server; see --host/--port)."
+)
+_ESMINI_HELP = "esmini folder (holding bin/ and lib/; backend esmini only; default $VEI_ESMINI, else ../shared/tools/esmini)."
+_CARLA_TIMEOUT_HELP = (
+    "Seconds to wait for the CARLA server to connect and answer (backend carla only; default 10)."
+)
 _HOST_HELP = "CARLA server host (backend carla only; default $VEI_CARLA_HOST, else 127.0.0.1)."
 _PORT_HELP = "CARLA server port (backend carla only; default $VEI_CARLA_PORT, else 2000)."
 
 
-def _backend(name: str, host: str | None, port: int | None):
-    """The backend argument of run_casestudy: a name, or a CARLA runner bound to host/port."""
+def _backend(
+    name: str,
+    host: str | None,
+    port: int | None,
+    esmini: Path | None = None,
+    carla_timeout: float | None = None,
+):
+    """The backend argument of run_casestudy: a name, or a runner bound to its options."""
     from vei.errors import ConfigError
 
-    if name == "carla" and (host is not None or port is not None):
+    if name != "carla" and (host is not None or port is not None or carla_timeout is not None):
+        raise ConfigError("--host/--port/--carla-timeout apply to --backend carla only")
+    if name != "esmini" and esmini is not None:
+        raise ConfigError("--esmini applies to --backend esmini only")
+    if carla_timeout is not None and not carla_timeout > 0:
+        raise ConfigError(f"--carla-timeout must be > 0 seconds, got {carla_timeout:g}")
+    if name == "carla" and (host is not None or port is not None or carla_timeout is not None):
         from vei.experiments.casestudy import get_backend
 
         get_backend("carla")  # clear error if the backend is missing
         from vei.sim.backends.carla import carla_runner
 
-        return carla_runner(host=host, port=port)
-    if name != "carla" and (host is not None or port is not None):
-        raise ConfigError("--host/--port apply to --backend carla only")
+        return carla_runner(host=host, port=port, timeout_s=carla_timeout)
+    if name == "esmini" and esmini is not None:
+        from vei.sim.backends.esmini import esmini_runner
+
+        return esmini_runner(esmini)
     return name
 
 
@@ -189,6 +210,10 @@ def register(app: typer.Typer) -> None:
         backend: Annotated[str, typer.Option("--backend", help=_BACKEND_HELP)] = "builtin",
         host: Annotated[str | None, typer.Option("--host", help=_HOST_HELP)] = None,
         port: Annotated[int | None, typer.Option("--port", help=_PORT_HELP)] = None,
+        esmini: Annotated[Path | None, typer.Option("--esmini", help=_ESMINI_HELP)] = None,
+        carla_timeout: Annotated[
+            float | None, typer.Option("--carla-timeout", help=_CARLA_TIMEOUT_HELP)
+        ] = None,
         figures: Annotated[
             bool, typer.Option("--figures/--no-figures", help="Write the figures.")
         ] = True,
@@ -206,7 +231,11 @@ def register(app: typer.Typer) -> None:
         sim = run_cfg.sim if run_cfg is not None else None
         scen = _read_scenario(scenario)
         result = run_casestudy(
-            scen, cases=[case], time_shift=shift, backend=_backend(backend, host, port), sim=sim
+            scen,
+            cases=[case],
+            time_shift=shift,
+            backend=_backend(backend, host, port, esmini, carla_timeout),
+            sim=sim,
         )
         paths = write_casestudy(result, out, figures=figures)
         doc = summary_document(result)
@@ -243,6 +272,10 @@ def register(app: typer.Typer) -> None:
         backend: Annotated[str, typer.Option("--backend", help=_BACKEND_HELP)] = "builtin",
         host: Annotated[str | None, typer.Option("--host", help=_HOST_HELP)] = None,
         port: Annotated[int | None, typer.Option("--port", help=_PORT_HELP)] = None,
+        esmini: Annotated[Path | None, typer.Option("--esmini", help=_ESMINI_HELP)] = None,
+        carla_timeout: Annotated[
+            float | None, typer.Option("--carla-timeout", help=_CARLA_TIMEOUT_HELP)
+        ] = None,
         figures: Annotated[
             bool, typer.Option("--figures/--no-figures", help="Write the figures.")
         ] = True,
@@ -251,7 +284,11 @@ def register(app: typer.Typer) -> None:
         from vei.experiments.casestudy import run_casestudy, write_casestudy
 
         scen = _read_scenario(scenario)
-        result = run_casestudy(scen, time_shift=time_shift, backend=_backend(backend, host, port))
+        result = run_casestudy(
+            scen,
+            time_shift=time_shift,
+            backend=_backend(backend, host, port, esmini, carla_timeout),
+        )
         write_casestudy(result, out, figures=figures)
         print_summary(result, out)
 
