@@ -5,6 +5,12 @@ Positions (plane x, y [m]) are interpolated per track with one of :data:`INTERP_
 * ``'linear'``: piecewise linear between keyframes (speed is piecewise constant).
 * ``'cubic'``: the paper's cubic spline through every keyframe (scipy ``CubicSpline``,
   not-a-knot ends). It passes exactly through the (noisy) keyframes.
+* ``'kalman'`` (probabilistic): the Rauch-Tung-Striebel smoother of the same constant-velocity
+  model (:mod:`vei.recon.smoother`): its mean is the smoothing spline of ``'smoothing'`` for the
+  same (sigma, q), and it also gives the position's posterior standard deviation
+  (``std(t)``) and samples. The reconstruction estimates (sigma, q) per recording by
+  maximum likelihood over its keyframes. It needs no splitting at long gaps: the posterior
+  bridges a gap and its uncertainty grows there. With fewer than 2 keyframes: one point.
 * ``'smoothing'`` (noise-aware): a cubic smoothing spline (Reinsch's algorithm, the same
   estimate as scipy ``make_smoothing_spline`` but for any K >= 3 keyframes) that minimises ``sum |p_i - f(t_i)|^2 / sigma^2 + (1/q) int |f''(t)|^2 dt``, i.e. ``lam =
   sigma^2 / q``. This is the posterior mean of a constant-velocity motion model driven by
@@ -33,12 +39,14 @@ import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation, Slerp
 
+from vei.recon.smoother import KalmanInterpolant, NoiseEstimate
+
 FloatArray = npt.NDArray[np.float64]
 
 #: Position interpolation methods accepted by the reconstruction.
-INTERP_METHODS: tuple[str, ...] = ("cubic", "linear", "smoothing")
+INTERP_METHODS: tuple[str, ...] = ("cubic", "linear", "smoothing", "kalman")
 #: Fewest keyframes each method needs; shorter tracks fall back to linear.
-MIN_KEYFRAMES: dict[str, int] = {"linear": 2, "cubic": 4, "smoothing": 3}
+MIN_KEYFRAMES: dict[str, int] = {"linear": 2, "cubic": 4, "smoothing": 3, "kalman": 2}
 #: Tolerance on the interpolant's time span [s] (float rounding of grid times).
 _T_TOL_S = 1e-6
 
@@ -150,14 +158,16 @@ def fit_track(
     xy_key_m: npt.ArrayLike,
     method: str = "cubic",
     smoothing: SmoothingParams | None = None,
-) -> TrackInterpolant:
+    noise: NoiseEstimate | None = None,
+) -> TrackInterpolant | KalmanInterpolant:
     """Fit a position interpolant through one track's keyframes.
 
     Args:
         t_key_s: [K] keyframe times [s], strictly increasing.
         xy_key_m: [K, 2] keyframe positions (plane x, y [m]).
         method: one of INTERP_METHODS.
-        smoothing: noise model for 'smoothing' (defaults to SmoothingParams()).
+        smoothing: noise model for 'smoothing' and 'kalman' (defaults to SmoothingParams()).
+        noise: 'kalman' only: the (estimated) noise, overriding ``smoothing``'s.
     Returns:
         TrackInterpolant on [t_key_s[0], t_key_s[-1]]; ``method`` says what was used
         (tracks with fewer than MIN_KEYFRAMES[method] keyframes fall back to 'linear').
@@ -176,6 +186,11 @@ def fit_track(
         return TrackInterpolant("linear", t, xy, None)
     if method == "linear":
         return TrackInterpolant("linear", t, xy, None)
+    if method == "kalman":
+        if noise is None:
+            p = smoothing or SmoothingParams()
+            noise = NoiseEstimate(p.noise_m, p.accel_psd_m2ps3)
+        return KalmanInterpolant(t, xy, noise)
     if method == "cubic":
         return TrackInterpolant("cubic", t, xy, CubicSpline(t, xy, axis=0, bc_type="not-a-knot"))
     params = smoothing or SmoothingParams()
@@ -367,18 +382,23 @@ def fit_track_segmented(
     method: str = "cubic",
     smoothing: SmoothingParams | None = None,
     max_gap_s: float = 3.0,
-) -> TrackInterpolant | SegmentedInterpolant:
+    noise: NoiseEstimate | None = None,
+) -> TrackInterpolant | SegmentedInterpolant | KalmanInterpolant:
     """:func:`fit_track` on each run of keyframes separated by gaps <= max_gap_s [s].
 
     Args:
         t_key_s: [K] strictly increasing times [s]; xy_key_m: [K, 2] positions [m].
-        method, smoothing: as :func:`fit_track`.
-        max_gap_s: a longer time between consecutive keyframes splits the track.
+        method, smoothing, noise: as :func:`fit_track`.
+        max_gap_s: a longer time between consecutive keyframes splits the track
+            ('kalman' is never split: its posterior bridges gaps).
     Returns:
-        A TrackInterpolant when there is no long gap, else a SegmentedInterpolant.
+        A TrackInterpolant when there is no long gap, else a SegmentedInterpolant
+        ('kalman': a KalmanInterpolant).
     """
     t = np.asarray(t_key_s, dtype=np.float64).ravel()
     xy = np.asarray(xy_key_m, dtype=np.float64).reshape(-1, 2)
+    if method == "kalman":
+        return fit_track(t, xy, method, smoothing, noise)
     cuts = np.flatnonzero(np.diff(t) > max_gap_s) + 1 if t.size > 1 else np.zeros(0, dtype=int)
     if cuts.size == 0:
         return fit_track(t, xy, method, smoothing)
