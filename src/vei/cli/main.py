@@ -24,6 +24,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "sim_cmd",
     "export_cmd",
     "sweep_cmd",
+    "catalogue_cmd",
 )
 
 app = typer.Typer(

@@ -1,0 +1,168 @@
+"""``vei catalogue``: the ranked risk catalogue of a dataset; ``vei report``: its HTML report."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+
+def catalogue(
+    dataset: Annotated[
+        Path,
+        typer.Argument(
+            help="A TrafficMonitoring root (holding data/measurements) or a folder of "
+            "interaction folders."
+        ),
+    ],
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out", help="Catalogue folder; running again with the same settings resumes."
+        ),
+    ],
+    settings: Annotated[
+        Path | None,
+        typer.Option(
+            "--settings",
+            help="YAML/JSON: rule, sweep, cases, annotation_rate_hz, recon, map_source, "
+            "max_encounters_per_recording, figures (docs/catalogue.md).",
+        ),
+    ] = None,
+    recording: Annotated[
+        list[str] | None,
+        typer.Option("--recording", help="Only this recording (repeatable); default: all."),
+    ] = None,
+    engine: Annotated[
+        str, typer.Option("--engine", help="local (processes on this machine) or ray.")
+    ] = "local",
+    workers: Annotated[
+        int, typer.Option("--workers", help="Parallel workers (processes or Ray CPUs), >= 1.")
+    ] = 1,
+    n_variants: Annotated[
+        int | None,
+        typer.Option("--n-variants", help="Sweep variants per encounter (overrides the settings)."),
+    ] = None,
+    no_sweep: Annotated[
+        bool, typer.Option("--no-sweep", help="Case study only, no sweep per encounter.")
+    ] = False,
+    map_source: Annotated[
+        Path | None,
+        typer.Option(
+            "--map", help="Local OSM extract, SUMO net or .xodr giving every recording its map."
+        ),
+    ] = None,
+    no_figures: Annotated[
+        bool, typer.Option("--no-figures", help="No PNG/PDF figures per encounter.")
+    ] = False,
+    report: Annotated[
+        bool, typer.Option("--report/--no-report", help="Write report.html at the end.")
+    ] = True,
+    top: Annotated[int, typer.Option("--top", help="Rows of the ranked table printed.")] = 10,
+) -> None:
+    """Find, simulate, sweep, score and rank every car-rider encounter of a dataset."""
+    import time
+
+    from rich.console import Console
+
+    from vei.catalogue import load_catalogue_config, run_catalogue
+    from vei.errors import ConfigError
+
+    t0 = time.perf_counter()
+    overrides: dict = {"figures": False if no_figures else None}
+    if map_source is not None:
+        overrides["map_source"] = str(map_source)
+    config = load_catalogue_config(settings, **overrides)
+    if no_sweep or n_variants is not None:
+        import dataclasses
+
+        sweep = None
+        if not no_sweep:
+            if n_variants < 1:
+                raise ConfigError(f"--n-variants must be >= 1, got {n_variants}")
+            sweep = dict(config.sweep or {})
+            if sweep.get("design") == "grid":
+                raise ConfigError("--n-variants needs a random or lhs sweep design")
+            sweep["n_samples"] = n_variants
+        config = dataclasses.replace(config, sweep=sweep)
+    console = Console(soft_wrap=True) if sys.stdout.isatty() else Console(width=200)
+    result = run_catalogue(
+        dataset, out, config, recordings=recording or None, engine=engine, workers=workers
+    )
+    _print_result(console, result, top)
+    if report:
+        from vei.report.html_report import write_report
+
+        path = write_report(out)
+        console.print(f"report: {path}")
+    console.print(f"wall time: {time.perf_counter() - t0:.1f} s")
+
+
+def _print_result(console, result, top: int) -> None:
+    from rich.table import Table
+
+    table = Table(title="recordings")
+    for col in ("recording", "status", "encounters", "reason"):
+        table.add_column(col)
+    for d in result.recordings:
+        table.add_row(
+            d["recording"],
+            d["status"],
+            ", ".join(e["rider_id"] for e in d.get("encounters", [])) or "-",
+            d.get("reason", ""),
+        )
+    console.print(table)
+    for f in result.failed_encounters:
+        console.print(f"[red]encounter failed[/] {f['encounter_id']}: {f['reason']}")
+    enc = result.encounters
+    if len(enc):
+        t = Table(
+            title=f"encounters ranked by criticality (top {min(top, len(enc))} of {len(enc)})"
+        )
+        cols = (
+            ("rank", "{:d}"),
+            ("encounter_id", "{}"),
+            ("category", "{}"),
+            ("rec_path_distance_m", "{:.2f}"),
+            ("rec_pet_s", "{:.2f}"),
+            ("rec_min_gap_m", "{:.2f}"),
+            ("time_shift_auto_s", "{:.2f}"),
+            ("n_configs", "{:d}"),
+            ("collision_share", "{:.3f}"),
+            ("mean_safety_index", "{:.3f}"),
+            ("worst_min_gap_m", "{:.2f}"),
+            ("casestudy_collisions", "{:d}"),
+        )
+        for c, _ in cols:
+            t.add_column(c, justify="left" if c in ("encounter_id", "category") else "right")
+        for rec in enc.head(top).to_dict("records"):
+            t.add_row(*(fmt.format(rec[c]) if rec[c] == rec[c] else "-" for c, fmt in cols))
+        console.print(t)
+    console.print(
+        f"{len(result.rows)} rows (encounter x configuration) in {result.out_dir / 'catalogue.parquet'}; "
+        f"{result.n_done_before} encounter(s) done by an earlier run; "
+        f"status {'complete' if result.complete else 'partial'}"
+    )
+
+
+def report_cmd(
+    catalogue_dir: Annotated[
+        Path, typer.Argument(help="A catalogue folder (vei catalogue --out).")
+    ],
+    out: Annotated[
+        Path | None, typer.Option("--out", help="HTML file (default CATALOGUE_DIR/report.html).")
+    ] = None,
+) -> None:
+    """Write the self-contained HTML report of a catalogue (works offline)."""
+    from vei.report.html_report import write_report
+
+    path = write_report(catalogue_dir, out)
+    typer.echo(f"report: {path}")
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``vei catalogue`` and ``vei report`` to the app."""
+    app.command("catalogue")(catalogue)
+    app.command("report")(report_cmd)

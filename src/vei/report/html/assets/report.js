@@ -1,0 +1,219 @@
+/* vei catalogue report: sortable overview, per-encounter plots, bird's-eye replay. */
+(function () {
+  "use strict";
+  var DATA = JSON.parse(document.getElementById("vei-data").textContent);
+  var COLOURS = { "replay": "#7f7f7f", "normal": "#1f77b4", "aggressive": "#d62728",
+                  "normal-cap": "#2ca02c", "aggressive-cap": "#ff7f0e" };
+  var PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b"];
+  var ZONE_FILL = ["rgba(46,125,50,0.55)", "rgba(251,192,45,0.7)", "rgba(239,108,0,0.75)", "rgba(198,40,40,0.85)"];
+  var ZONE_NAME = ["TTC safe (> 2 s)", "TTC attention (1-2 s]", "TTC alert (0-1 s]", "collision"];
+  var state = { enc: null, cfg: 0, k: 0, timer: null };
+  window.veiReport = { data: DATA, state: state };
+
+  function colour(name, i) { return COLOURS[name] || PALETTE[i % PALETTE.length]; }
+  function num(v) { return (v === null || v === undefined || v === "None" || v === "nan" || v === "") ? NaN : Number(v); }
+
+  /* ---------------- overview table ---------------- */
+  function sortTable(th) {
+    var table = document.getElementById("overview");
+    var idx = Array.prototype.indexOf.call(th.parentNode.children, th);
+    var asc = !th.classList.contains("asc");
+    Array.prototype.forEach.call(th.parentNode.children, function (h) { h.classList.remove("asc", "desc"); });
+    th.classList.add(asc ? "asc" : "desc");
+    var text = th.getAttribute("data-type") === "text";
+    var body = table.tBodies[0];
+    var rows = Array.prototype.slice.call(body.rows);
+    rows.sort(function (a, b) {
+      var va = a.cells[idx].getAttribute("data-value"), vb = b.cells[idx].getAttribute("data-value");
+      if (text) { return asc ? va.localeCompare(vb) : vb.localeCompare(va); }
+      var na = num(va), nb = num(vb);
+      if (isNaN(na) && isNaN(nb)) { return 0; }
+      if (isNaN(na)) { return 1; }
+      if (isNaN(nb)) { return -1; }
+      return asc ? na - nb : nb - na;
+    });
+    rows.forEach(function (r) { body.appendChild(r); });
+  }
+  Array.prototype.forEach.call(document.querySelectorAll("#overview th"), function (th) {
+    th.addEventListener("click", function () { sortTable(th); });
+  });
+  Array.prototype.forEach.call(document.querySelectorAll("#overview tbody tr"), function (tr) {
+    tr.addEventListener("click", function () { showEncounter(tr.getAttribute("data-encounter")); });
+  });
+
+  /* ---------------- geometry ---------------- */
+  function box(x, y, yaw, L, W) {
+    if (x === null || y === null || !isFinite(x) || !isFinite(y)) { return [[], []]; }
+    if (yaw === null) { yaw = 0; }
+    if (!isFinite(yaw)) { yaw = 0; }
+    var c = Math.cos(yaw), s = Math.sin(yaw), hl = L / 2, hw = W / 2;
+    var pts = [[hl, hw], [hl, -hw], [-hl, -hw], [-hl, hw], [hl, hw]];
+    return [pts.map(function (p) { return x + p[0] * c - p[1] * s; }),
+            pts.map(function (p) { return y + p[0] * s + p[1] * c; })];
+  }
+  function clean(a) { return (a || []).map(function (v) { return v === null ? NaN : v; }); }
+
+  /* ---------------- per-encounter plots ---------------- */
+  var LAYOUT = { margin: { l: 50, r: 10, t: 10, b: 40 }, legend: { font: { size: 10 } } };
+  function lay(extra) { return Object.assign({}, LAYOUT, extra); }
+  var CONF = { responsive: true, displaylogo: false };
+
+  function drawMap(e) {
+    var traces = [];
+    Object.keys(e.tracks).forEach(function (aid, i) {
+      var tr = e.tracks[aid], ego = aid === "ego", main = aid === e.rider_id;
+      traces.push({ x: tr.x, y: tr.y, mode: "lines", name: aid + (main ? " (encounter)" : ""),
+        line: { width: ego || main ? 3 : 1.2, color: ego ? "#000" : (main ? "#d62728" : "#999"),
+                dash: tr.category === "cyclist" && !main ? "dot" : "solid" },
+        text: tr.t.map(function (t) { return "t = " + t.toFixed(1) + " s"; }), hoverinfo: "name+text" });
+    });
+    Plotly.newPlot("map-plot", traces, lay({ xaxis: { title: { text: "x east [m]" }, scaleanchor: "y" }, yaxis: { title: { text: "y north [m]" } } }), CONF);
+  }
+
+  function replayTraces(e, c, k) {
+    var r = e.replay, d = r.dims, egoD = d.ego || [4.7, 1.85], riD = d[e.rider_id] || [1.2, 0.6];
+    var eb = box(c.ego.x[k], c.ego.y[k], c.ego.yaw[k], egoD[0], egoD[1]);
+    var rb = box(c.rider.x[k], c.rider.y[k], c.rider.yaw[k], riD[0], riD[1]);
+    var ox = [], oy = [];
+    Object.keys(c.others).forEach(function (aid) { ox.push(c.others[aid].x[k]); oy.push(c.others[aid].y[k]); });
+    return { eb: eb, rb: rb, ox: ox, oy: oy, zone: c.zone[k] || 0 };
+  }
+
+  function drawReplay() {
+    var e = state.enc, c = e.replay.configs[state.cfg], k = state.k, p = replayTraces(e, c, k);
+    var xs = clean(c.ego.x).concat(clean(c.rider.x)).filter(isFinite);
+    var ys = clean(c.ego.y).concat(clean(c.rider.y)).filter(isFinite);
+    var pad = 5, rx = [Math.min.apply(null, xs) - pad, Math.max.apply(null, xs) + pad];
+    var ry = [Math.min.apply(null, ys) - pad, Math.max.apply(null, ys) + pad];
+    var traces = [
+      { x: p.eb[0], y: p.eb[1], fill: "toself", mode: "lines", name: "ego", fillcolor: ZONE_FILL[p.zone], line: { color: "#000" } },
+      { x: p.rb[0], y: p.rb[1], fill: "toself", mode: "lines", name: e.rider_id, fillcolor: "rgba(214,39,40,0.8)", line: { color: "#800" } },
+      { x: p.ox, y: p.oy, mode: "markers", name: "other riders", marker: { color: "#888", size: 7 } },
+      { x: c.ego.x, y: c.ego.y, mode: "lines", name: "ego path", line: { color: "#000", width: 1, dash: "dot" }, hoverinfo: "skip" },
+      { x: c.rider.x, y: c.rider.y, mode: "lines", name: "rider path", line: { color: "#d62728", width: 1, dash: "dot" }, hoverinfo: "skip" }
+    ];
+    Plotly.newPlot("replay-plot", traces, lay({ xaxis: { title: { text: "x east [m]" }, range: rx, scaleanchor: "y" },
+      yaxis: { title: { text: "y north [m]" }, range: ry }, showlegend: true }), CONF);
+    updateLabels();
+  }
+
+  function setFrame(k) {
+    var e = state.enc, c = e.replay.configs[state.cfg];
+    state.k = Math.max(0, Math.min(k, e.replay.t.length - 1));
+    var p = replayTraces(e, c, state.k);
+    Plotly.restyle("replay-plot", { x: [p.eb[0], p.rb[0], p.ox], y: [p.eb[1], p.rb[1], p.oy] }, [0, 1, 2]);
+    Plotly.restyle("replay-plot", { fillcolor: ZONE_FILL[p.zone] }, [0]);
+    var t = e.replay.t[state.k], cursor = [{ type: "line", xref: "x", yref: "paper", x0: t, x1: t, y0: 0, y1: 1, line: { color: "#000", width: 1 } }];
+    Plotly.relayout("speed-plot", { shapes: cursor });
+    Plotly.relayout("ttc-plot", { shapes: ttcShapes(e).concat(cursor) });
+    updateLabels();
+  }
+
+  function updateLabels() {
+    var e = state.enc, c = e.replay.configs[state.cfg], k = state.k;
+    document.getElementById("time-slider").value = String(k);
+    document.getElementById("time-label").textContent = "t = " + e.replay.t[k].toFixed(2) + " s";
+    var cap = c.cap[k] || "no CAP";
+    var capEl = document.getElementById("cap-label");
+    capEl.textContent = "CAP: " + cap;
+    var z = c.zone[k] || 0, zEl = document.getElementById("zone-label");
+    zEl.textContent = ZONE_NAME[z] + (isFinite(c.ttc[k]) && c.ttc[k] !== null ? " (TTC " + Number(c.ttc[k]).toFixed(2) + " s)" : "");
+    zEl.className = "badge zone-" + z;
+  }
+
+  function drawSpeed(e) {
+    var traces = [], t = e.replay.t;
+    e.replay.configs.forEach(function (c, i) {
+      traces.push({ x: t, y: c.ego.speed, mode: "lines", name: "ego " + c.name, legendgroup: c.name, line: { color: colour(c.name, i), width: 2 } });
+      traces.push({ x: t, y: c.rider.speed, mode: "lines", name: "rider " + c.name, legendgroup: c.name, line: { color: colour(c.name, i), width: 1.5, dash: "dash" } });
+    });
+    Plotly.newPlot("speed-plot", traces, lay({ xaxis: { title: { text: "t [s]" } }, yaxis: { title: { text: "speed [m/s]" }, rangemode: "tozero" } }), CONF);
+  }
+
+  function ttcShapes(e) {
+    var w = e.replay.window, band = function (y0, y1, col) {
+      return { type: "rect", xref: "x", yref: "y", x0: w[0], x1: w[1], y0: y0, y1: y1, fillcolor: col, line: { width: 0 }, layer: "below" };
+    };
+    return [band(0, 1, "rgba(239,108,0,0.18)"), band(1, 2, "rgba(251,192,45,0.18)"), band(2, 10, "rgba(46,125,50,0.10)")];
+  }
+  function drawTTC(e) {
+    var traces = e.replay.configs.map(function (c, i) {
+      return { x: c.ttc_t, y: c.ttc_full, mode: "lines", name: c.name, line: { color: colour(c.name, i) } };
+    });
+    Plotly.newPlot("ttc-plot", traces, lay({ shapes: ttcShapes(e), xaxis: { title: { text: "t [s]" }, range: e.replay.window },
+      yaxis: { title: { text: "TTC [s] (clipped at 10)" }, range: [0, 10] } }), CONF);
+  }
+
+  function drawSummary(e) {
+    var cols = ["name", "collision", "collision_time_s", "safety_index", "min_gap_m", "min_ttc_s", "peak_decel_mps2", "ego_speed_std_mps"];
+    var h = "<table><thead><tr>" + cols.map(function (c) { return "<th>" + c + "</th>"; }).join("") + "</tr></thead><tbody>";
+    e.summary.forEach(function (r) {
+      h += "<tr>" + cols.map(function (c) {
+        var v = r[c];
+        if (typeof v === "number") { v = v.toFixed(3); }
+        if (v === null || v === undefined) { v = "-"; }
+        var span = document.createElement("span"); span.textContent = String(v);
+        return "<td>" + span.innerHTML + "</td>";
+      }).join("") + "</tr>";
+    });
+    h += "</tbody></table><p class=\"note\">time shift " + (e.time_shift_s === null ? "-" : e.time_shift_s.toFixed(2)) + " s (automatic)</p>";
+    document.getElementById("summary-table").innerHTML = h;
+  }
+
+  function drawRisk(e) {
+    var m = e.riskmap, el = document.getElementById("risk-plot");
+    if (!m) { Plotly.purge(el); el.textContent = "no sweep over time shift and cruise speed"; return; }
+    el.textContent = "";
+    var coll = m.points.collision;
+    var traces = [
+      { type: "heatmap", x: m.x, y: m.y, z: m.z, zmin: 0, zmax: 1, colorscale: [[0, "#c62828"], [0.5, "#fbc02d"], [1, "#2e7d32"]], colorbar: { title: { text: "mean SI" } },
+        customdata: m.share, hovertemplate: "offset %{x:.2f} s<br>speed %{y:.2f} m/s<br>mean SI %{z:.3f}<br>collision share %{customdata:.2f}<extra></extra>" },
+      { x: m.points.x.filter(function (_, i) { return coll[i]; }), y: m.points.y.filter(function (_, i) { return coll[i]; }),
+        mode: "markers", name: "collision", marker: { symbol: "x", color: "#000", size: 5 } }
+    ];
+    Plotly.newPlot(el, traces, lay({ xaxis: { title: { text: m.x_label } }, yaxis: { title: { text: m.y_label } }, showlegend: true,
+      legend: { x: 0, y: 1.12, orientation: "h" } }), CONF);
+  }
+
+  function stop() {
+    if (state.timer !== null) { clearInterval(state.timer); state.timer = null; }
+    document.getElementById("play-button").textContent = "play";
+  }
+  function play() {
+    if (state.timer !== null) { stop(); return; }
+    var n = state.enc.replay.t.length;
+    if (state.k >= n - 1) { state.k = 0; }
+    document.getElementById("play-button").textContent = "pause";
+    state.timer = setInterval(function () {
+      if (state.k >= n - 1) { stop(); return; }
+      setFrame(state.k + 1);
+    }, 1000 / 10);
+  }
+
+  function showEncounter(id) {
+    var e = DATA.encounters.filter(function (x) { return x.id === id; })[0];
+    if (!e) { return; }
+    stop();
+    state.enc = e; state.k = 0;
+    document.getElementById("encounter-select").value = id;
+    Array.prototype.forEach.call(document.querySelectorAll("#overview tbody tr"), function (tr) {
+      tr.classList.toggle("selected", tr.getAttribute("data-encounter") === id);
+    });
+    var sel = document.getElementById("config-select");
+    sel.innerHTML = "";
+    e.replay.configs.forEach(function (c, i) { var o = document.createElement("option"); o.value = String(i); o.textContent = c.name; sel.appendChild(o); });
+    state.cfg = 0;
+    var slider = document.getElementById("time-slider");
+    slider.max = String(e.replay.t.length - 1); slider.value = "0";
+    drawMap(e); drawSpeed(e); drawTTC(e); drawSummary(e); drawRisk(e); drawReplay();
+  }
+
+  document.getElementById("encounter-select").addEventListener("change", function (ev) { showEncounter(ev.target.value); });
+  document.getElementById("config-select").addEventListener("change", function (ev) { state.cfg = Number(ev.target.value); drawReplay(); setFrame(state.k); });
+  document.getElementById("time-slider").addEventListener("input", function (ev) { stop(); setFrame(Number(ev.target.value)); });
+  document.getElementById("play-button").addEventListener("click", play);
+  window.veiReport.showEncounter = showEncounter;
+  window.veiReport.setFrame = setFrame;
+  if (DATA.encounters.length) { showEncounter(DATA.encounters[0].id); }
+  window.veiReport.ready = true;
+})();

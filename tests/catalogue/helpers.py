@@ -1,0 +1,49 @@
+"""A small real catalogue (two TrafficMonitoring recordings, a 24-variant sweep), built once
+per test session and shared by tests/catalogue and tests/report."""
+
+from __future__ import annotations
+
+import atexit
+import functools
+import shutil
+import tempfile
+from pathlib import Path
+
+#: Recordings of the small catalogue: three encounters in all (stadtmitte_12: cyclist_60,
+#: cyclist_12; audi_08_klinikum_rechtsabbiegen_02: cyclist_2).
+SMALL_RECORDINGS = ("audi_08_klinikum_rechtsabbiegen_02", "stadtmitte_12_audi_geradeaus_03")
+
+SMALL_SWEEP = {
+    "design": "lhs",
+    "n_samples": 24,
+    "seed": 3,
+    "base": "normal-cap",
+    "time_shift_reference": "auto",
+    "parameters": {
+        "time_shift_s": {"min": -2.0, "max": 2.0},
+        "ego.cruise_speed_mps": {"min": 3.0, "max": 9.0},
+        "rider_model": {"choices": ["replay", "normal"]},
+    },
+}
+
+
+def small_config(**kw):
+    """The CatalogueConfig of the small catalogue (figures off unless given)."""
+    from vei.catalogue import CatalogueConfig
+
+    kw.setdefault("figures", False)
+    return CatalogueConfig(sweep=SMALL_SWEEP, **kw)
+
+
+@functools.lru_cache(maxsize=1)
+def build_small_catalogue(dataset: str) -> Path:
+    """Run the small catalogue once (cached) and return its folder."""
+    from vei.catalogue import run_catalogue
+
+    out = Path(tempfile.mkdtemp(prefix="vei-small-catalogue-"))
+    atexit.register(shutil.rmtree, out, True)
+    result = run_catalogue(
+        dataset, out, small_config(), recordings=list(SMALL_RECORDINGS), progress=False
+    )
+    assert result.complete, result.failed_encounters
+    return out
