@@ -164,6 +164,11 @@ def probe_carla(host: str, port: int, timeout_s: float) -> str:
             raise BackendError(
                 f"the CARLA server at {where} did not answer within {timeout_s:g} s{_shown(buf)}"
             ) from exc
+        except ConnectionError as exc:  # reset / aborted / broken pipe: it hung up on us
+            raise BackendError(
+                f"the server at {where} closed the connection without answering CARLA's "
+                f"version request ({exc.strerror or exc}){_shown(buf)}: not a CARLA server. {hint}"
+            ) from exc
         except ValueError as exc:
             raise BackendError(
                 f"the server at {where} does not speak CARLA's msgpack-rpc ({exc}){_shown(buf)}. {hint}"
