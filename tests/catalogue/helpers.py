@@ -32,7 +32,8 @@ def small_config(**kw):
     from vei.catalogue import CatalogueConfig
 
     kw.setdefault("figures", False)
-    return CatalogueConfig(sweep=SMALL_SWEEP, **kw)
+    kw.setdefault("sweep", SMALL_SWEEP)
+    return CatalogueConfig(**kw)
 
 
 @functools.lru_cache(maxsize=1)

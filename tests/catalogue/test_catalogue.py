@@ -1,0 +1,201 @@
+"""vei catalogue: encounter rule (hand-computed), real catalogue, kill + resume, failures, CLI."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tests.catalogue.helpers import SMALL_RECORDINGS, SMALL_SWEEP, small_config
+from vei.catalogue import EncounterRule, find_encounters, run_catalogue
+from vei.catalogue.store import done_encounters, encounter_dir
+from vei.errors import ConfigError
+from vei.types import AgentInfo, Scenario
+
+
+def _scenario() -> Scenario:
+    """Ego along +x at 5 m/s (x = 5 t); rider A along +y at x = 20 m, y = 2 (t - 6):
+    it crosses the ego path at t = 6 s, the ego is there at t = 4 s (PET 2 s, 90 deg);
+    rider B parallel to the ego 30 m to the side (never an encounter)."""
+    t = np.round(np.arange(0.0, 10.0 + 1e-9, 0.05), 6)
+    rows = [
+        pd.DataFrame(dict(t_s=t, agent_id="ego", source_track_id=None, category="ego",
+                          x_m=5 * t, y_m=0 * t, yaw_rad=0 * t, speed_mps=5 + 0 * t)),
+        pd.DataFrame(dict(t_s=t, agent_id="cyclist_a", source_track_id="a", category="cyclist",
+                          x_m=20 + 0 * t, y_m=2 * (t - 6), yaw_rad=math.pi / 2 + 0 * t,
+                          speed_mps=2 + 0 * t)),
+        pd.DataFrame(dict(t_s=t, agent_id="escooter_b", source_track_id="b", category="escooter",
+                          x_m=5 * t, y_m=30 + 0 * t, yaw_rad=0 * t, speed_mps=5 + 0 * t)),
+    ]  # fmt: skip
+    return Scenario(
+        id="synthetic",
+        projection="+proj=tmerc +lat_0=48 +lon_0=11",
+        origin_lat_deg=48.0,
+        origin_lon_deg=11.0,
+        start_time_utc=datetime(2021, 2, 9, tzinfo=UTC),
+        rate_hz=20.0,
+        bounds={"south_deg": 47.9, "west_deg": 10.9, "north_deg": 48.1, "east_deg": 11.1},
+        agents=(
+            AgentInfo("ego", "ego", 4.7, 1.85),
+            AgentInfo("cyclist_a", "cyclist", 1.8, 0.6, "a"),
+            AgentInfo("escooter_b", "escooter", 1.2, 0.6, "b"),
+        ),
+        primary_threat="cyclist_a",
+        trajectories=pd.concat(rows, ignore_index=True),
+    )
+
+
+def test_encounter_figures_hand_computed():
+    found, others = find_encounters(_scenario())
+    assert [e.rider_id for e in found] == ["cyclist_a"]
+    assert [e.rider_id for e in others] == ["escooter_b"]
+    a = found[0]
+    assert a.path_distance_m == pytest.approx(0.0, abs=1e-9)
+    assert a.pet_s == pytest.approx(2.0, abs=1e-6)  # rider at x=20 at t=6, ego at t=4
+    assert a.crossing_angle_deg == pytest.approx(90.0)
+    # same-time gap: |(20 - 5t, 2(t-6))| is smallest at t = (100 + 24) / 29 = 4.276 s
+    t_star = 124 / 29
+    gap = math.hypot(20 - 5 * t_star, 2 * (t_star - 6))
+    assert a.min_gap_m == pytest.approx(gap, abs=0.02)
+    assert a.t_closest_s == pytest.approx(t_star, abs=0.05)
+    b = others[0]
+    assert b.path_distance_m == pytest.approx(30.0) and b.min_gap_m == pytest.approx(30.0)
+    # the rule: B passes within 30 m -> an encounter only with a 30 m gap bound
+    found2, _ = find_encounters(_scenario(), EncounterRule(gap_max_m=30.0))
+    assert {e.rider_id for e in found2} == {"cyclist_a", "escooter_b"}
+    # a PET bound below 2 s drops A's route clause; its same-time gap (3.7 m) keeps it unless < 3.7
+    found3, _ = find_encounters(_scenario(), EncounterRule(pet_max_s=1.0, gap_max_m=3.0))
+    assert found3 == []
+
+
+def test_rule_validation():
+    with pytest.raises(ConfigError, match="pet_max_s"):
+        EncounterRule(pet_max_s=-1.0)
+    with pytest.raises(ConfigError, match="categories"):
+        EncounterRule(categories=("pedestrian",))
+
+
+def test_small_catalogue_table(small_catalogue):
+    rows = pd.read_parquet(small_catalogue / "catalogue.parquet")
+    enc = pd.read_csv(small_catalogue / "encounters.csv")
+    n_enc = 3
+    assert len(enc) == n_enc
+    assert len(rows) == n_enc * (5 + SMALL_SWEEP["n_samples"])
+    assert not rows.duplicated(["encounter_id", "kind", "config"]).any()
+    assert list(rows["rank"]) == list(range(1, len(rows) + 1))
+    assert list(enc["rank"]) == list(range(1, n_enc + 1))
+    # rows are ranked: collisions first, then safety index ascending
+    coll = rows["collision"].to_numpy(bool)
+    assert not (np.diff(coll.astype(int)) > 0).any()
+    si = rows.loc[coll, "safety_index"].to_numpy()
+    assert (si == 0).all()
+    # the encounter ranking follows the collision share
+    assert (np.diff(enc["collision_share"].to_numpy()) <= 1e-12).all()
+    share = rows.groupby("encounter_id")["collision"].mean()
+    for r in enc.itertuples():
+        assert r.collision_share == pytest.approx(share[r.encounter_id])
+    # the paper's encounter: stadtmitte_12 cyclist_60 collides without CAP, not with it
+    cs = rows[
+        (rows["encounter_id"] == "stadtmitte_12_audi_geradeaus_03__cyclist_60")
+        & (rows["kind"] == "casestudy")
+    ]
+    outcome = dict(zip(cs["config"], cs["collision"], strict=True))
+    assert outcome == {"replay": True, "normal": True, "aggressive": True,
+                       "normal-cap": False, "aggressive-cap": False}  # fmt: skip
+
+
+_CHILD = """
+import sys
+sys.path.insert(0, {root!r})
+from tests.catalogue.helpers import small_config, SMALL_RECORDINGS
+from vei.catalogue import run_catalogue
+run_catalogue({dataset!r}, {out!r}, small_config(), recordings=list(SMALL_RECORDINGS), progress=False)
+"""
+
+
+def test_killed_run_resumes_without_loss_or_duplicates(
+    tmp_path, trafficmonitoring_root, small_catalogue
+):
+    out = tmp_path / "cat"
+    code = _CHILD.format(
+        root=str(Path(__file__).parents[2]), dataset=str(trafficmonitoring_root), out=str(out)
+    )
+    proc = subprocess.Popen([sys.executable, "-c", code], env={**os.environ, "PYTHONHASHSEED": "0"})
+    deadline = time.monotonic() + 240
+    try:
+        while not done_encounters(out):
+            assert proc.poll() is None, "the run ended before it could be killed"
+            assert time.monotonic() < deadline, "no encounter finished in time"
+            time.sleep(0.05)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    before = done_encounters(out)
+    assert 1 <= len(before) < 3, before
+    stamps = {e: (encounter_dir(out, e) / "rows.parquet").stat().st_mtime_ns for e in before}
+    assert not (out / "catalogue.parquet").exists()
+
+    result = run_catalogue(
+        trafficmonitoring_root,
+        out,
+        small_config(),
+        recordings=list(SMALL_RECORDINGS),
+        progress=False,
+    )
+    assert result.complete and result.n_done_before == len(before)
+    for e, ns in stamps.items():  # done encounters were not run again
+        assert (encounter_dir(out, e) / "rows.parquet").stat().st_mtime_ns == ns
+    resumed = pd.read_parquet(out / "catalogue.parquet")
+    reference = pd.read_parquet(small_catalogue / "catalogue.parquet")
+    assert not resumed.duplicated(["encounter_id", "kind", "config"]).any()
+    pd.testing.assert_frame_equal(resumed, reference)
+
+
+def test_failed_recordings_are_reported_and_skipped(tmp_path, trafficmonitoring_root):
+    result = run_catalogue(
+        trafficmonitoring_root,
+        tmp_path / "cat",
+        small_config(sweep=None),
+        recordings=["marktkauf_04_audi_rechtsabbiegen", "klinikum_01_marktkauf_geradeaus"],
+        progress=False,
+    )
+    by = {d["recording"]: d for d in result.recordings}
+    bad = by["marktkauf_04_audi_rechtsabbiegen"]
+    assert bad["status"] == "failed" and "no e-scooter or cyclist" in bad["reason"]
+    ok = by["klinikum_01_marktkauf_geradeaus"]
+    assert ok["status"] == "ok" and [e["rider_id"] for e in ok["encounters"]] == ["escooter_9"]
+    assert result.complete and len(result.rows) == 5  # the case study only
+
+
+def test_other_settings_refused(tmp_path, trafficmonitoring_root):
+    out = tmp_path / "cat"
+    run_catalogue(trafficmonitoring_root, out, small_config(sweep=None),
+                  recordings=["klinikum_01_marktkauf_geradeaus"], progress=False)  # fmt: skip
+    with pytest.raises(ConfigError, match="other settings"):
+        run_catalogue(trafficmonitoring_root, out, small_config(), progress=False)
+
+
+def test_cli_catalogue_and_report(tmp_path, trafficmonitoring_root):
+    from vei.cli.main import main
+
+    out = tmp_path / "cli"
+    code = main(["catalogue", str(trafficmonitoring_root), "--out", str(out),
+                 "--recording", "klinikum_01_marktkauf_geradeaus",
+                 "--recording", "marktkauf_05_klinikum_geradeaus",
+                 "--n-variants", "8", "--no-figures"])  # fmt: skip
+    assert code == 0
+    assert (out / "report.html").stat().st_size > 1_000_000  # plotly embedded
+    rows = pd.read_parquet(out / "catalogue.parquet")
+    assert len(rows) == 5 + 8
+    assert main(["catalogue", str(trafficmonitoring_root), "--out", str(tmp_path / "x"),
+                 "--recording", "nope"]) == 2  # fmt: skip
+    assert main(["report", str(tmp_path)]) == 2
