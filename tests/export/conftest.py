@@ -1,8 +1,10 @@
-"""Fixtures of the export tests: a crossing run on a straight two-lane road, the checker."""
+"""Fixtures of the export tests: a crossing run on a straight two-lane road, the checker,
+and the demo + real recordings (with the engine's five runs) for the esmini playback tests."""
 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -68,3 +70,87 @@ def qc_bin() -> Path:
         return find_qc_openscenario()
     except DependencyError as exc:
         pytest.skip(f"ASAM quality checker absent and VEI_QC_BIN unset: {exc}")
+
+
+# ---- real scenarios for the playback tests (esmini) ---------------------------------------
+
+#: The trafficmonitoring recordings with a rider (the other two, marktkauf_04 and
+#: marktkauf_05, have none: the importer refuses them).
+REAL_WITH_RIDER = (
+    "audi_08_klinikum_rechtsabbiegen",
+    "audi_08_klinikum_rechtsabbiegen_02",
+    "audi_08_stadtmitte_geradeaus",
+    "audi_10_marktkauf_linksabbiegen",
+    "klinikum_01_marktkauf_geradeaus",
+    "stadtmitte_11_marktkauf_rechtsabbiegen_02",
+    "stadtmitte_12_audi_geradeaus_03",
+)
+#: The SUMO network of the recordings' area (converted to OpenDRIVE by reconstruct --map).
+INGOLSTADT_NET = ("maps", "ingolstadt_research_intersection.net.xml.gz")
+
+
+@dataclass(frozen=True)
+class PlaybackWorld:
+    """One scenario folder and the built-in engine's run of the five configurations.
+
+    Attributes:
+        name: 'demo' or the recording's name.
+        folder: the scenario folder (with map.xodr for real recordings).
+        scenario: the read scenario.
+        frame: time series of the five paper configurations (auto time shift).
+    """
+
+    name: str
+    folder: Path
+    scenario: object
+    frame: pd.DataFrame
+
+    @property
+    def xodr(self) -> Path | None:
+        """The scenario's OpenDRIVE map, if any."""
+        rel = self.scenario.maps.get("opendrive")
+        return None if rel is None else self.folder / rel
+
+
+@pytest.fixture(scope="session")
+def playback_world(tmp_path_factory):
+    """name -> :class:`PlaybackWorld`, built on first use and kept for the session.
+
+    'demo' is the synthetic demo (no map); a recording is imported and reconstructed with
+    the CLI exactly as a user would (``vei import trafficmonitoring`` + ``vei reconstruct
+    --map <the Ingolstadt SUMO network>``).
+    """
+    from tests.conftest import require_data
+    from vei.cli.main import main
+    from vei.config import PAPER_CASES
+    from vei.experiments.casestudy import run_casestudy
+    from vei.io.scenario import read_scenario, write_scenario
+
+    cache: dict[str, PlaybackWorld] = {}
+    root = tmp_path_factory.mktemp("playback_world")
+
+    def get(name: str) -> PlaybackWorld:
+        if name in cache:
+            return cache[name]
+        folder = root / name / "scenario"
+        if name == "demo":
+            from vei.experiments.demo_data import demo_interaction
+            from vei.recon.pipeline import reconstruct
+
+            write_scenario(reconstruct(demo_interaction()), folder)
+        else:
+            tm = require_data("trafficmonitoring")
+            net = require_data(*INGOLSTADT_NET)
+            inter = root / name / "interaction"
+            args = ["import", "trafficmonitoring", "--root", str(tm), "--scenario", name,
+                    "--out", str(inter)]  # fmt: skip
+            assert main(args) == 0, name
+            args = ["reconstruct", str(inter), "--out", str(folder), "--no-figure",
+                    "--map", str(net)]  # fmt: skip
+            assert main(args) == 0, name
+        scenario = read_scenario(folder)
+        frame = run_casestudy(scenario, cases=list(PAPER_CASES), time_shift="auto").frame
+        cache[name] = PlaybackWorld(name, folder, scenario, frame)
+        return cache[name]
+
+    return get

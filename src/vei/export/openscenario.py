@@ -4,7 +4,9 @@ What the exported ``.xosc`` holds:
 
 - ``RoadNetwork/LogicFile``: the scenario's OpenDRIVE map, copied next to the ``.xosc``
   and referenced by its bare file name (a path relative to the ``.xosc``, which esmini
-  and CARLA ScenarioRunner both resolve against the scenario file's folder).
+  and CARLA ScenarioRunner both resolve against the scenario file's folder: esmini 3.6
+  loads it so, checked by the playback tests). The copy's geoReference is written on one
+  line without ``+no_defs`` (esmini reports both as unsupported; see _tidy_geo_reference).
 - One ``ScenarioObject`` per agent, named by its ``agent_id``, with a ``BoundingBox`` from
   the agent's footprint (the entity's reference point is the box centre: the box's
   ``Center`` is (0, 0, height/2), so the trajectory positions are box centres, the same
@@ -39,6 +41,7 @@ it for the duration of one call, so do not export from several threads at once.
 from __future__ import annotations
 
 import math
+import re
 import shutil
 from collections.abc import Mapping, Sequence
 from datetime import datetime
@@ -284,6 +287,7 @@ def export_openscenario(
         if target.resolve() != xodr.resolve():
             with atomic_path(target) as tmp:
                 shutil.copyfile(xodr, tmp)
+                _tidy_geo_reference(tmp)
 
     present = [a for a in agents if a.agent_id in set(df["agent_id"])]
     opts = BuildOptions(
@@ -374,6 +378,28 @@ def read_openscenario_trajectories(path: str | Path) -> pd.DataFrame:
     return out.sort_values(["agent_id", "kind", "t_s"], kind="stable").reset_index(drop=True)
 
 
+_GEO_REF = re.compile(
+    rb"<geoReference>\s*<!\[CDATA\[(?P<proj>.*?)\]\]>\s*</geoReference>", re.DOTALL
+)
+
+
+def _tidy_geo_reference(xodr: Path) -> None:
+    """Write the map's geoReference PROJ string on one line, without ``+no_defs``.
+
+    netconvert writes it inside a CDATA block with surrounding newlines and a trailing
+    ``+no_defs``; esmini splits the string on blanks and reports the empty token and
+    ``+no_defs`` as unsupported attributes (two error lines per load). ``+no_defs`` is a
+    no-op since PROJ 6 and CARLA reads only ``+lat_0`` / ``+lon_0``: the frame is unchanged.
+    """
+    data = xodr.read_bytes()
+    m = _GEO_REF.search(data)
+    if m is None:
+        return
+    tokens = [t for t in m["proj"].split() if t != b"+no_defs"]
+    tidy = b"<geoReference><![CDATA[" + b" ".join(tokens) + b"]]></geoReference>"
+    xodr.write_bytes(data[: m.start()] + tidy + data[m.end() :])
+
+
 def _parent_entity_ref(scope, action) -> str | None:
     """The ``entityRef`` of the ``EntityAction`` holding ``action`` (searched in ``scope``)."""
     for ea in scope.iter("EntityAction"):
@@ -397,12 +423,14 @@ def _vertex_rows(fta, actors, cats, wp) -> list[tuple]:
 
 
 def timeseries_to_trajectories(
-    timeseries: pd.DataFrame, *, config: str | None = None, variant: int = 0
+    timeseries: pd.DataFrame, *, config: str | None = None, variant: int | None = None
 ) -> pd.DataFrame:
     """Rows of one run of a time series (TIMESERIES_COLUMNS) ready for the export.
 
-    Keeps the rows of ``config`` (the only config if None) and ``variant`` where the agent
-    is ``active``; returns columns t_s, agent_id, category, x_m, y_m, yaw_rad, speed_mps.
+    Keeps the rows of ``config`` (the only config if None) and ``variant`` (the config's
+    only variant if None; a batch of several configs numbers its variants 0, 1, ...)
+    where the agent is ``active``; returns columns t_s, agent_id, category, x_m, y_m,
+    yaw_rad, speed_mps. InputError if the choice is ambiguous or empty.
     """
     df = timeseries
     if "config" in df:
@@ -420,6 +448,20 @@ def timeseries_to_trajectories(
             )
         df = df[df["config"].astype(str) == config]
     if "variant" in df:
+        variants = sorted(set(df["variant"].astype(int)))
+        if variant is None:
+            if len(variants) > 1:
+                raise InputError(
+                    f"time series holds several variants ({', '.join(map(str, variants))})"
+                    " of this config: choose one",
+                    field="variant",
+                )
+            variant = variants[0] if variants else 0
+        elif variant not in variants:
+            raise InputError(
+                f"variant {variant} not in the time series ({', '.join(map(str, variants))})",
+                field="variant",
+            )
         df = df[df["variant"] == variant]
     if "active" in df:
         df = df[df["active"].astype(bool)]
