@@ -68,7 +68,11 @@ def test_casestudy_with_a_custom_backend_scores_and_writes(tmp_path, demo_scenar
     # no crash: the ego stops with a box gap of 30 - 17 - 2.35 - 0.6 = 10.05 m
     assert res.summary["min_gap_m"].iloc[3] == pytest.approx(10.05)
     assert res.paper_outcome()["reproduced"] is True
-    assert res.time_shift == {"mode": "given"} and res.time_shift_s == 1.5
+    # A given shift is evaluated too: its miss distance and whether the paths meet.
+    assert res.time_shift["mode"] == "given" and res.time_shift_s == 1.5
+    assert res.time_shift["time_shift_s"] == 1.5 and res.time_shift["miss_distance_m"] >= 0
+    assert res.criticality["make_critical"] == "timing"
+    assert res.criticality["paths_meet"] == res.time_shift["paths_meet"]
     paths = write_casestudy(res, tmp_path, figures=False)
     doc = json.loads(paths["summary_json"].read_text())
     assert doc["scenario_id"] == demo_scenario.id

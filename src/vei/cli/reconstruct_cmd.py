@@ -73,6 +73,15 @@ def register(app: typer.Typer) -> None:
                 "SUMO network (.net.xml[.gz]) or OpenDRIVE (.xodr). Omit for no map.",
             ),
         ] = None,
+        threat: Annotated[
+            str | None,
+            typer.Option(
+                "--threat",
+                help="The primary threat (agent id such as escooter_78, or the annotations' track "
+                "id 78) instead of the rule's choice (conflicting e-scooters first, then cyclists; "
+                "smallest post-encroachment time).",
+            ),
+        ] = None,
     ) -> None:
         """Reconstruct a scenario from a recorded interaction (paper Section III-B)."""
         from vei.io.interaction import read_interaction
@@ -84,7 +93,7 @@ def register(app: typer.Typer) -> None:
             rate_hz=rate_hz, interp=interp, noise_m=noise_m, margin_m=margin_m
         )
         data = read_interaction(interaction)
-        scenario = run_reconstruct(data, config)
+        scenario = run_reconstruct(data, config, threat=threat)
         out.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix=".vei-map-", dir=out.parent) as work:
             writers = {}
@@ -146,7 +155,11 @@ def print_report(scenario, out: Path) -> None:
             )
         table.add_row(*row)
     console.print(table)
-    console.print(f"primary threat (*): {scenario.primary_threat or 'none'}")
+    chosen = scenario.extra.get("threat", {}).get("chosen_by", "rule")
+    console.print(
+        f"primary threat (*): {scenario.primary_threat or 'none'}"
+        + (" (chosen by --threat)" if chosen == "user" else "")
+    )
     if errors is not None and errors.get("riders"):
         s = errors["riders"]
         console.print(

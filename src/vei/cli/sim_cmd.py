@@ -23,6 +23,15 @@ import typer
 #: The real scenario of ``vei demo --real`` (a cyclist crosses the car's path, two e-scooters nearby).
 REAL_DEMO_SCENARIO = "stadtmitte_12_audi_geradeaus_03"
 
+_THREAT_HELP = (
+    "The rider to simulate (agent id such as escooter_78, or the recording's track id 78) "
+    "instead of the scenario's primary threat."
+)
+_CRITICAL_HELP = (
+    "How to make the recording critical: 'timing' (the paper: time shift only) or "
+    "'timing+path' (the smallest offset/rotation of the rider's path that lets a time "
+    "shift make the paths meet; its size is printed and written to the summary)."
+)
 _TIME_SHIFT_HELP = (
     "Time shift of the primary rider in seconds (positive: it comes later), or 'auto': the "
     "shift that makes the replayed paths meet in space-time (computed under replay's ego motion)."
@@ -124,6 +133,10 @@ def print_summary(result, out: Path | None = None, console=None) -> None:
             *[_fmt(rec[key], fmt or "") if fmt else _fmt(rec[key]) for _, key, fmt in cols]
         )
     console.print(table)
+    crit = getattr(result, "criticality", None) or {}
+    for key in ("perturbation_message", "message"):
+        if crit.get(key):
+            console.print(escape(crit[key]))
     outcome = result.paper_outcome()
     if outcome["reproduced"] is not None:
         verdict = "reproduced" if outcome["reproduced"] else "NOT reproduced"
@@ -207,6 +220,10 @@ def register(app: typer.Typer) -> None:
                 help=_TIME_SHIFT_HELP + " Default: the run file's time_shift, else auto.",
             ),
         ] = None,
+        threat: Annotated[str | None, typer.Option("--threat", help=_THREAT_HELP)] = None,
+        make_critical: Annotated[
+            str, typer.Option("--make-critical", help=_CRITICAL_HELP)
+        ] = "timing",
         backend: Annotated[str, typer.Option("--backend", help=_BACKEND_HELP)] = "builtin",
         host: Annotated[str | None, typer.Option("--host", help=_HOST_HELP)] = None,
         port: Annotated[int | None, typer.Option("--port", help=_PORT_HELP)] = None,
@@ -236,6 +253,8 @@ def register(app: typer.Typer) -> None:
             time_shift=shift,
             backend=_backend(backend, host, port, esmini, carla_timeout),
             sim=sim,
+            threat=threat,
+            make_critical=make_critical,
         )
         paths = write_casestudy(result, out, figures=figures)
         doc = summary_document(result)
@@ -247,6 +266,7 @@ def register(app: typer.Typer) -> None:
             "time_shift": doc["time_shift"],
             "backend": doc["backend"],
             "metrics_config": doc["metrics_config"],
+            "criticality": doc["criticality"],
             "metrics": doc["configs"][0],
             "case_config": doc["case_configs"][case.name],
         }
@@ -269,6 +289,10 @@ def register(app: typer.Typer) -> None:
             ),
         ],
         time_shift: Annotated[str, typer.Option("--time-shift", help=_TIME_SHIFT_HELP)] = "auto",
+        threat: Annotated[str | None, typer.Option("--threat", help=_THREAT_HELP)] = None,
+        make_critical: Annotated[
+            str, typer.Option("--make-critical", help=_CRITICAL_HELP)
+        ] = "timing",
         backend: Annotated[str, typer.Option("--backend", help=_BACKEND_HELP)] = "builtin",
         host: Annotated[str | None, typer.Option("--host", help=_HOST_HELP)] = None,
         port: Annotated[int | None, typer.Option("--port", help=_PORT_HELP)] = None,
@@ -288,6 +312,8 @@ def register(app: typer.Typer) -> None:
             scen,
             time_shift=time_shift,
             backend=_backend(backend, host, port, esmini, carla_timeout),
+            threat=threat,
+            make_critical=make_critical,
         )
         write_casestudy(result, out, figures=figures)
         print_summary(result, out)

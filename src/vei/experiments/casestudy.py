@@ -69,6 +69,7 @@ class CaseStudyResult:
     t_s: np.ndarray
     ttc_s: np.ndarray
     metrics_config: MetricsConfig = field(default_factory=MetricsConfig)
+    criticality: dict[str, Any] = field(default_factory=dict)
 
     @property
     def other_id(self) -> str:
@@ -168,16 +169,6 @@ def get_backend(name: str) -> Runner:
 
 
 # ------------------------------------------------------------------------------ case study
-def _auto_time_shift(scenario: Scenario, sim: SimConfig) -> tuple[float, dict[str, Any]]:
-    from vei.experiments.timeshift import find_time_shift
-
-    found = find_time_shift(scenario, sim=sim)
-    if isinstance(found, int | float):
-        return float(found), {"mode": "auto"}
-    info = dict(found.as_dict()) if hasattr(found, "as_dict") else {}
-    return float(found.time_shift_s), {"mode": "auto", **info}
-
-
 def run_casestudy(
     scenario: Scenario,
     *,
@@ -186,11 +177,18 @@ def run_casestudy(
     backend: str | Runner = "builtin",
     sim: SimConfig | None = None,
     metrics_config: MetricsConfig | None = None,
+    threat: str | None = None,
+    make_critical: str = "timing",
 ) -> CaseStudyResult:
     """Run the configurations on one scenario with one time shift and score them.
 
     Args:
         scenario: reconstructed scenario with a primary threat (a rider).
+        threat: the rider to simulate instead of the primary threat (agent or track id).
+        make_critical: 'timing' (the paper's time shift) or 'timing+path' (the smallest
+            change of the rider's path that lets a shift make the paths meet;
+            vei.experiments.critical_path). Whether the paths meet, the miss distance and
+            the change are in ``result.criticality``.
         cases: configuration names / CaseConfigs (default: the paper's five, in order).
         time_shift: 'auto' or seconds (positive: the rider comes later).
         backend: 'builtin', 'carla', or a Runner callable.
@@ -207,11 +205,13 @@ def run_casestudy(
     case_objs = resolve_cases(cases)
     sim = SimConfig() if sim is None else sim
     mcfg = MetricsConfig() if metrics_config is None else metrics_config
-    shift = parse_time_shift(time_shift)
-    if shift == "auto":
-        shift_s, shift_info = _auto_time_shift(scenario, sim)
-    else:
-        shift_s, shift_info = float(shift), {"mode": "given"}
+    from vei.experiments.critical_path import make_critical as _make_critical
+    from vei.recon.threat import with_threat
+
+    scenario = with_threat(scenario, threat)
+    scenario, shift_s, shift_info, criticality = _make_critical(
+        scenario, time_shift=parse_time_shift(time_shift), mode=make_critical, sim=sim
+    )
     runner = get_backend(backend) if isinstance(backend, str) else backend
     backend_name = backend if isinstance(backend, str) else getattr(backend, "__name__", "custom")
     frame = runner(scenario, case_objs, shift_s, sim)
@@ -243,6 +243,7 @@ def run_casestudy(
         t_s=np.asarray(trace.t_s),
         ttc_s=paper_ttc(trace, mcfg),
         metrics_config=mcfg,
+        criticality=criticality,
     )
 
 
@@ -264,6 +265,7 @@ def summary_document(result: CaseStudyResult) -> dict[str, Any]:
         "backend": result.backend,
         "metrics_config": asdict(result.metrics_config),
         "paper_outcome": result.paper_outcome(),
+        "criticality": _json_safe(result.criticality),
         "configs": configs,
         "case_configs": {c.name: config_to_dict(c) for c in result.cases},
     }
