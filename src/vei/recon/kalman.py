@@ -163,40 +163,53 @@ def kalman_filter(
     dt = np.diff(batch.t_s, axis=1, prepend=batch.t_s[:, :1])
     f, q1 = transition(dt, order)
     q = q1 * psd[:, None, None, None]
+    ft = np.swapaxes(f, 2, 3)
+    ht = h.T
     m_pred = np.zeros((bsz, tlen, n, d))
     m_filt = np.zeros((bsz, tlen, n, d))
     p_pred = np.zeros((bsz, tlen, n, n))
     p_filt = np.zeros((bsz, tlen, n, n))
     loglik = np.zeros(bsz)
-    n_obs = np.zeros(bsz)
+    n_obs = batch.mask.sum(axis=1) * float(k * d)
     first = np.argmax(batch.mask, axis=1)
     m = np.zeros((bsz, n, d))
     m[:, 0, :] = batch.obs[np.arange(bsz), first, 0, :]
     p = np.broadcast_to(np.diag(PRIOR_VAR[:n]), (bsz, n, n)).copy()
-    eye = np.eye(n)
     for t in range(tlen):
         if t > 0:
             m = f[:, t] @ m
-            p = f[:, t] @ p @ np.swapaxes(f[:, t], 1, 2) + q[:, t]
+            p = f[:, t] @ p @ ft[:, t] + q[:, t]
         m_pred[:, t], p_pred[:, t] = m, p
         obs = batch.mask[:, t]
         if obs.any():
-            mo, po, ro = m[obs], p[obs], r[obs]
-            s = h @ po @ h.T + ro  # [b, k, k]
-            e = batch.obs[obs, t] - h @ mo  # [b, k, d]
-            gain = np.swapaxes(np.linalg.solve(s, h @ po), 1, 2)  # [b, n, k]
-            m = m.copy()
-            p = p.copy()
-            m[obs] = mo + gain @ e
-            ikh = eye - gain @ h
-            p[obs] = ikh @ po @ np.swapaxes(ikh, 1, 2) + gain @ ro @ np.swapaxes(gain, 1, 2)
-            sinv_e = np.linalg.solve(s, e)
-            _, logdet = np.linalg.slogdet(s)
-            loglik[obs] += -0.5 * (d * (k * _LOG2PI + logdet) + np.einsum("bkd,bkd->b", e, sinv_e))
-            n_obs[obs] += k * d
+            hp = h @ p  # [B, k, n]
+            s = hp @ ht + r  # [B, k, k]
+            sinv, logdet = _inv_small(s)
+            e = batch.obs[:, t] - h @ m  # [B, k, d]
+            gain = np.swapaxes(hp, 1, 2) @ sinv  # [B, n, k]
+            w = obs[:, None, None]
+            m = np.where(w, m + gain @ e, m)
+            p_new = p - gain @ hp
+            p = np.where(w, 0.5 * (p_new + np.swapaxes(p_new, 1, 2)), p)
+            quad = np.einsum("bkd,bkl,bld->b", e, sinv, e)
+            loglik += np.where(obs, -0.5 * (d * (k * _LOG2PI + logdet) + quad), 0.0)
         m_filt[:, t], p_filt[:, t] = m, p
     f[:, 0] = np.eye(n)
     return FilterResult(m_pred, m_filt, p_pred, p_filt, f, loglik, n_obs)
+
+
+def _inv_small(s: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Inverse and log-determinant of a batch of 1x1 or 2x2 SPD matrices (closed form),
+    else by numpy."""
+    k = s.shape[-1]
+    if k == 1:
+        return 1.0 / s, np.log(s[:, 0, 0])
+    if k == 2:
+        a, b, c, dd = s[:, 0, 0], s[:, 0, 1], s[:, 1, 0], s[:, 1, 1]
+        det = a * dd - b * c
+        inv = np.stack([np.stack([dd, -b], -1), np.stack([-c, a], -1)], -2) / det[:, None, None]
+        return inv, np.log(det)
+    return np.linalg.inv(s), np.linalg.slogdet(s)[1]
 
 
 def rts_smoother(res: FilterResult) -> tuple[FloatArray, FloatArray]:
@@ -210,27 +223,35 @@ def rts_smoother(res: FilterResult) -> tuple[FloatArray, FloatArray]:
     m_s = res.m_filt.copy()
     p_s = res.p_filt.copy()
     tlen = m_s.shape[1]
+    gains = smoother_gains(res)
+    gains_t = np.swapaxes(gains, 2, 3)
     for t in range(tlen - 2, -1, -1):
-        gain = _smoother_gain(res, t)
+        gain = gains[:, t]
         m_s[:, t] = res.m_filt[:, t] + gain @ (m_s[:, t + 1] - res.m_pred[:, t + 1])
-        p = res.p_filt[:, t] + gain @ (p_s[:, t + 1] - res.p_pred[:, t + 1]) @ np.swapaxes(
-            gain, 1, 2
-        )
+        p = res.p_filt[:, t] + gain @ (p_s[:, t + 1] - res.p_pred[:, t + 1]) @ gains_t[:, t]
         p_s[:, t] = 0.5 * (p + np.swapaxes(p, 1, 2))
     return m_s, p_s
 
 
-def _smoother_gain(res: FilterResult, t: int) -> FloatArray:
-    """J_t = P_filt[t] F[t+1]^T P_pred[t+1]^-1, [B, n, n]."""
-    fp = res.f[:, t + 1] @ res.p_filt[:, t]  # F P  [B, n, n]
-    return np.swapaxes(_solve_psd(res.p_pred[:, t + 1], fp), 1, 2)
+def smoother_gains(res: FilterResult) -> FloatArray:
+    """All smoother gains J_t = P_filt[t] F[t+1]^T P_pred[t+1]^-1 at once, [B, T-1, n, n]."""
+    bsz, tlen, n, _ = res.p_filt.shape
+    if tlen < 2:
+        return np.zeros((bsz, 0, n, n))
+    fp = res.f[:, 1:] @ res.p_filt[:, :-1]  # F P, [B, T-1, n, n]
+    sol = _solve_psd(res.p_pred[:, 1:].reshape(-1, n, n), fp.reshape(-1, n, n))
+    return np.swapaxes(sol.reshape(bsz, tlen - 1, n, n), 2, 3)
 
 
 def _solve_psd(a: FloatArray, b: FloatArray) -> FloatArray:
-    """Solve a x = b for a batch of symmetric positive (semi-)definite a (tiny ridge)."""
+    """Solve a x = b for a batch of symmetric positive (semi-)definite a (tiny ridge;
+    closed-form inverse for 2 x 2)."""
     n = a.shape[-1]
-    scale = np.maximum(np.trace(a, axis1=1, axis2=2) / n, 1e-300)[:, None, None]
-    return np.linalg.solve(a + 1e-12 * scale * np.eye(n), b)
+    scale = np.maximum(np.trace(a, axis1=-2, axis2=-1) / n, 1e-300)[..., None, None]
+    reg = a + 1e-12 * scale * np.eye(n)
+    if n == 2:
+        return _inv_small(reg)[0] @ b
+    return np.linalg.solve(reg, b)
 
 
 def sample_posterior(res: FilterResult, n_samples: int, rng: np.random.Generator) -> FloatArray:
@@ -247,20 +268,24 @@ def sample_posterior(res: FilterResult, n_samples: int, rng: np.random.Generator
     bsz, tlen, n, d = res.m_filt.shape
     out = np.zeros((bsz, n_samples, tlen, n, d))
     z = rng.standard_normal((tlen, bsz, n_samples, n, d))
+    gains = smoother_gains(res)
+    # Conditional covariances of every step at once: P_filt[t] - J P_pred[t+1] J^T.
+    cov = res.p_filt[:, :-1] - gains @ res.p_pred[:, 1:] @ np.swapaxes(gains, 2, 3)
+    roots = _chol(cov)  # [B, T-1, n, n]
     chol = _chol(res.p_filt[:, -1])  # [B, n, n]
     out[:, :, -1] = res.m_filt[:, None, -1] + np.einsum("bij,bsjd->bsid", chol, z[-1])
     for t in range(tlen - 2, -1, -1):
-        gain = _smoother_gain(res, t)  # [B, n, n]
+        gain = gains[:, t]  # [B, n, n]
         mean = res.m_filt[:, None, t] + np.einsum(
             "bij,bsjd->bsid", gain, out[:, :, t + 1] - res.m_pred[:, None, t + 1]
         )
-        cov = res.p_filt[:, t] - gain @ res.p_pred[:, t + 1] @ np.swapaxes(gain, 1, 2)
-        out[:, :, t] = mean + np.einsum("bij,bsjd->bsid", _chol(cov), z[t])
+        out[:, :, t] = mean + np.einsum("bij,bsjd->bsid", roots[:, t], z[t])
     return out
 
 
 def _chol(cov: FloatArray) -> FloatArray:
-    """Lower Cholesky factors of a batch of PSD matrices (eigen-decomposition fallback)."""
+    """Square roots R (R R^T = cov) of a batch [..., n, n] of PSD matrices, by
+    eigen-decomposition (robust where the covariance is singular)."""
     sym = 0.5 * (cov + np.swapaxes(cov, -1, -2))
     w, v = np.linalg.eigh(sym)
     return v * np.sqrt(np.clip(w, 0.0, None))[..., None, :]

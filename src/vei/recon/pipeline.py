@@ -32,7 +32,9 @@ from pyproj import Geod
 
 from vei.errors import ConfigError
 from vei.geo.frame import Bounds, LocalFrame
+from vei.recon import smoother as smoother_mod
 from vei.recon import threat as threat_mod
+from vei.recon.accuracy import evaluate as _evaluate_accuracy
 from vei.recon.interpolate import (
     INTERP_METHODS,
     KinematicLimits,
@@ -65,7 +67,17 @@ class ReconstructionConfig:
     Attributes:
         rate_hz: simulation rate [Hz] of the output trajectories (paper: CARLA at 20 Hz).
         interp: position interpolation, one of INTERP_METHODS: 'cubic' (the paper's),
-            'linear', 'smoothing' (noise-aware smoothing spline).
+            'linear', 'smoothing' (noise-aware smoothing spline), 'kalman' (RTS smoother
+            of the same motion model with its posterior uncertainty; see noise_estimate).
+        noise_estimate: 'kalman' only: 'ml' (default) estimates the keyframe noise sigma and
+            the acceleration density q by maximum likelihood over the recording's own
+            keyframes (:func:`vei.recon.smoother.estimate_noise`); 'fixed' uses noise_m and
+            accel_psd_m2ps3.
+        ego_path: 'spline' (default: a cubic spline through the GPS fixes, heading from the
+            INS) or 'kalman' (RTS smoother with constant acceleration + white jerk over the
+            GPS positions and INS velocities, noise by maximum likelihood on the ego's own
+            fixes; heading from the smoothed velocity while moving: curvature and heading
+            are continuous).
         margin_m: margin around the trajectories' bounds [m] (room for the map).
         noise_m: keyframe position noise, 1 sigma per axis [m] ('smoothing'). Default 0.25 m:
             the camera tracks of the trafficmonitoring data jitter by 0.1-0.3 m.
@@ -85,6 +97,8 @@ class ReconstructionConfig:
 
     rate_hz: float = 20.0
     interp: str = "cubic"
+    noise_estimate: str = "ml"
+    ego_path: str = "spline"
     margin_m: float = 50.0
     noise_m: float = 0.25
     accel_psd_m2ps3: float = 1.0
@@ -99,6 +113,12 @@ class ReconstructionConfig:
             raise ConfigError(
                 f"interp must be one of {', '.join(INTERP_METHODS)}; got {self.interp!r}"
             )
+        if self.noise_estimate not in ("ml", "fixed"):
+            raise ConfigError(
+                f"noise_estimate must be 'ml' or 'fixed'; got {self.noise_estimate!r}"
+            )
+        if self.ego_path not in ("spline", "kalman"):
+            raise ConfigError(f"ego_path must be 'spline' or 'kalman'; got {self.ego_path!r}")
         positive = (
             "rate_hz",
             "noise_m",
@@ -148,6 +168,7 @@ PRESETS: dict[str, ReconstructionConfig] = {
     "paper": ReconstructionConfig(),
     "linear": ReconstructionConfig(interp="linear"),
     "noise-aware": ReconstructionConfig(interp="smoothing"),
+    "probabilistic": ReconstructionConfig(interp="kalman", ego_path="kalman"),
 }
 
 
@@ -245,6 +266,9 @@ def reconstruct(
     ego_xy = ego.position(t_ego)
     ego_yaw = ego.yaw(t_ego)
     ego_speed = ego.speed(t_ego)
+    ego_path_info = None
+    if cfg.ego_path == "kalman":
+        ego_xy, ego_yaw, ego_speed, ego_path_info = _smooth_ego(ego, t_ego, ego_xy, ego_yaw)
     frames = [
         pd.DataFrame(
             {
@@ -263,6 +287,9 @@ def reconstruct(
     interpolants: dict[str, object] = {}
     track_info: list[dict] = []
     dropped: list[str] = []
+    noise = None
+    if cfg.interp == "kalman":
+        noise = _rider_noise(keyframes, cfg)
     for agent_id, kf in keyframes.groupby("agent_id", sort=True):
         tk = kf["t_s"].to_numpy(dtype=np.float64)
         xyk = kf[["x_m", "y_m"]].to_numpy(dtype=np.float64)
@@ -272,11 +299,14 @@ def reconstruct(
         if grid.size == 0:
             dropped.append(str(agent_id))
             continue
-        interp = fit_track_segmented(tk, xyk, cfg.interp, cfg.smoothing, cfg.max_gap_s)
+        interp = fit_track_segmented(tk, xyk, cfg.interp, cfg.smoothing, cfg.max_gap_s, noise)
         interpolants[str(agent_id)] = interp
         xy = interp.position(grid)
         vel = interp.velocity(grid)
         yaw = slerp_yaw(tk, kf["yaw_rad"].to_numpy(dtype=np.float64), grid)
+        if interp.method == "kalman":  # yaw from the smoothed velocity where it moves
+            moving = np.hypot(vel[:, 0], vel[:, 1]) >= KALMAN_YAW_MIN_SPEED_MPS
+            yaw = np.where(moving, np.arctan2(vel[:, 1], vel[:, 0]), yaw)
         frames.append(
             pd.DataFrame(
                 {
@@ -307,6 +337,9 @@ def reconstruct(
                 "peak_accel_mps2": peak_a,
             }
         )
+        if interp.method == "kalman":
+            std = interp.std(grid)
+            track_info[-1]["std_m"] = {"mean": float(std.mean()), "max": float(std.max())}
     trajectories = pd.concat(frames, ignore_index=True)[list(TRAJECTORY_COLUMNS)]
     # A track with no sample on the simulation grid is not an agent of the scenario.
     keyframes = keyframes[~keyframes["agent_id"].isin(dropped)].reset_index(drop=True)
@@ -343,6 +376,8 @@ def reconstruct(
             "max_active_riders": int(active["n_active"].max()) if len(active) else 0,
             "tracks": track_info,
             "dropped_tracks": dropped,
+            "noise": None if noise is None else noise.as_dict(),
+            "ego_path": ego_path_info,
         },
         "threat": {
             "criterion": (
@@ -384,64 +419,71 @@ def reconstruct(
 def evaluate(
     ground_truth: pd.DataFrame, frame: LocalFrame, keyframes: pd.DataFrame, interpolants: dict
 ) -> dict:
-    """Per-track reconstruction error against world ground truth.
+    """Per-track reconstruction error and calibration against world ground truth
+    (:func:`vei.recon.accuracy.evaluate`: RMSE vs raw and vs Savitzky-Golay denoised
+    ground truth, 95 % coverage for 'kalman')."""
+    return _evaluate_accuracy(ground_truth, frame, keyframes, interpolants)
 
-    Args:
-        ground_truth: t_s, track_id, category, lat_deg, lon_deg (full rate).
-        frame: the scenario plane.
-        keyframes: the scenario keyframes (agent_id, source_track_id, category).
-        interpolants: agent_id -> interpolant (position(t) [N, 2]).
-    Returns:
-        {'tracks': [{agent_id, source_track_id, category, n_samples, rmse_m, p95_m, max_m}],
-         'riders': {n_tracks, mean_rmse_m, max_rmse_m, max_error_m, p95_m} over e-scooters
-         and cyclists (None when there are none)}. Errors are Euclidean distances [m] in
-        the plane at the ground-truth times inside each track's keyframe span.
-    """
-    gt = ground_truth.copy()
-    gt["track_id"] = gt["track_id"].astype(str)
-    gx, gy = frame.to_xy(
-        gt["lat_deg"].to_numpy(dtype=np.float64), gt["lon_deg"].to_numpy(dtype=np.float64)
-    )
-    gt["x_m"], gt["y_m"] = gx, gy
-    by_track = dict(list(gt.groupby("track_id", sort=False)))
-    ids = keyframes.drop_duplicates("agent_id")[["agent_id", "source_track_id", "category"]]
-    rows = []
-    rider_err = []
-    for agent_id, track_id, category in ids.itertuples(index=False):
-        if agent_id not in interpolants or track_id not in by_track:
-            continue
-        interp = interpolants[agent_id]
-        g = by_track[track_id]
-        t = g["t_s"].to_numpy(dtype=np.float64)
-        inside = (t >= interp.t_start_s - 1e-9) & (t <= interp.t_end_s + 1e-9)
-        if not inside.any():
-            continue
-        est = interp.position(t[inside])
-        err = np.hypot(
-            est[:, 0] - g["x_m"].to_numpy()[inside], est[:, 1] - g["y_m"].to_numpy()[inside]
-        )
-        rows.append(
-            {
-                "agent_id": agent_id,
-                "source_track_id": track_id,
-                "category": category,
-                "n_samples": int(err.size),
-                "rmse_m": float(np.sqrt(np.mean(err**2))),
-                "p95_m": float(np.percentile(err, 95)),
-                "max_m": float(err.max()),
+
+#: Below this smoothed speed [m/s] a 'kalman' track's yaw is SLERPed between keyframes.
+KALMAN_YAW_MIN_SPEED_MPS = 0.5
+
+
+def _rider_noise(keyframes: pd.DataFrame, cfg: ReconstructionConfig) -> smoother_mod.NoiseEstimate:
+    """The 'kalman' noise: ML over every track's keyframes, or the configured values."""
+    fixed = smoother_mod.NoiseEstimate(cfg.noise_m, cfg.accel_psd_m2ps3)
+    if cfg.noise_estimate == "fixed":
+        return fixed
+    tracks = [
+        (g["t_s"].to_numpy(np.float64), g[["x_m", "y_m"]].to_numpy(np.float64))
+        for _, g in keyframes.groupby("agent_id", sort=True)
+    ]
+    return smoother_mod.estimate_noise(tracks, default=fixed)
+
+
+def _smooth_ego(ego, t_ego: np.ndarray, xy_before: np.ndarray, yaw_before: np.ndarray):
+    """Ego path by the RTS smoother (constant acceleration + white jerk) over the GPS
+    positions and the INS velocity (speed along the heading, where both are given).
+
+    Returns (xy [N, 2], yaw [N], speed [N], info): yaw from the smoothed velocity while
+    moving faster than MOVING_MIN_SPEED_MPS, else the INS heading; info holds the noise
+    estimate and the lateral acceleration of the path before / after (finite differences
+    of the rate_hz samples, max |a_lat| and RMS, and the largest change of a_lat per
+    second, which is large where the curvature jumps)."""
+    t_fix = ego.t_s
+    xy_fix = np.column_stack([ego.x_m, ego.y_m])
+    vel_fix = None
+    if np.all(np.isfinite(ego.speed_mps)):
+        yaw_fix = ego.yaw(t_fix)
+        vel_fix = ego.speed_mps[:, None] * np.column_stack([np.cos(yaw_fix), np.sin(yaw_fix)])
+    if t_fix.size < 4 or t_ego.size < 3:
+        return xy_before, yaw_before, ego.speed(t_ego), None
+    xy, vel, _, noise = smoother_mod.smooth_ego(t_fix, xy_fix, vel_fix, t_ego)
+    speed = np.hypot(vel[:, 0], vel[:, 1])
+    moving = speed >= smoother_mod.MOVING_MIN_SPEED_MPS
+    yaw = np.where(moving, np.arctan2(vel[:, 1], vel[:, 0]), yaw_before)
+
+    def figures(path: np.ndarray) -> dict:
+        lat = smoother_mod.lateral_accel(t_ego, path)
+        ok = np.isfinite(lat)
+        if not ok.any():
+            return {
+                "max_abs_lat_accel_mps2": None,
+                "rms_lat_accel_mps2": None,
+                "max_lat_jerk_mps3": None,
             }
-        )
-        if category in RIDER_CATEGORIES:
-            rider_err.append(err)
-    riders = [r for r in rows if r["category"] in RIDER_CATEGORIES]
-    summary = None
-    if riders:
-        allerr = np.concatenate(rider_err)
-        summary = {
-            "n_tracks": len(riders),
-            "mean_rmse_m": float(np.mean([r["rmse_m"] for r in riders])),
-            "max_rmse_m": float(max(r["rmse_m"] for r in riders)),
-            "p95_m": float(np.percentile(allerr, 95)),
-            "max_error_m": float(allerr.max()),
+        jerk = np.abs(np.diff(lat)) / np.diff(t_ego)
+        return {
+            "max_abs_lat_accel_mps2": float(np.max(np.abs(lat[ok]))),
+            "rms_lat_accel_mps2": float(np.sqrt(np.mean(lat[ok] ** 2))),
+            "max_lat_jerk_mps3": float(np.nanmax(jerk)) if np.isfinite(jerk).any() else None,
         }
-    return {"tracks": rows, "riders": summary}
+
+    info = {
+        "method": "kalman",
+        "noise": noise.as_dict(),
+        "shift_rms_m": float(np.sqrt(np.mean(np.sum((xy - xy_before) ** 2, axis=1)))),
+        "before": figures(xy_before),
+        "after": figures(xy),
+    }
+    return xy, yaw, speed, info

@@ -5,8 +5,9 @@ Riders (``order=2``, constant velocity + white acceleration, position keyframes)
 
 * :func:`estimate_noise` finds the keyframe noise sigma [m] and the acceleration spectral
   density q [m^2/s^3] that maximise the likelihood of a recording's own keyframes (all its
-  tracks with >= 3 keyframes together; the innovations of the Kalman filter give the exact
-  Gaussian likelihood). Nothing else enters: no ground truth.
+  tracks with >= 3 keyframes together; the exact diffuse-prior Gaussian likelihood of
+  :class:`RestrictedLikelihood`, equal to the Kalman filter's). Nothing else enters: no
+  ground truth.
 * :func:`posterior` gives the smoothed mean position, velocity and the per-axis position
   standard deviation at any times inside a track's keyframe span, and
   :class:`KalmanInterpolant` wraps it in the interface of :mod:`vei.recon.interpolate`.
@@ -105,17 +106,59 @@ def _loglik(batch: kalman.Batch, noise_m: float, psd: float) -> FloatArray:
     return res.loglik
 
 
+class RestrictedLikelihood:
+    """Exact diffuse (restricted) log-likelihood of the rider model, O(K) per evaluation.
+
+    Per axis, keyframes y = a + b t + x(t) + e with an unknown (diffuse) start position a
+    and velocity b, x the integrated Wiener process of density q (Cov x(s), x(t) =
+    q min^2 (3 max - min) / 6 for s, t from the first keyframe) and e ~ N(0, sigma^2). The
+    part of y orthogonal to the trend [1, t] (orthonormal basis N) is N(0, q A + sigma^2 I)
+    with A = N^T C N; with A = U diag(lam) U^T once per track, the log-likelihood is
+    -1/2 sum_i [log(2 pi (q lam_i + sigma^2)) + z_i^2 / (q lam_i + sigma^2)], z = U^T N^T y,
+    summed over both axes and all tracks. This is the likelihood the Kalman filter gives
+    with a diffuse prior (de Jong 1991), without its O(K) sequential steps per evaluation.
+
+    Args:
+        tracks: per track (t_key [K] s, xy_key [K, 2] m); tracks with < 3 keyframes carry
+            no information on the noise and are skipped.
+    """
+
+    def __init__(self, tracks: list[tuple[FloatArray, FloatArray]]) -> None:
+        lams, zs = [], []
+        for t, xy in tracks:
+            t = np.asarray(t, float) - float(t[0])
+            if t.size < MIN_KEYFRAMES_FOR_ESTIMATE:
+                continue
+            lo = np.minimum.outer(t, t)
+            hi = np.maximum.outer(t, t)
+            c = lo**2 * (3.0 * hi - lo) / 6.0
+            scale = max(float(t[-1]), 1e-9)
+            trend = np.column_stack([np.ones_like(t), t / scale])
+            q_full, _ = np.linalg.qr(trend, mode="complete")
+            n = q_full[:, 2:]
+            lam, u = np.linalg.eigh(n.T @ c @ n)
+            lams.append(np.clip(lam, 0.0, None))
+            zs.append((n @ u).T @ np.asarray(xy, float))
+        self.lam = np.concatenate(lams) if lams else np.zeros(0)
+        self.z2 = np.concatenate([np.sum(z**2, axis=1) for z in zs]) if zs else np.zeros(0)
+        self.n_tracks = len(lams)
+
+    def __call__(self, noise_m: float, accel_psd_m2ps3: float) -> float:
+        """Log-likelihood [-] at sigma = noise_m [m], q = accel_psd_m2ps3 [m^2/s^3]."""
+        v = accel_psd_m2ps3 * self.lam + noise_m**2
+        return float(-0.5 * np.sum(2.0 * np.log(2.0 * np.pi * v) + self.z2 / v))
+
+
 def estimate_noise(
     tracks: list[tuple[FloatArray, FloatArray]],
     default: NoiseEstimate | None = None,
 ) -> NoiseEstimate:
     """Maximum-likelihood (sigma, q) of the rider model from a recording's keyframes.
 
-    The likelihood of all tracks with >= MIN_KEYFRAMES_FOR_ESTIMATE keyframes (sum over
-    tracks) is maximised over log sigma and log q inside NOISE_BOUNDS_M x PSD_BOUNDS
-    (L-BFGS-B, started at the default). A track's first keyframes are explained by the
-    diffuse prior (they carry almost no information on the noise), so short tracks count
-    little.
+    The restricted (diffuse-prior) likelihood of all tracks with >=
+    MIN_KEYFRAMES_FOR_ESTIMATE keyframes together (:class:`RestrictedLikelihood`) is
+    maximised over log sigma and log q inside NOISE_BOUNDS_M x PSD_BOUNDS (L-BFGS-B from
+    two starts: the default and a low-noise / high-manoeuvre point).
 
     Args:
         tracks: per track (t_key [K] s strictly increasing, xy_key [K, 2] m).
@@ -124,25 +167,18 @@ def estimate_noise(
         NoiseEstimate (method 'ml', or the default's 'fixed' without usable tracks).
     """
     default = default or NoiseEstimate(0.25, 1.0)
-    usable = [(np.asarray(t, float), np.asarray(xy, float)) for t, xy in tracks]
-    usable = [(t, xy) for t, xy in usable if t.size >= MIN_KEYFRAMES_FOR_ESTIMATE]
-    if not usable:
+    lik = RestrictedLikelihood([(np.asarray(t, float), np.asarray(xy, float)) for t, xy in tracks])
+    if lik.n_tracks == 0 or lik.lam.size == 0:
         return default
-    batch, _ = _rider_batch(usable, None)
 
     def objective(theta: FloatArray) -> float:
-        return -float(_loglik(batch, math.exp(theta[0]), math.exp(theta[1])).sum())
+        return -lik(math.exp(theta[0]), math.exp(theta[1]))
 
     bounds = [tuple(np.log(NOISE_BOUNDS_M)), tuple(np.log(PSD_BOUNDS))]
-    x0 = np.clip(
-        np.log([default.noise_m, default.accel_psd_m2ps3]),
-        [b[0] for b in bounds],
-        [b[1] for b in bounds],
-    )
+    lo, hi = [b[0] for b in bounds], [b[1] for b in bounds]
+    x0 = np.clip(np.log([default.noise_m, default.accel_psd_m2ps3]), lo, hi)
     best = None
-    # Two starts: the default and a low-noise / high-manoeuvre one (the surface can have
-    # a second, interpolating optimum).
-    for start in (x0, np.log([0.05, 5.0])):
+    for start in (x0, np.clip(np.log([0.05, 5.0]), lo, hi)):
         res = minimize(objective, start, method="L-BFGS-B", bounds=bounds)
         if best is None or res.fun < best.fun:
             best = res
@@ -152,8 +188,8 @@ def estimate_noise(
         accel_psd_m2ps3=float(math.exp(best.x[1])),
         method="ml",
         loglik=float(-best.fun),
-        n_tracks=len(usable),
-        n_keyframes=int(sum(t.size for t, _ in usable)),
+        n_tracks=lik.n_tracks,
+        n_keyframes=int(lik.lam.size + 2 * lik.n_tracks),
     )
 
 
@@ -321,8 +357,8 @@ class KalmanInterpolant:
 EGO_POS_BOUNDS_M: tuple[float, float] = (0.005, 2.0)
 EGO_VEL_BOUNDS_MPS: tuple[float, float] = (0.005, 2.0)
 EGO_JERK_BOUNDS: tuple[float, float] = (1e-3, 1e3)
-#: Fixes per piece in the ego's noise estimate (10 s at 10 Hz).
-EGO_PIECE_FIXES = 100
+#: Fixes per piece in the ego's noise estimate (3 s at 10 Hz).
+EGO_PIECE_FIXES = 30
 #: Below this speed [m/s] lateral acceleration and course are not evaluated.
 MOVING_MIN_SPEED_MPS = 1.0
 
