@@ -201,9 +201,11 @@ class _Problem:
     w_one: FloatArray
 
 
-def _problem(tracks: list[RiderTrack], scenes: dict[str, SceneTracks], dt_s: float) -> _Problem:
+def _problem(
+    tracks: list[RiderTrack], scenes: dict[str, SceneTracks], dt_s: float, horizon_s: float
+) -> _Problem:
     paths = pack_paths(tracks)
-    win = make_windows(tracks, scenes, paths, FIT_HORIZON_S, FIT_STRIDE_S, dt_s)
+    win = make_windows(tracks, scenes, paths, horizon_s, FIT_STRIDE_S, dt_s)
     one = make_windows(tracks, scenes, paths, dt_s, dt_s, dt_s)
     p = len(tracks)
     h = win.horizon_steps
@@ -250,7 +252,8 @@ def fit_tracks(
     scenes: dict[str, SceneTracks],
     *,
     dt_s: float = 0.05,
-    bootstrap: int = 30,
+    horizon_s: float = FIT_HORIZON_S,
+    bootstrap: int = 20,
     seed: int = 0,
 ) -> FitResult:
     """Fit every track's (v0, tau, lookahead), then the pooled vehicle repulsion (A, b).
@@ -258,16 +261,17 @@ def fit_tracks(
     Args:
         tracks: rider tracks (from :func:`vei.calibrate.tracks.load_scenes`).
         scenes: scenario -> SceneTracks (the vehicles).
-        dt_s: engine step [s]. bootstrap: resamples (over tracks) of the (A, b) interval.
+        dt_s: engine step [s]. horizon_s: closed-loop rollout length of the fit [s].
+        bootstrap: resamples (over tracks) of the (A, b) interval.
         seed: bootstrap seed.
     Returns:
         The FitResult (tracks with no moving window are left out).
     """
-    pb = _problem(tracks, scenes, dt_s)
+    pb = _problem(tracks, scenes, dt_s, horizon_s)
     keep = np.bincount(pb.win.track, minlength=len(tracks)) > 0
     if not keep.all():
         tracks = [t for t, k in zip(tracks, keep, strict=True) if k]
-        pb = _problem(tracks, scenes, dt_s)
+        pb = _problem(tracks, scenes, dt_s, horizon_s)
     if not tracks:
         raise ValueError("no track has a full moving window to fit")
     n = len(tracks)
@@ -358,29 +362,29 @@ def _fit_vehicle(pb: _Problem, theta: FloatArray, bootstrap: int, seed: int) -> 
         x, y = rollout_sfm(pb.paths, ws, params_for(ws, theta, pb.limits, a, b))
         return np.hypot(x[:, 1:] - ws.truth_x_m[:, 1:], y[:, 1:] - ws.truth_y_m[:, 1:])
 
-    def fit_on(ws: Windows) -> FloatArray:
+    def fit_on(ws: Windows, starts: tuple[tuple[float, float], ...], nfev: int) -> FloatArray:
         best = None
-        for a0, b0 in ((100.0, 1.0), (300.0, 0.5), (50.0, 3.0)):
+        for a0, b0 in starts:
             r = least_squares(
                 lambda z: ade_of(ws, z[0], z[1]).ravel(),
                 np.array([a0, b0]),
                 bounds=(AB_LO, AB_HI),
                 x_scale=np.array([100.0, 1.0]),
                 diff_step=1e-3,
-                max_nfev=80,
+                max_nfev=nfev,
             )
             if best is None or r.cost < best.cost:
                 best = r
         assert best is not None
         return best.x
 
-    ab = fit_on(sub)
+    ab = fit_on(sub, ((300.0, 1.0), (PAPER_A_N, PAPER_B_PER_M)), 40)
     rng = np.random.default_rng(seed)
     boots = []
     for _ in range(bootstrap):
         pick = rng.choice(tracks_near, size=tracks_near.size, replace=True)
         rows = np.concatenate([np.flatnonzero(sub.track == t) for t in pick])
-        boots.append(fit_on(sub.take(rows)))
+        boots.append(fit_on(sub.take(rows), ((float(ab[0]), float(ab[1])),), 15))
     q = np.quantile(np.array(boots), [0.05, 0.95], axis=0) if boots else np.full((2, 2), np.nan)
     ade_with = float(ade_of(sub, ab[0], ab[1]).mean())
     ade_without = float(ade_of(sub, 0.0, 0.0).mean())
