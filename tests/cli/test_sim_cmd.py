@@ -1,5 +1,6 @@
 import importlib.util
 import json
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -62,7 +63,7 @@ def test_casestudy_command_with_given_shift(demo_run, tmp_path, capsys):
     text = capsys.readouterr().out
     assert code == 0, text
     doc = json.loads((tmp_path / "cs" / "summary.json").read_text())
-    assert doc["time_shift_s"] == 0.0 and doc["time_shift"] == {"mode": "given"}
+    assert doc["time_shift_s"] == 0.0 and doc["time_shift"]["mode"] == "given"
     # unshifted, the recording is crash-free: the replay does not collide
     assert doc["configs"][0]["name"] == "replay" and doc["configs"][0]["collision"] is False
     assert "+0.00 s" in text
@@ -188,3 +189,47 @@ def test_demo_real_on_trafficmonitoring(trafficmonitoring_root, tmp_path, capsys
     assert doc["configs"][0]["collision"] is True
     for fig in FIGURES:
         assert (out / fig).exists()
+
+
+def test_esmini_backend_from_the_cli(demo_run, tmp_path, capsys, esmini):
+    """`vei run` / `vei casestudy` with --backend esmini: the closed loop inside esmini gives
+    the built-in engine's outcome; the summary names the backend."""
+    _, _, out = demo_run
+    dest = tmp_path / "run"
+    args = ["run", str(out / "scenario"), "--config", "normal-cap", "--out", str(dest)]
+    args += ["--time-shift", "4.5", "--no-figures", "--backend", "esmini"]
+    assert main([*args, "--esmini", str(esmini.root)]) == 0, capsys.readouterr().err
+    doc = json.loads((dest / "metrics.json").read_text())
+    assert doc["backend"] == "esmini" and doc["metrics"]["collision"] is False
+    builtin = tmp_path / "builtin"
+    assert main([*args[:5], str(builtin), "--time-shift", "4.5", "--no-figures"]) == 0
+    ref = json.loads((builtin / "metrics.json").read_text())
+    assert doc["metrics"]["min_gap_m"] == pytest.approx(ref["metrics"]["min_gap_m"], abs=1e-3)
+    ts = pd.read_parquet(dest / "timeseries.parquet")
+    assert set(ts["config"]) == {"normal-cap"}
+    assert not list(Path.cwd().glob("log.txt*"))  # esmini's log never lands in the CWD
+    capsys.readouterr()
+    cs = tmp_path / "cs"
+    code = main(
+        ["casestudy", str(out / "scenario"), "--out", str(cs), "--time-shift", "4.5"]
+        + ["--no-figures", "--backend", "esmini", "--esmini", str(esmini.root)]
+    )
+    text = capsys.readouterr().out
+    assert code == 0, text
+    assert "backend esmini" in text
+    doc = json.loads((cs / "summary.json").read_text())
+    assert [c["collision"] for c in doc["configs"]] == [True, True, True, False, False]
+
+
+def test_backend_options_are_checked(demo_run, tmp_path, capsys):
+    _, _, out = demo_run
+    args = ["casestudy", str(out / "scenario"), "--out", str(tmp_path / "x"), "--time-shift", "0"]
+    assert main([*args, "--esmini", str(tmp_path)]) == 2  # --esmini without --backend esmini
+    assert "--backend esmini only" in capsys.readouterr().err
+    assert main([*args, "--carla-timeout", "2"]) == 2
+    assert "--backend carla only" in capsys.readouterr().err
+    assert main([*args, "--backend", "carla", "--carla-timeout", "0"]) == 2
+    assert "--carla-timeout must be > 0" in capsys.readouterr().err
+    # an esmini folder that is not one: a clear error, exit 2
+    assert main([*args, "--backend", "esmini", "--esmini", str(tmp_path / "none")]) == 2
+    assert "esmini not found" in capsys.readouterr().err
