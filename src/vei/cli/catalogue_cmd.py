@@ -136,7 +136,11 @@ def _print_result(console, result, top: int) -> None:
             ("casestudy_collisions", "{:d}"),
         )
         for c, _ in cols:
-            t.add_column(c, justify="left" if c in ("encounter_id", "category") else "right")
+            t.add_column(
+                c,
+                justify="left" if c in ("encounter_id", "category") else "right",
+                overflow="fold",
+            )
         for rec in enc.head(top).to_dict("records"):
             t.add_row(*(fmt.format(rec[c]) if rec[c] == rec[c] else "-" for c, fmt in cols))
         console.print(t)

@@ -25,6 +25,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "export_cmd",
     "sweep_cmd",
     "catalogue_cmd",
+    "calibrate_cmd",
 )
 
 app = typer.Typer(

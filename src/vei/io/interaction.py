@@ -125,6 +125,11 @@ def _read_meta(path: Path) -> InteractionMeta:
         ) from None
     except UnicodeDecodeError:
         raise InputError("not UTF-8 text", path=path) from None
+    except RecursionError:
+        raise InputError(
+            "JSON nested too deeply (expected a flat object of the keys in docs/interaction-format.md)",
+            path=path,
+        ) from None
     if not isinstance(raw, dict):
         raise InputError(f"expected a JSON object, got {type(raw).__name__}", path=path)
     for key in _META_REQUIRED:

@@ -1,0 +1,109 @@
+"""``vei calibrate riders|validate``: fit the social-force rider to real rider tracks."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from vei.errors import InputError
+
+_ROOT_HELP = "TrafficMonitoring dataset root (the folder that holds data/measurements)."
+
+
+def _riders(
+    root: Annotated[Path, typer.Option("--root", help=_ROOT_HELP)],
+    out: Annotated[Path, typer.Option("--out", help="Output folder (profile, report, figure).")],
+    category: Annotated[
+        str, typer.Option("--category", help="escooter, cyclist or all (fitted per track either way).")
+    ] = "all",
+    horizon_s: Annotated[
+        float, typer.Option("--horizon-s", help="Closed-loop rollout length of the fit [s].")
+    ] = 3.0,
+    scenario: Annotated[
+        list[str] | None, typer.Option("--scenario", help="Only these scenarios (repeatable).")
+    ] = None,
+    bootstrap: Annotated[
+        int, typer.Option("--bootstrap", help="Resamples of the vehicle-repulsion interval (>= 0).")
+    ] = 20,
+    no_figure: Annotated[bool, typer.Option("--no-figure", help="Skip the PNG.")] = False,
+) -> None:
+    """Fit the rider model per track; write the rider profile, the fit report and figures."""
+    from vei.calibrate.pipeline import FIGURE_FILE, PROFILE_FILE, REPORT_MD, calibrate_riders
+
+    if bootstrap < 0:
+        raise InputError(f"expected >= 0, got {bootstrap}", field="--bootstrap")
+    run = calibrate_riders(
+        root,
+        out,
+        category=category,
+        horizon_s=horizon_s,
+        scenarios=scenario,
+        bootstrap=bootstrap,
+        figures=not no_figure,
+    )
+    rep = run.report
+    typer.echo(f"fitted {rep['n_tracks']} rider tracks ({len(rep['dropped'])} dropped by the filter)")
+    for name, pop in rep["populations"].items():
+        med = pop["median"]
+        typer.echo(
+            f"  {name:9s} n={pop['n_tracks']:2d}  v0 {med['v0_mps']:.2f} m/s  tau {med['tau_s']:.2f} s  "
+            f"look-ahead {med['lookahead_m']:.2f} m  vmax {med['max_speed_mps']:.2f} m/s  "
+            f"amax {med['max_accel_mps2']:.2f} m/s2"
+        )
+    v = rep["vehicle_repulsion"]
+    state = "identified" if v["identified"] else "NOT identified (paper values kept)"
+    typer.echo(
+        f"  vehicle repulsion: {state}; {v['n_windows']} close windows from {v['n_tracks']} tracks"
+    )
+    typer.echo(f"profile: {run.out / PROFILE_FILE}")
+    typer.echo(f"report:  {run.out / REPORT_MD}")
+    if not no_figure:
+        typer.echo(f"figure:  {run.out / FIGURE_FILE}")
+    typer.echo(f"time:    {run.elapsed_s:.1f} s")
+
+
+def _validate(
+    root: Annotated[Path, typer.Option("--root", help=_ROOT_HELP)],
+    out: Annotated[
+        Path | None, typer.Option("--out", help="Also write validation.json into this folder.")
+    ] = None,
+    horizons: Annotated[
+        str, typer.Option("--horizons", help="Comma-separated rollout horizons [s].")
+    ] = "3,5",
+) -> None:
+    """Leave-one-scenario-out ADE/FDE table: CV, CA, CS-path, paper SFM, calibrated SFM."""
+    import time
+
+    from vei.calibrate.tracks import load_scenes
+    from vei.calibrate.validate import validate_loso
+    from vei.io.atomic import write_json
+
+    try:
+        hs = tuple(float(h) for h in horizons.split(","))
+    except ValueError:
+        raise InputError(f"expected numbers like 3,5; got {horizons!r}", field="--horizons") from None
+    if not hs or any(not (0.5 <= h <= 10.0) for h in hs):
+        raise InputError(f"horizons must lie in [0.5, 10] s, got {horizons!r}", field="--horizons")
+    t0 = time.perf_counter()
+    table = validate_loso(load_scenes(root), hs)
+    typer.echo(table.format())
+    for h in hs:
+        typer.echo(
+            f"ADE@{h:g}s: calibrated SFM vs CV {100 * table.gain('SFM calibrated', 'CV', h):+.0f} %, "
+            f"vs paper SFM {100 * table.gain('SFM calibrated', 'SFM paper', h):+.0f} %, "
+            f"vs CS-path {100 * table.gain('SFM calibrated', 'CS-path', h):+.0f} % (positive = lower error)"
+        )
+    typer.echo(f"time: {time.perf_counter() - t0:.1f} s")
+    if out is not None:
+        path = write_json(Path(out) / "validation.json", table.to_dict())
+        typer.echo(f"written: {path}")
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``calibrate`` command group to the app."""
+    cal = typer.Typer(help="Fit the rider model to real rider tracks.", no_args_is_help=True)
+    cal.command("riders")(_riders)
+    cal.command("validate")(_validate)
+    app.add_typer(cal, name="calibrate")
