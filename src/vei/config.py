@@ -100,6 +100,13 @@ class SFMConfig:
         use_vehicle_force: include f_veh (Normal: true; Aggressive: false, paper III-C).
         max_speed_mps: optional cap on the rider's speed [m/s]; None = no cap (paper).
         max_accel_mps2: optional cap on |f_total| / m [m/s^2]; None = no cap (paper).
+        speed_from_recording: the speed parameters come from the simulated rider's own
+            recording (the rule for applying a calibrated profile to one recorded rider,
+            docs/riders.md): v0 such that the cruise speed of the normalised desired
+            velocity, ``v0 L / sqrt(L^2 + sigma^2)``, equals the rider's recorded median
+            speed while moving (> 0.5 m/s), and ``max_speed_mps`` = the 99th percentile of
+            its recorded speed (at least that median). ``v0_mps`` / ``max_speed_mps`` are
+            then the fallbacks for a rider that never moves. False = use them as given.
     """
 
     k_des_nspm: float = 100.0
@@ -116,6 +123,7 @@ class SFMConfig:
     use_vehicle_force: bool = True
     max_speed_mps: float | None = None
     max_accel_mps2: float | None = None
+    speed_from_recording: bool = False
 
     def __post_init__(self) -> None:
         _finite("k_des_nspm", self.k_des_nspm, positive=True)
@@ -134,6 +142,7 @@ class SFMConfig:
             _finite("max_speed_mps", self.max_speed_mps, positive=True)
         if self.max_accel_mps2 is not None:
             _finite("max_accel_mps2", self.max_accel_mps2, positive=True)
+        _bool("speed_from_recording", self.speed_from_recording)
 
     @property
     def k_des_effective_nspm(self) -> float:
@@ -144,9 +153,37 @@ class SFMConfig:
 #: Amplification of k_des of the Aggressive preset (see SFMConfig.k_des_factor).
 AGGRESSIVE_K_DES_FACTOR = 2.0
 
+#: The paper's Normal rider (Section III-C / IV): k_des 100 N s/m, A 100 N, b 3.5 1/m,
+#: v0 5 m/s; look-ahead 5 m, no limits.
+PAPER_SFM = SFMConfig()
+#: The calibrated rider: medians of the 'all riders' population of the profile shipped with
+#: vei (src/vei/riders_trafficmonitoring.json, `vei calibrate riders` on the nine shared
+#: TrafficMonitoring scenarios: 15 rider tracks; docs/riders.md), rounded: relaxation time
+#: tau = m / k_des = 0.53 s (k_des 180 N s/m at 95 kg), look-ahead 1.36 m, acceleration
+#: limit 5.9 m/s^2; speeds from the simulated rider's own recording (fallbacks: the
+#: population's v0 3.64 m/s and speed limit 4.72 m/s). A and b stay the paper's: the data
+#: hold too few close encounters to identify them (25 windows, no error reduction). The
+#: 'all riders' population is used because the e-scooter one has two tracks only.
+CALIBRATED_SFM = SFMConfig(
+    k_des_nspm=180.0,
+    v0_mps=3.64,
+    lookahead_m=1.36,
+    max_speed_mps=4.72,
+    max_accel_mps2=5.9,
+    speed_from_recording=True,
+)
+
 SFM_PRESETS: dict[str, SFMConfig] = {
     "normal": SFMConfig(),
     "aggressive": SFMConfig(use_vehicle_force=False, k_des_factor=AGGRESSIVE_K_DES_FACTOR),
+    "paper": PAPER_SFM,
+    "paper-aggressive": replace(
+        PAPER_SFM, use_vehicle_force=False, k_des_factor=AGGRESSIVE_K_DES_FACTOR
+    ),
+    "calibrated": CALIBRATED_SFM,
+    "calibrated-aggressive": replace(
+        CALIBRATED_SFM, use_vehicle_force=False, k_des_factor=AGGRESSIVE_K_DES_FACTOR
+    ),
 }
 
 
@@ -440,6 +477,43 @@ def case_preset(preset: str, /, **overrides: Any) -> CaseConfig:
 
 
 @dataclass(frozen=True)
+class RiderPopulationConfig:
+    """Riders sampled from the population of a rider profile (``vei calibrate riders``).
+
+    In a run or sweep file: ``rider: {profile: calibrated, sample: 100}``. Each sampled
+    rider is a social-force rider with its own v0, k_des (= mass / tau), look-ahead, speed
+    and acceleration limits, drawn from the profile population's log-normal (seeded;
+    :func:`vei.calibrate.profile.sample_population`); A and b are the profile's.
+
+    Attributes:
+        profile: a rider profile file (JSON/YAML, format vei.rider_profile/1) or the name
+            'calibrated' (the profile shipped with vei).
+        sample: number of riders N (>= 1).
+        category: the population: 'escooter', 'cyclist' or 'all' (a category the profile
+            lacks falls back to 'all').
+        seed: sampling seed: the same seed gives the same riders.
+    """
+
+    profile: str = "calibrated"
+    sample: int = 1
+    category: str = "escooter"
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.profile, str) or not self.profile:
+            raise ConfigError(f"profile must be a file name or 'calibrated', got {self.profile!r}")
+        for name in ("sample", "seed"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int):
+                raise ConfigError(f"{name} must be an integer, got {v!r}")
+        if self.sample < 1:
+            raise ConfigError(f"sample must be >= 1, got {self.sample}")
+        if self.seed < 0:
+            raise ConfigError(f"seed must be >= 0, got {self.seed}")
+        _choice("category", self.category, ("escooter", "cyclist", "all"))
+
+
+@dataclass(frozen=True)
 class RunConfig:
     """A run: one configuration, engine settings and the rider's time shift.
 
@@ -448,17 +522,23 @@ class RunConfig:
         sim: engine settings.
         time_shift: the primary rider's time shift [s] (positive = the rider comes later),
             or 'auto' (:func:`vei.experiments.timeshift.find_time_shift`).
+        rider: optional rider population: the run's SFM rider is replaced by N riders
+            sampled from a profile (:func:`vei.calibrate.population.population_cases`);
+            None = the case's own rider.
     """
 
     case: CaseConfig
     sim: SimConfig = field(default_factory=SimConfig)
     time_shift: float | str = "auto"
+    rider: RiderPopulationConfig | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.case, CaseConfig):
             raise ConfigError("case must be a CaseConfig")
         if not isinstance(self.sim, SimConfig):
             raise ConfigError("sim must be a SimConfig")
+        if self.rider is not None and not isinstance(self.rider, RiderPopulationConfig):
+            raise ConfigError("rider must be a mapping {profile, sample, category, seed}")
         if isinstance(self.time_shift, str):
             _choice("time_shift", self.time_shift, ("auto",))
         else:
@@ -507,8 +587,13 @@ def _build(cls: type[T], raw: Any, where: str) -> T:
         "case": CaseConfig,
         "sim": SimConfig,
     }
+    if cls is RunConfig:  # CaseConfig.rider is a string; RunConfig.rider a population
+        nested["rider"] = RiderPopulationConfig
     for key, value in raw.items():
         sub = nested.get(key)
+        if sub is RiderPopulationConfig and value is None:  # explicit "no population"
+            kwargs[key] = None
+            continue
         if sub is not None:
             if base is not None and isinstance(value, Mapping) and "preset" not in value:
                 value = _override(getattr(base, key), value, f"{where}.{key}")

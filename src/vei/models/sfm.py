@@ -236,3 +236,36 @@ def social_force(
     if use.ndim == 0:
         return fx + hx, fy + hy
     return fx + np.where(use, hx, 0.0), fy + np.where(use, hy, 0.0)
+
+
+def speed_from_recording(
+    speed_mps: ArrayLike,
+    lookahead_m: float,
+    sigma_m: float,
+    fallback_v0_mps: float,
+    fallback_max_speed_mps: float | None,
+    moving_threshold_mps: float = 0.5,
+) -> tuple[float, float | None]:
+    """Speed parameters of a calibrated rider from its own recorded speeds.
+
+    v0 is chosen so that the cruise speed of the normalised desired velocity at the
+    look-ahead distance, ``v0 L / sqrt(L^2 + sigma^2)``, equals the median of the recorded
+    speeds above ``moving_threshold_mps``; the speed limit is the 99th percentile of the
+    recorded speeds (at least that median). A rider that never moves keeps the fallbacks.
+
+    Args:
+        speed_mps: [N] recorded speeds [m/s] (NaN ignored).
+        lookahead_m: look-ahead L [m] (> 0). sigma_m: sigma [m] (> 0).
+        fallback_v0_mps, fallback_max_speed_mps: used when no sample moves.
+        moving_threshold_mps: a sample moves above this speed [m/s].
+    Returns:
+        (v0_mps, max_speed_mps).
+    """
+    sp = np.asarray(speed_mps, dtype=np.float64)
+    sp = sp[np.isfinite(sp)]
+    moving = sp[sp > moving_threshold_mps]
+    if moving.size == 0:
+        return float(fallback_v0_mps), fallback_max_speed_mps
+    med = float(np.median(moving))
+    v0 = med * float(np.hypot(lookahead_m, sigma_m)) / float(lookahead_m)
+    return v0, max(float(np.quantile(sp, 0.99)), med)

@@ -522,13 +522,21 @@ class VariantParams:
         else:
             run_up_m = float(ego.run_up_m)
         inf = math.inf
+        v0, vmax = sfm.v0_mps, sfm.max_speed_mps
+        if sfm.speed_from_recording:  # calibrated rider: speeds from its own recording
+            from vei.models.sfm import speed_from_recording
+
+            tr = arrays.rider_track
+            v0, vmax = speed_from_recording(
+                tr.data[:, tr.col("speed_mps")], sfm.lookahead_m, sfm.sigma_m, v0, vmax
+            )
         base: dict[str, Any] = {
             "time_shift_s": time_shift_s,
             "rider_sfm": case.rider == "sfm",
             "k_des_nspm": sfm.k_des_effective_nspm,
             "a_veh_n": sfm.a_veh_n,
             "b_veh_per_m": sfm.b_veh_per_m,
-            "v0_mps": sfm.v0_mps,
+            "v0_mps": v0,
             "mass_kg": sfm.mass_kg,
             "sigma_m": sfm.sigma_m,
             "lookahead_m": sfm.lookahead_m,
@@ -536,7 +544,7 @@ class VariantParams:
             "use_vehicle_force": sfm.use_vehicle_force,
             "paper_vdes": sfm.desired_velocity == "paper",
             "front_bumper": sfm.influential_point == "front_bumper",
-            "max_speed_mps": inf if sfm.max_speed_mps is None else sfm.max_speed_mps,
+            "max_speed_mps": inf if vmax is None else vmax,
             "max_accel_mps2": inf if sfm.max_accel_mps2 is None else sfm.max_accel_mps2,
             "ego_mode": EGO_MODE_CODES[case.ego_mode],
             "cruise_speed_mps": vd,
