@@ -104,3 +104,33 @@ def test_run_up_moves_the_meeting_later() -> None:
     r = run_cases(sc, [case], time_shift_s=res.time_shift_s)
     assert r.ego_x_m[0, 0] == pytest.approx(-20.0)
     assert bool(r.collision[0])
+
+
+def test_a_given_shift_is_evaluated_and_one_that_keeps_the_rider_out_is_refused() -> None:
+    from vei.experiments.timeshift import evaluate_time_shift
+
+    sc = crossing_scenario()
+    auto = find_time_shift(sc)
+    assert auto.paths_meet and auto.meet_tolerance_m == pytest.approx(0.5 * (1.85 + 0.6))
+    given = evaluate_time_shift(sc, auto.time_shift_s)
+    assert given.miss_distance_m == pytest.approx(auto.miss_distance_m, abs=0.05)
+    assert given.search_min_s == given.search_max_s == auto.time_shift_s
+    # One second later the rider is 4.4 m short of the crossing when the ego's front is
+    # there; the closest approach of the two is then a few metres: not meeting.
+    late = evaluate_time_shift(sc, auto.time_shift_s + 1.0)
+    assert not late.paths_meet and late.miss_distance_m > 2.0
+    assert "NOT CRITICAL" in late.message() and f"{late.miss_distance_m:.2f} m" in late.message()
+    # The rider's recording spans [2, 2 + 30 / 4.4] s; the run [0, 25] s.
+    with pytest.raises(InputError, match=r"keeps rider .* out of the run.*\[2\.00, 8\.80\] s"):
+        evaluate_time_shift(sc, 1000.0)
+
+
+def test_paths_that_never_meet_are_reported_with_the_miss_distance() -> None:
+    # The rider (4 m/s, last sample at y = -3 exactly) stops 3 m short of the ego's line: the best any shift can do
+    # is a miss of 3 m between its centre and the ego's front centre.
+    sc = crossing_scenario(rider_y1_m=-3.0, rider_speed_mps=4.0)
+    res = find_time_shift(sc)
+    assert res.miss_distance_m == pytest.approx(3.0, abs=0.01)
+    assert not res.paths_meet
+    assert res.message().startswith("NOT CRITICAL") and "3.00 m" in res.message()
+    assert res.as_dict()["paths_meet"] is False

@@ -70,3 +70,37 @@ def test_paper_ttc_for_a_rider_standing_ahead_in_the_corridor():
     assert f.min_ttc_paper_s == pytest.approx(np.hypot(30.0, 1.0) / 5.0)
     assert f.path_distance_m == pytest.approx(1.0)
     assert f.as_dict()["pet_s"] is not None
+
+
+def test_escooters_come_before_cyclists_among_conflicting_riders():
+    cyc = ThreatFigures("cyclist_1", 0.1, True, 0.5, 3.0, 1.0, "cyclist")
+    esc = ThreatFigures("escooter_2", 1.5, True, 9.0, 8.0, np.inf, "escooter")
+    far_esc = ThreatFigures("escooter_3", 15.0, False, np.inf, 1.0, np.inf, "escooter")
+    # The conflicting e-scooter wins although the cyclist's PET is smaller.
+    assert primary_threat([cyc, esc, far_esc]) == "escooter_2"
+    # A non-conflicting e-scooter does not beat a conflicting cyclist.
+    assert primary_threat([cyc, far_esc]) == "cyclist_1"
+    # Without conflicts: the smallest same-time gap, e-scooters first among equal gaps.
+    a = ThreatFigures("cyclist_4", 5.0, False, np.inf, 2.0, np.inf, "cyclist")
+    b = ThreatFigures("escooter_5", 6.0, False, np.inf, 2.0, np.inf, "escooter")
+    assert primary_threat([a, b]) == "escooter_5"
+    assert b.as_dict()["category"] == "escooter"
+
+
+def test_resolve_threat_by_agent_or_track_id_and_clear_errors():
+    from vei.errors import InputError
+    from vei.recon.threat import resolve_threat, with_threat
+    from vei.sim.testing import crossing_scenario
+
+    riders = {"escooter_78": ("escooter", "78"), "cyclist_60": ("cyclist", "60")}
+    assert resolve_threat("escooter_78", riders, "s") == "escooter_78"
+    assert resolve_threat("60", riders, "s") == "cyclist_60"
+    with pytest.raises(InputError, match=r"'99' is not a rider.*cyclist_60 \(track 60\)"):
+        resolve_threat("99", riders, "s")
+    sc = crossing_scenario()
+    rider = sc.primary_threat
+    assert with_threat(sc, None) is sc
+    chosen = with_threat(sc, rider)
+    assert chosen.primary_threat == rider and chosen.extra["threat"]["chosen_by"] == "user"
+    with pytest.raises(InputError, match="field 'threat'"):
+        with_threat(sc, "ego")

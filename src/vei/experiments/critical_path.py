@@ -220,8 +220,29 @@ def _dense_path(x: np.ndarray, y: np.ndarray, spacing_m: float) -> np.ndarray:
     return np.column_stack([np.interp(g, s, x), np.interp(g, s, y)])
 
 
+def _polyline_distance(
+    tree: cKDTree, poly: np.ndarray, pts: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Distance [N] of points to the polyline ``poly`` [K, 2] (its vertices in ``tree``) and
+    the foot points [N, 2]: nearest vertex, then the two segments that share it."""
+    _, k = tree.query(pts)
+    foot = poly[k].copy()
+    best = np.hypot(*(pts - foot).T)
+    for a_i, b_i in ((np.maximum(k - 1, 0), k), (k, np.minimum(k + 1, len(poly) - 1))):
+        a, b = poly[a_i], poly[b_i]
+        ab = b - a
+        den = np.einsum("ij,ij->i", ab, ab)
+        t = np.clip(np.einsum("ij,ij->i", pts - a, ab) / np.where(den > 0, den, 1.0), 0.0, 1.0)
+        q = a + t[:, None] * ab
+        d = np.hypot(*(pts - q).T)
+        better = d < best
+        best = np.where(better, d, best)
+        foot[better] = q[better]
+    return best, foot
+
+
 def _first_success(values: np.ndarray, dist: np.ndarray, tol: float) -> float:
-    ok = np.flatnonzero(dist <= tol)
+    ok = np.flatnonzero(dist <= tol + 1e-9)
     return float(np.round(values[ok[0]], 6)) if ok.size else float("nan")
 
 
@@ -250,7 +271,7 @@ def find_path_perturbation(
     tree = cKDTree(ego_pts)
     rx, ry = f.x_tab_m, f.y_tab_m
     rpts = _dense_path(rx, ry, 0.5 * cfg.tolerance_m)
-    d0, idx0 = tree.query(rpts)
+    d0, foot0 = _polyline_distance(tree, ego_pts, rpts)
     k0 = int(np.argmin(d0))
     path_d = float(d0[k0])
     px, py = rpts[k0]
@@ -258,7 +279,7 @@ def find_path_perturbation(
     h = max(1, int(round(1.0 / (0.5 * cfg.tolerance_m))))
     a, b = rpts[max(k0 - h, 0)], rpts[min(k0 + h, len(rpts) - 1)]
     heading = float(np.arctan2(b[1] - a[1], b[0] - a[0])) if np.any(a != b) else 0.0
-    qx, qy = ego_pts[idx0[k0]]
+    qx, qy = foot0[k0]
     if path_d > 0:
         nx, ny = (qx - px) / path_d, (qy - py) / path_d
     else:
@@ -283,7 +304,9 @@ def find_path_perturbation(
         return pert, scenario, first
 
     def min_dist(xy: np.ndarray) -> float:
-        return float(tree.query(xy, distance_upper_bound=cfg.tolerance_m * 4)[0].min())
+        d, _ = tree.query(xy, distance_upper_bound=cfg.tolerance_m + cfg.tolerance_m)
+        near = np.isfinite(d)  # only points near a vertex can be within the tolerance
+        return float(_polyline_distance(tree, ego_pts, xy[near])[0].min()) if near.any() else np.inf
 
     mags = np.arange(cfg.offset_step_m, cfg.max_offset_m + 1e-9, cfg.offset_step_m)
     offsets = np.ravel(np.column_stack([mags, -mags]))  # +d, -d, +2d, ... (outwards)
@@ -315,8 +338,8 @@ def find_path_perturbation(
     off = float(best_off) if use_offset else 0.0
     ch, sh = np.cos(heading), np.sin(heading)
     pert = PathPerturbation(
-        lateral_m=off * (-sh * nx + ch * ny),
-        longitudinal_m=off * (ch * nx + sh * ny),
+        lateral_m=float(off * (-sh * nx + ch * ny)),
+        longitudinal_m=float(off * (ch * nx + sh * ny)),
         kind="offset" if use_offset else "rotation",
         offset_m=off,
         rotation_deg=0.0 if use_offset else float(best_rot),

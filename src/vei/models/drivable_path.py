@@ -14,7 +14,8 @@ of motion say 1.95 rad), so the run-up joined the recorded path at 70 degrees.
 2. fits a cubic smoothing spline ``(x(u), y(u))`` in the arc length u of the kept points
    (:func:`scipy.interpolate.make_smoothing_spline`, one penalty for both coordinates).
    Its second derivative is (for |r'| ~ 1) the curvature, which the penalty bounds: the
-   spline is raised in smoothness (lam x 2 per try) until the curvature stays within
+   spline is raised in smoothness (lam x 2 per try, then bisected) until the curvature
+   just stays within
    ``kappa_max = max_lat_accel_mps2 / path_speed_mps^2`` (lateral acceleration at the
    cruise speed). Natural end conditions give zero curvature at both ends, so the straight
    extensions join with continuous heading *and* curvature;
@@ -194,15 +195,26 @@ def build_ego_path(
         xy = np.column_stack([kx, ky])
         # Smallest lam that removes centimetre noise, raised until the curvature bound holds.
         lam = (smoothing_length_m / (2.0 * np.pi)) ** 4 / min_step_m
-        for _ in range(60):
-            grid, gx, gy, gyaw, kmax = _spline_eval(u, xy, lam, ds_m)
-            if kmax <= kappa_max:
+        for _tries in range(60):
+            fit = _spline_eval(u, xy, lam, ds_m)
+            if fit[4] <= kappa_max:
                 break
             lam *= 2.0
         else:
             raise InputError(
                 f"cannot smooth the path to curvature <= {kappa_max:.4f} 1/m", path=where
             )
+        if _tries:  # bisect (log lam) between the last failure and the success: no more
+            lo_lam, hi_lam = 0.5 * lam, lam  # smoothing (corner cutting) than the bound needs
+            for _ in range(6):
+                mid = float(np.sqrt(lo_lam * hi_lam))
+                cand = _spline_eval(u, xy, mid, ds_m)
+                if cand[4] <= kappa_max:
+                    hi_lam, fit = mid, cand
+                else:
+                    lo_lam = mid
+            lam = hi_lam
+        grid, gx, gy, gyaw, _ = fit
     elif u[-1] >= ds_m:
         method = "line"
         yaw = float(np.arctan2(ky[-1] - ky[0], kx[-1] - kx[0]))
