@@ -138,3 +138,17 @@ def test_settings_and_missing_esmini(tmp_path):
     backend = EsminiBackend(EsminiSettings(root=tmp_path / "nowhere"))
     with pytest.raises(DependencyError, match="esmini"):
         run_backend(backend, crossing_scenario(), "replay")
+
+
+@pytest.mark.parametrize("osc_version", ["1.0", "1.3"])
+def test_other_openscenario_versions_play_the_same_loop(osc_version, esmini, tmp_path):
+    from tests.sim.backends.conftest import write_straight_xodr
+
+    write_straight_xodr(tmp_path / "map.xodr")
+    scenario = crossing_scenario(tmp_path)
+    cases = ["replay", "aggressive-cap"]
+    backend = EsminiBackend(EsminiSettings(root=esmini.root, osc_version=osc_version))
+    got = run_backend(backend, scenario, cases, time_shift_s=MEETING_SHIFT_S)
+    ref = run_cases(scenario, cases, time_shift_s=MEETING_SHIFT_S).to_frame()
+    _assert_same_series(got, ref, atol=1e-4)
+    assert all(r["others_max_dev_m"]["c1"] < 1e-4 for r in backend.reports)

@@ -7,6 +7,9 @@ Per run (one configuration):
    scenario has one), every replayed road user on its timed trajectory sampled at the
    engine's steps, the rider too under ``replay`` (time-shifted), and the ego with only
    its initial pose and speed (``ego_controller='simulator'``: something else drives it).
+   After loading, the file's ego is replaced by an object of the same name and box that
+   only vei places (``SE_DeleteObject`` + ``SE_AddObjectWithBoundingBox``), so that no
+   story action in the file moves it or changes its speed.
 2. esmini loads the file through ``libesminiLib.so`` (:mod:`.esmini_lib`, ctypes;
    headless, console off, its log in the run's folder, collision detection on).
 3. Each step of ``dt``: vei's controllers (:class:`~vei.sim.backends.base.ClosedLoop`:
@@ -60,7 +63,8 @@ from vei.sim.backends.esmini_lib import (
 )
 from vei.types import EGO_CATEGORY, EGO_ID, AgentInfo, Scenario
 
-#: Height of the added rider's box [m] (esmini needs one; vei's boxes are 2-D).
+#: Heights of the ego's and the added rider's boxes [m] (esmini needs them; vei's are 2-D).
+EGO_HEIGHT_M = 1.5
 RIDER_HEIGHT_M = 1.7
 _SPAN_EPS = 1e-9
 
@@ -266,11 +270,16 @@ class EsminiBackend(Backend):
         )
         self._loop = loop
         s = self._session
-        ego = s.object_id(EGO_ID)
-        if ego is None:
-            raise BackendError(f"esmini did not create the ego from {xosc}")
-        self._ego = ego
         a = loop.arrays
+        # The file's ego (Init pose, its path for a player driving it) is replaced by an
+        # object of the same name and box that only vei places: no story action of the
+        # file can move it or change its speed.
+        file_ego = s.object_id(EGO_ID)
+        if file_ego is None:
+            raise BackendError(f"esmini did not create the ego from {xosc}")
+        s.delete_object(file_ego)
+        ego = s.add_object(EGO_ID, float(a.ego_length_m), float(a.ego_width_m), EGO_HEIGHT_M)
+        self._ego = ego
         self._other_names = list(a.other_ids)
         self._other_oid: dict[int, int] = {}
         self._rider_oid: int | None = None
@@ -280,6 +289,14 @@ class EsminiBackend(Backend):
         self._dev = np.zeros(len(a.other_ids))
         self._contacts = 0
         self.reports.append({"config": loop.case.name, "xosc": str(xosc)})
+        st0 = loop.state
+        s.report(
+            ego,
+            float(st0.ego_x_m[0]),
+            float(st0.ego_y_m[0]),
+            float(st0.ego_yaw_rad[0]),
+            self._prev_v,
+        )
         st = s.state(ego)
         meas = self._measure(
             ego_ref=(
