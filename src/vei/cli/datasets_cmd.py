@@ -98,6 +98,11 @@ def _import_trafficmonitoring(
             f"  {cat}: {sub['track_id'].nunique()} track(s), {len(sub)} annotations at {rate_hz:g} Hz, "
             f"seen {spans.min():.1f}-{spans.max():.1f} s"
         )
+    for tr in s.track_times:
+        typer.echo(
+            f"    track {tr['track_id']} ({tr['category']}): seen t = {tr['first_s']:.1f}-{tr['last_s']:.1f} s "
+            f"({tr['last_s'] - tr['first_s']:.1f} s, {tr['n_annotations']} annotations)"
+        )
     if s.own_track_median_m is not None:
         typer.echo(
             f"  car's own camera track vs INS: median {s.own_track_median_m:.2f} m, p95 {s.own_track_p95_m:.2f} m"

@@ -106,6 +106,22 @@ _CAMERA_COLUMNS = (
     "coordinate_world_y_opt",
 )
 _MATCHING_COLUMNS = ("start_timestamp", "measurement_prefix", "relevant_track_id")
+#: Plausible ranges of the INS columns: (column, min, max, meaning); outside is an InputError.
+_INS_RANGES: tuple[tuple[str, float, float, str], ...] = (
+    ("week", 0.0, 9999.0, "GPS week number"),
+    ("gps_tow", 0.0, float(SECONDS_PER_WEEK), "GPS time of week [s]"),
+    ("rpy_z", -4.0 * math.pi, 4.0 * math.pi, "heading [rad]"),
+    ("vel_x", -200.0, 200.0, "north velocity [m/s]"),
+    ("vel_y", -200.0, 200.0, "east velocity [m/s]"),
+    ("pos_x", -math.pi, math.pi, "longitude in radians, not degrees"),
+    ("pos_y", -math.pi / 2, math.pi / 2, "latitude in radians, not degrees"),
+)
+#: Plausible ranges of the camera columns (UTM 32N easting / northing [m], frame index).
+_CAMERA_RANGES: tuple[tuple[str, float, float, str], ...] = (
+    ("frame_id", 0.0, 1e8, "video frame index"),
+    ("coordinate_world_x_opt", 100_000.0, 900_000.0, "UTM 32N easting [m]"),
+    ("coordinate_world_y_opt", 0.0, 9_400_000.0, "UTM 32N northing [m]"),
+)
 
 
 # ----------------------------------------------------------------------------- time
@@ -270,6 +286,17 @@ def read_ins(path: Path) -> InsRecord:
         i = int(np.flatnonzero(bad)[0])
         col = next(c for c in _INS_COLUMNS if pd.isna(values[c].iloc[i]))
         raise InputError("missing or non-numeric value", path=path, row=i + 1, field=col)
+    for col, lo, hi, what in _INS_RANGES:
+        v = values[col].to_numpy(dtype=np.float64)
+        bad = ~np.isfinite(v) | (v < lo) | (v > hi)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise InputError(
+                f"value {float(v[i])!r} outside [{lo:g}, {hi:g}] ({what})",
+                path=path,
+                row=i + 1,
+                field=col,
+            )
     week = values["week"].to_numpy(dtype=np.int64)
     tow = values["gps_tow"].to_numpy(dtype=np.float64)
     # GPS time of week has microsecond resolution: round away float noise of the difference
@@ -328,6 +355,17 @@ def read_camera(path: Path, start_s: float) -> pd.DataFrame:
             "track_id",
         )
         raise InputError("missing or non-numeric value", path=path, row=i + 1, field=col)
+    for col, lo, hi, what in _CAMERA_RANGES:
+        v = num[col].to_numpy(dtype=np.float64)
+        bad = ~np.isfinite(v) | (v < lo) | (v > hi)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise InputError(
+                f"value {float(v[i])!r} outside [{lo:g}, {hi:g}] ({what})",
+                path=path,
+                row=i + 1,
+                field=col,
+            )
     to_wgs84 = Transformer.from_crs(CAMERA_CRS, "EPSG:4326", always_xy=True)
     lon, lat = to_wgs84.transform(
         num["coordinate_world_x_opt"].to_numpy(dtype=np.float64),
@@ -473,6 +511,9 @@ class ImportSummary:
         annotations: number of annotation rows.
         own_track_median_m, own_track_p95_m: distance between the car's own camera track
             and its INS position at the camera frames inside the INS span [m].
+        track_times: when each annotated track is seen, sorted by first_s:
+            ({'track_id', 'category', 'first_s', 'last_s', 'n_annotations'}, ...) with
+            first_s / last_s its first / last annotation [s since ins_start_utc].
     """
 
     scenario: str
@@ -485,6 +526,7 @@ class ImportSummary:
     annotations: int
     own_track_median_m: float | None
     own_track_p95_m: float | None
+    track_times: tuple[dict, ...] = ()
 
 
 def _trim_ins(ins: InsRecord, t_lo: float, t_hi: float) -> InsRecord:
@@ -742,4 +784,16 @@ def import_scenario_with_summary(
         annotations=int((annotations["track_id"] != own).sum()),
         own_track_median_m=median_m,
         own_track_p95_m=p95_m,
+        track_times=tuple(
+            {
+                "track_id": str(tid),
+                "category": str(g["category"].iloc[0]),
+                "first_s": float(g["t_s"].min()),
+                "last_s": float(g["t_s"].max()),
+                "n_annotations": len(g),
+            }
+            for tid, g in sorted(
+                annotations.groupby("track_id"), key=lambda kv: (kv[1]["t_s"].min(), kv[0])
+            )
+        ),
     )
