@@ -42,8 +42,10 @@ def register(app: typer.Typer) -> None:
             typer.Option(
                 "--interp",
                 help="Position interpolation between keyframes: 'cubic' (the paper's cubic spline), "
-                "'linear', or 'smoothing' (noise-aware smoothing spline that keeps rider speeds "
-                "and accelerations plausible).",
+                "'linear', 'smoothing' (noise-aware smoothing spline that keeps rider speeds "
+                "and accelerations plausible), or 'kalman' (RTS smoother with the noise "
+                "estimated from the recording's keyframes: positions with their 95 % band, "
+                "uncertainty.png, calibration against ground truth).",
             ),
         ] = "cubic",
         noise_m: Annotated[
@@ -53,6 +55,15 @@ def register(app: typer.Typer) -> None:
                 help="Keyframe position noise (1 sigma) assumed by --interp smoothing, in metres.",
             ),
         ] = 0.25,
+        ego_path: Annotated[
+            str,
+            typer.Option(
+                "--ego-path",
+                help="Ego path: 'spline' (cubic spline through the GPS fixes) or 'kalman' "
+                "(smoothed with vehicle kinematics: continuous heading and curvature; the "
+                "lateral acceleration before/after is reported).",
+            ),
+        ] = "spline",
         margin_m: Annotated[
             float,
             typer.Option("--margin-m", help="Margin around the trajectories' bounds, in metres."),
@@ -90,7 +101,7 @@ def register(app: typer.Typer) -> None:
         from vei.recon.pipeline import reconstruct as run_reconstruct
 
         config = ReconstructionConfig(
-            rate_hz=rate_hz, interp=interp, noise_m=noise_m, margin_m=margin_m
+            rate_hz=rate_hz, interp=interp, noise_m=noise_m, margin_m=margin_m, ego_path=ego_path
         )
         data = read_interaction(interaction)
         scenario = run_reconstruct(data, config, threat=threat)
@@ -111,8 +122,52 @@ def register(app: typer.Typer) -> None:
 
                 fig = plot_birdseye(scenario, title=f"{scenario.id} ({interp})", roads=draw_roads)
                 writers["birdseye.png"] = functools.partial(save_figure, fig)
+                if interp == "kalman" and scenario.primary_threat is not None:
+                    band = _uncertainty_figure(scenario, data)
+                    if band is not None:
+                        writers["uncertainty.png"] = functools.partial(save_figure, band)
             write_scenario(scenario, out, extra_files=writers)
         print_report(scenario, out)
+
+
+def _uncertainty_figure(scenario, interaction):
+    """Bird's-eye view of the primary rider's posterior: mean, 95 % band, 30 samples
+    (seed 0), keyframes and, where the interaction has it, the ground truth. None when the
+    rider has fewer than 2 keyframes."""
+    import numpy as np
+
+    from vei.errors import InputError
+    from vei.geo.frame import LocalFrame
+    from vei.recon.samples import rider_band, sample_rider
+    from vei.report.uncertainty import plot_uncertainty
+
+    try:
+        band = rider_band(scenario)
+        draws = sample_rider(scenario, 30, 0)
+    except InputError:
+        return None
+    kf = scenario.keyframes[scenario.keyframes["agent_id"] == band.agent_id]
+    gt_xy = None
+    gt = interaction.ground_truth
+    track_id = scenario.agent(band.agent_id).source_track_id
+    if gt is not None and track_id is not None:
+        rows = gt[gt["track_id"].astype(str) == str(track_id)]
+        rows = rows[(rows["t_s"] >= band.t_s[0]) & (rows["t_s"] <= band.t_s[-1])]
+        if len(rows):
+            frame = LocalFrame.from_proj_string(scenario.projection)
+            gx, gy = frame.to_xy(rows["lat_deg"].to_numpy(float), rows["lon_deg"].to_numpy(float))
+            gt_xy = np.column_stack([gx, gy])
+    ego = scenario.track("ego")
+    return plot_uncertainty(
+        agent_id=band.agent_id,
+        t_s=band.t_s,
+        mean_xy_m=band.xy_m,
+        std_m=band.std_m,
+        ego_xy_m=ego[["x_m", "y_m"]].to_numpy(float),
+        samples_xy_m=draws.xy_m,
+        keyframes_xy_m=kf[["x_m", "y_m"]].to_numpy(float),
+        ground_truth_xy_m=gt_xy,
+    )
 
 
 def print_report(scenario, out: Path) -> None:
@@ -166,6 +221,30 @@ def print_report(scenario, out: Path) -> None:
             f"riders (e-scooters + cyclists): {s['n_tracks']} tracks, mean RMSE {s['mean_rmse_m']:.3f} m, "
             f"max RMSE {s['max_rmse_m']:.3f} m, p95 {s['p95_m']:.3f} m, max error {s['max_error_m']:.3f} m"
         )
+        if s.get("mean_rmse_sg_m") is not None:
+            line = f"  vs ground truth denoised (1 s Savitzky-Golay): mean RMSE {s['mean_rmse_sg_m']:.3f} m"
+            if s.get("coverage_sg") is not None:
+                line += (
+                    f"; 95 % interval coverage {100 * s['coverage_sg']:.1f} % (denoised), "
+                    f"{100 * s['coverage_raw']:.1f} % (raw, with the keyframe noise)"
+                )
+            console.print(line)
+    noise = rec.get("noise")
+    if noise:
+        console.print(
+            f"kalman noise ({noise['method']}, {noise['n_keyframes']} keyframes of {noise['n_tracks']} "
+            f"tracks): sigma {noise['noise_m']:.3f} m, q {noise['accel_psd_m2ps3']:.3f} m^2/s^3"
+        )
+    ego_path = rec.get("ego_path")
+    if ego_path:
+        b, a = ego_path["before"], ego_path["after"]
+        if b["max_abs_lat_accel_mps2"] is not None:
+            console.print(
+                f"ego path (kalman, moved {ego_path['shift_rms_m']:.3f} m RMS): max |lateral accel| "
+                f"{b['max_abs_lat_accel_mps2']:.2f} -> {a['max_abs_lat_accel_mps2']:.2f} m/s^2, "
+                f"RMS {b['rms_lat_accel_mps2']:.2f} -> {a['rms_lat_accel_mps2']:.2f} m/s^2, "
+                f"max lateral jerk {b['max_lat_jerk_mps3']:.1f} -> {a['max_lat_jerk_mps3']:.1f} m/s^3"
+            )
     dropped = rec.get("dropped_tracks", [])
     if dropped:
         console.print(

@@ -42,7 +42,7 @@ import numpy as np
 import pandas as pd
 
 from vei.errors import ConfigError, InputError
-from vei.experiments.sweep_spec import SweepSpec, variants_table
+from vei.experiments.sweep_spec import SAMPLE_COLUMN, SweepSpec, variants_table
 from vei.io.atomic import write_json, write_parquet
 
 SWEEP_FORMAT = "vei.sweep/1"
@@ -223,7 +223,12 @@ def run_sweep(
     if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
         raise ConfigError(f"chunk_size must be an integer >= 1, got {chunk_size!r}")
     if evaluator is None:
-        evaluator = EngineEvaluator(time_shift_reference=spec.time_shift_reference, base=spec.base)
+        evaluator = EngineEvaluator(
+            time_shift_reference=spec.time_shift_reference,
+            base=spec.base,
+            reconstruction_samples=spec.reconstruction_samples,
+            sample_seed=spec.seed,
+        )
     if progress is None:
         progress = sys.stderr.isatty()
     dirs = (
@@ -545,7 +550,7 @@ def read_results(out_dir: str | Path) -> pd.DataFrame:
 
 def numeric_metric_columns(results: pd.DataFrame, spec_names: Sequence[str]) -> list[str]:
     """Metric columns of a results table (those that are not variant columns)."""
-    fixed = {"variant_id", "scenario_id", "variant_index", "seed", *spec_names}
+    fixed = {"variant_id", "scenario_id", "variant_index", "seed", SAMPLE_COLUMN, *spec_names}
     return [
         c for c in results.columns if c not in fixed and np.issubdtype(results[c].dtype, np.number)
     ]
@@ -724,12 +729,15 @@ class PreparedScenario:
     Attributes:
         scenario_id: its id. path: its folder. arrays: vei.sim.state.ScenarioArrays.
         auto_shift_s: the automatic time shift [s] (None unless the reference is 'auto').
+        sample_arrays: one ScenarioArrays per posterior sample of the primary rider's
+            trajectory (``reconstruction: {samples: N}``; empty otherwise).
     """
 
     scenario_id: str
     path: str
     arrays: Any
     auto_shift_s: float | None
+    sample_arrays: tuple = ()
 
 
 def variant_params(
@@ -820,6 +828,9 @@ class EngineEvaluator:
         base: the spec's base configuration name.
         sim: engine settings (default: SimConfig(), 20 Hz over the scenario's span).
         metrics: scalar metric names (vei.metrics) to record per variant.
+        reconstruction_samples: N posterior samples of the primary rider's trajectory
+            (:func:`vei.recon.samples.sample_rider`, drawn with ``sample_seed``); variants
+            carry the sample they run on in column SAMPLE_COLUMN. None: mean trajectory.
     """
 
     def __init__(
@@ -828,9 +839,13 @@ class EngineEvaluator:
         base: str = "normal-cap",
         sim: Any = None,
         metrics: Sequence[str] = DEFAULT_METRICS,
+        reconstruction_samples: int | None = None,
+        sample_seed: int = 0,
     ) -> None:
         from vei.config import SimConfig
 
+        self.reconstruction_samples = reconstruction_samples
+        self.sample_seed = sample_seed
         self.time_shift_reference = time_shift_reference
         self.base = base
         self.sim = sim if sim is not None else SimConfig()
@@ -848,7 +863,16 @@ class EngineEvaluator:
             from vei.experiments.timeshift import find_time_shift
 
             auto = float(find_time_shift(scenario, sim=self.sim).time_shift_s)
-        return PreparedScenario(scenario.id, str(scenario_dir), arrays, auto)
+        sample_arrays: tuple = ()
+        if self.reconstruction_samples:
+            from vei.recon.samples import sample_rider, scenario_with_sample
+
+            draws = sample_rider(scenario, self.reconstruction_samples, self.sample_seed)
+            sample_arrays = tuple(
+                prepare_scenario(scenario_with_sample(scenario, draws, k), self.sim)
+                for k in range(draws.n_samples)
+            )
+        return PreparedScenario(scenario.id, str(scenario_dir), arrays, auto, sample_arrays)
 
     def scenario_id(self, prepared: PreparedScenario) -> str:
         """The scenario's id."""
@@ -862,10 +886,24 @@ class EngineEvaluator:
         """Simulate ``variants`` [B rows] as one batch; one metrics row per variant.
 
         Returns a DataFrame: variant_id, time_shift_applied_s (the absolute shift [s]),
-        then ``self.metrics`` columns (collision bool, the others float).
+        then ``self.metrics`` columns (collision bool, the others float). Variants with a
+        SAMPLE_COLUMN run on that sample's arrays (one batch per sample).
         """
         from vei.metrics import summarize
         from vei.sim.engine import simulate
+
+        if SAMPLE_COLUMN in variants.columns and prepared.sample_arrays:
+            parts = []
+            for k, grp in variants.groupby(SAMPLE_COLUMN, sort=False):
+                one = PreparedScenario(
+                    prepared.scenario_id,
+                    prepared.path,
+                    prepared.sample_arrays[int(k)],
+                    prepared.auto_shift_s,
+                )
+                parts.append(self.evaluate(one, grp.drop(columns=SAMPLE_COLUMN)))
+            out = pd.concat(parts, ignore_index=True).set_index("variant_id")
+            return out.loc[variants["variant_id"].to_numpy()].reset_index()
 
         params = variant_params(
             variants,

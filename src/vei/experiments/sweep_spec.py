@@ -17,6 +17,10 @@ A sweep spec is a YAML (or JSON) mapping loaded into frozen dataclasses at the e
       cap.enabled: true                              # a fixed value
       sfm:                                           # nested groups are the dotted names
         k_des: {min: 50.0, max: 200.0, num: 3}
+    reconstruction: {samples: 200}   # optional: every design point runs on each of 200
+                                     # posterior samples of the primary rider's trajectory
+                                     # (vei.recon.samples, drawn with `seed`; column
+                                     # reconstruction_sample = 0..199)
 
 Unknown keys are errors that name the key and the file; ``0`` never means "default".
 Parameters that a spec does not name keep the values of the ``base`` configuration (one of
@@ -186,6 +190,8 @@ class SweepSpec:
         time_shift_reference: 'auto' (time_shift_s offsets the scenario's automatic shift)
             or 'zero' (time_shift_s is absolute).
         base: configuration preset (``vei.config.CASE_PRESETS``) for what is not swept.
+        reconstruction_samples: N posterior samples of the primary rider's trajectory that
+            every design point runs on (None: the reconstruction's mean trajectory only).
         source: file it was loaded from, if any (for messages).
     """
 
@@ -195,6 +201,7 @@ class SweepSpec:
     seed: int = 0
     time_shift_reference: str = "auto"
     base: str = "normal-cap"
+    reconstruction_samples: int | None = None
     source: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -213,6 +220,13 @@ class SweepSpec:
             )
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ConfigError(f"{where}: seed must be an integer >= 0, got {self.seed!r}")
+        n_rec = self.reconstruction_samples
+        if n_rec is not None and (
+            isinstance(n_rec, bool) or not isinstance(n_rec, int) or n_rec < 1
+        ):
+            raise ConfigError(
+                f"{where}: reconstruction.samples must be an integer >= 1, got {n_rec!r}"
+            )
         if self.design == "grid":
             if self.n_samples is not None:
                 raise ConfigError(
@@ -272,6 +286,8 @@ class SweepSpec:
         out["time_shift_reference"] = self.time_shift_reference
         out["base"] = self.base
         out["parameters"] = params
+        if self.reconstruction_samples is not None:
+            out["reconstruction"] = {"samples": self.reconstruction_samples}
         return out
 
     def digest(self) -> str:
@@ -281,13 +297,25 @@ class SweepSpec:
 
     def n_variants(self) -> int:
         """Number of design points per scenario (before removing duplicates)."""
+        per_sample = self.reconstruction_samples or 1
         if self.design == "grid":
-            return int(np.prod([len(p.grid_values()) for p in self.parameters], dtype=np.int64))
+            grid = int(np.prod([len(p.grid_values()) for p in self.parameters], dtype=np.int64))
+            return grid * per_sample
         assert self.n_samples is not None
-        return self.n_samples
+        return self.n_samples * per_sample
 
 
-_SPEC_KEYS = {"design", "n_samples", "seed", "time_shift_reference", "base", "parameters"}
+_SPEC_KEYS = {
+    "design",
+    "n_samples",
+    "seed",
+    "time_shift_reference",
+    "base",
+    "parameters",
+    "reconstruction",
+}
+#: Variants-table column of the reconstruction sample a variant runs on.
+SAMPLE_COLUMN = "reconstruction_sample"
 _PARAM_KEYS = {"min", "max", "num", "choices"}
 
 
@@ -373,8 +401,28 @@ def spec_from_dict(raw: Any, *, source: str | None = None) -> SweepSpec:
         seed=raw.get("seed", 0),
         time_shift_reference=raw.get("time_shift_reference", "auto"),
         base=raw.get("base", "normal-cap"),
+        reconstruction_samples=_parse_reconstruction(raw.get("reconstruction"), where),
         source=source,
     )
+
+
+def _parse_reconstruction(raw: Any, where: str) -> int | None:
+    """``reconstruction: {samples: N}`` -> N (None when absent)."""
+    if raw is None:
+        return None
+    if not isinstance(raw, Mapping):
+        raise ConfigError(f"{where}: 'reconstruction' must be a mapping like {{samples: 200}}")
+    unknown = set(map(str, raw)) - {"samples"}
+    if unknown:
+        raise ConfigError(
+            f"{where}: reconstruction: unknown key(s) {', '.join(sorted(unknown))}; expected samples"
+        )
+    if "samples" not in raw:
+        raise ConfigError(f"{where}: reconstruction: missing 'samples'")
+    n = raw["samples"]
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ConfigError(f"{where}: reconstruction.samples must be an integer >= 1, got {n!r}")
+    return n
 
 
 def load_spec(path: str | Path) -> SweepSpec:
@@ -481,9 +529,14 @@ def variants_table(spec: SweepSpec, scenario_id: str) -> pd.DataFrame:
     position in the design, the row order), seed (int, :func:`variant_seed`), then one
     column per spec parameter (float / bool / str). Design points whose parameters repeat
     an earlier row (possible when only sets are varied) are identical simulations with the
-    same id and are kept once.
+    same id and are kept once. With ``reconstruction_samples`` N, every design point is
+    repeated for samples 0..N-1 (column SAMPLE_COLUMN, int, part of the variant id).
     """
     pts = design_points(spec)
+    if spec.reconstruction_samples is not None:
+        n_rec = spec.reconstruction_samples
+        pts = pts.loc[pts.index.repeat(n_rec)].reset_index(drop=True)
+        pts[SAMPLE_COLUMN] = np.tile(np.arange(n_rec, dtype=np.int64), len(pts) // n_rec)
     records = pts.to_dict("records")
     ids = [variant_id(scenario_id, r) for r in records]
     df = pd.DataFrame(

@@ -165,3 +165,47 @@ def scenario_with_sample(scenario: Scenario, samples: RiderSamples, k: int) -> S
         "n_samples": samples.n_samples,
     }
     return dataclasses.replace(scenario, trajectories=new, extra=extra)
+
+
+@dataclass(frozen=True)
+class RiderBand:
+    """Posterior mean and spread of a rider's position on its scenario time grid.
+
+    Attributes:
+        agent_id: the rider. t_s: [T] times [s]. xy_m: [T, 2] posterior mean [m].
+        std_m: [T] posterior standard deviation per axis [m] (isotropic).
+        noise: the noise model used.
+    """
+
+    agent_id: str
+    t_s: FloatArray
+    xy_m: FloatArray
+    std_m: FloatArray
+    noise: NoiseEstimate
+
+
+def rider_band(scenario: Scenario, agent_id: str | None = None) -> RiderBand:
+    """The posterior (mean, std) of a rider at its scenario times, from its keyframes and
+    the scenario's noise model (:func:`scenario_noise`).
+
+    Raises:
+        InputError: no such rider or fewer than 2 keyframes.
+    """
+    from vei.recon.smoother import posterior
+
+    where = str(scenario.root or scenario.id)
+    aid = agent_id or scenario.primary_threat
+    kf = scenario.keyframes
+    rows = kf[kf["agent_id"] == aid].sort_values("t_s") if kf is not None and aid else None
+    if rows is None or len(rows) < 2:
+        raise InputError(f"rider {aid!r} needs >= 2 keyframes for an uncertainty band", path=where)
+    noise = scenario_noise(scenario)
+    t = scenario.track(aid)["t_s"].to_numpy(np.float64)
+    tk = rows["t_s"].to_numpy(np.float64)
+    post = posterior(
+        [(tk, rows[["x_m", "y_m"]].to_numpy(np.float64))],
+        [np.clip(t, tk[0], tk[-1])],
+        noise.noise_m,
+        noise.accel_psd_m2ps3,
+    )[0]
+    return RiderBand(aid, t, post.xy_m, post.std_m, noise)
