@@ -45,6 +45,9 @@ FloatArray = npt.NDArray[np.float64]
 
 #: Default bound on the lateral acceleration of a drivable path at the cruise speed [m/s^2].
 DEFAULT_MAX_LAT_ACCEL_MPS2 = 4.0
+#: The bound is computed for the cruise speed times this factor, so that the speed
+#: controller's overshoot above v_d (a few per cent after braking) stays within it.
+PATH_SPEED_MARGIN = 1.05
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,12 @@ import numpy.typing as npt
 
 from vei.config import AUTO, MAX_RUN_UP_M, MEDIAN_MOVING, CaseConfig, SimConfig
 from vei.errors import ConfigError, InputError
-from vei.models.drivable_path import EgoPathInfo, build_ego_path, recorded_arc_length
+from vei.models.drivable_path import (
+    PATH_SPEED_MARGIN,
+    EgoPathInfo,
+    build_ego_path,
+    recorded_arc_length,
+)
 from vei.models.ego import PathTable, build_path, median_moving_speed_mps, uniform_grid_index
 from vei.types import EGO_ID, Scenario
 
@@ -239,7 +244,7 @@ def prepare_scenario(
         med = median_moving_speed_mps(espeed, moving_threshold_mps)
     except InputError:
         med = float("nan")
-    path_speed = sim.ego_path_speed_mps or (med if math.isfinite(med) else 1.0)
+    path_speed = sim.ego_path_speed_mps or PATH_SPEED_MARGIN * (med if math.isfinite(med) else 1.0)
     ego_path, ego_path_info = build_ego_path(
         ex,
         ey,
