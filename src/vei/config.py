@@ -369,8 +369,9 @@ class SimConfig:
         ego_max_lat_accel_mps2: the ego path is smoothed until its curvature keeps the
             lateral acceleration at ``ego_path_speed_mps`` within this [m/s^2]
             (vei.models.drivable_path; default 4).
-        ego_path_speed_mps: speed of that bound [m/s]; None = the recorded ego's median
-            moving speed (the default cruise speed v_d).
+        ego_path_speed_mps: speed of that bound [m/s]; None = 1.05 x the recorded ego's
+            median moving speed (the default cruise speed v_d, with room for the speed
+            controller's overshoot).
     """
 
     dt_s: float = 0.05
