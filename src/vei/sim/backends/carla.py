@@ -71,18 +71,6 @@ from vei.sim.backends.carla_frame import (
 from vei.sim.backends.carla_rpc import probe_carla
 from vei.types import EGO_CATEGORY, Scenario
 
-__all__ = [
-    "CarlaBackend",
-    "CarlaSettings",
-    "ClosedLoop",
-    "EgoMeasurement",
-    "TickCommand",
-    "carla_runner",
-    "connect",
-    "run_carla",
-    "run_cases_frame",
-]
-
 #: Default CARLA RPC port.
 DEFAULT_PORT = 2000
 #: The client package version this backend is written for.
