@@ -5,7 +5,7 @@ Per track j the free parameters are ``theta_j = (v0_mps, tau_s, lookahead_m)`` w
 their ratio, the speed-relaxation time tau, is). Fixed: mass 95 kg (SFMConfig), sigma 1 m.
 The rider's limits are estimated from its own smoothed track, not fitted:
 ``max_speed_mps`` = 99th percentile of its speed, ``max_accel_mps2`` = 95th percentile of
-|acceleration| (the tail above it is mostly tracker jumps).
+|acceleration| (the tail above it is mostly tracker jumps), within [0.3, 8] m/s^2.
 
 Residuals of track j (each block divided by the square root of its size, so a track's cost
 is a mean square and long tracks do not drown short ones):
@@ -68,6 +68,11 @@ PAPER_B_PER_M = 3.5
 #: Speed / acceleration quantiles taken as the rider's limits.
 SPEED_LIMIT_Q = 0.99
 ACCEL_LIMIT_Q = 0.95
+#: Range of the acceleration limit [m/s^2]: 8 = about 0.8 g, the most a bicycle or
+#: e-scooter brakes before skidding / lifting its rear wheel; a short track's 95th
+#: percentile above it is tracker jumps, not riding.
+ACCEL_LIMIT_MIN = 0.3
+ACCEL_LIMIT_MAX = 8.0
 
 
 @dataclass(frozen=True)
@@ -137,7 +142,8 @@ def track_limits(tr: RiderTrack) -> tuple[float, float]:
     """(max_speed_mps, max_accel_mps2) of a track: quantiles of its smoothed motion."""
     sp = tr.speed_mps
     acc = np.hypot(tr.ax_mps2, tr.ay_mps2)
-    return float(np.quantile(sp, SPEED_LIMIT_Q)), float(max(np.quantile(acc, ACCEL_LIMIT_Q), 0.3))
+    amax = float(np.clip(np.quantile(acc, ACCEL_LIMIT_Q), ACCEL_LIMIT_MIN, ACCEL_LIMIT_MAX))
+    return float(np.quantile(sp, SPEED_LIMIT_Q)), amax
 
 
 def params_for(

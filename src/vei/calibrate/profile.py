@@ -64,7 +64,7 @@ SAMPLE_BOUNDS: dict[str, tuple[float, float]] = {
     "tau_s": (0.1, 10.0),
     "lookahead_m": (0.5, 20.0),
     "max_speed_mps": (0.5, 15.0),
-    "max_accel_mps2": (0.3, 15.0),
+    "max_accel_mps2": (0.3, 8.0),
 }
 QUANTILES: tuple[float, ...] = (0.05, 0.25, 0.5, 0.75, 0.95)
 MIN_TRACKS_OWN_COV = 10

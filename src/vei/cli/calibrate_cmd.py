@@ -16,7 +16,8 @@ def _riders(
     root: Annotated[Path, typer.Option("--root", help=_ROOT_HELP)],
     out: Annotated[Path, typer.Option("--out", help="Output folder (profile, report, figure).")],
     category: Annotated[
-        str, typer.Option("--category", help="escooter, cyclist or all (fitted per track either way).")
+        str,
+        typer.Option("--category", help="escooter, cyclist or all (fitted per track either way)."),
     ] = "all",
     horizon_s: Annotated[
         float, typer.Option("--horizon-s", help="Closed-loop rollout length of the fit [s].")
@@ -44,7 +45,9 @@ def _riders(
         figures=not no_figure,
     )
     rep = run.report
-    typer.echo(f"fitted {rep['n_tracks']} rider tracks ({len(rep['dropped'])} dropped by the filter)")
+    typer.echo(
+        f"fitted {rep['n_tracks']} rider tracks ({len(rep['dropped'])} dropped by the filter)"
+    )
     for name, pop in rep["populations"].items():
         med = pop["median"]
         typer.echo(
@@ -83,7 +86,9 @@ def _validate(
     try:
         hs = tuple(float(h) for h in horizons.split(","))
     except ValueError:
-        raise InputError(f"expected numbers like 3,5; got {horizons!r}", field="--horizons") from None
+        raise InputError(
+            f"expected numbers like 3,5; got {horizons!r}", field="--horizons"
+        ) from None
     if not hs or any(not (0.5 <= h <= 10.0) for h in hs):
         raise InputError(f"horizons must lie in [0.5, 10] s, got {horizons!r}", field="--horizons")
     t0 = time.perf_counter()

@@ -1,0 +1,83 @@
+"""Rider populations in runs and sweeps: N riders sampled from a rider profile.
+
+``rider: {profile: FILE | calibrated, sample: N, category: escooter, seed: 0}``
+(:class:`vei.config.RiderPopulationConfig`) turns one social-force configuration into N
+riders: each gets its own v0, k_des (= mass / tau), look-ahead, speed and acceleration
+limits drawn from the profile population (:func:`vei.calibrate.profile.sample_population`);
+A and b are the profile's. A rider's vehicle force switch and k_des factor stay the case's
+(so an Aggressive configuration keeps f_veh off and its k_des amplification).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from vei.calibrate.profile import load_profile, sample_population
+from vei.config import CaseConfig, RiderPopulationConfig
+from vei.errors import ConfigError
+
+FloatArray = npt.NDArray[np.float64]
+
+#: VariantParams fields a population sets (k_des_nspm before the case's k_des factor).
+POPULATION_FIELDS: tuple[str, ...] = (
+    "v0_mps",
+    "k_des_nspm",
+    "mass_kg",
+    "sigma_m",
+    "lookahead_m",
+    "max_speed_mps",
+    "max_accel_mps2",
+    "a_veh_n",
+    "b_veh_per_m",
+)
+
+
+def sample_riders(pop: RiderPopulationConfig) -> dict[str, FloatArray]:
+    """The population's N riders as arrays [N] (POPULATION_FIELDS and tau_s), seeded."""
+    profile = load_profile(pop.profile)
+    return sample_population(profile, pop.sample, category=pop.category, seed=pop.seed)
+
+
+def population_overrides(pop: RiderPopulationConfig, case: CaseConfig) -> dict[str, Any]:
+    """VariantParams overrides [N] for :meth:`vei.sim.state.VariantParams.from_case`.
+
+    k_des is multiplied by the case's ``k_des_factor`` (the engine's effective gain).
+    """
+    if case.rider != "sfm":
+        raise ConfigError(f"configuration {case.name!r}: a rider population needs rider 'sfm'")
+    s = sample_riders(pop)
+    out = {k: s[k] for k in POPULATION_FIELDS}
+    out["k_des_nspm"] = s["k_des_nspm"] * case.sfm.k_des_factor
+    return out
+
+
+def population_cases(case: CaseConfig, pop: RiderPopulationConfig) -> list[CaseConfig]:
+    """N copies of a social-force configuration, one per sampled rider.
+
+    Names are ``<case.name>#<i>`` (i = 0 .. N-1); each SFMConfig holds the rider's own
+    parameters (speed_from_recording off: the sampled v0 is the rider's).
+    """
+    if case.rider != "sfm":
+        raise ConfigError(f"configuration {case.name!r}: a rider population needs rider 'sfm'")
+    s = sample_riders(pop)
+    out = []
+    for i in range(pop.sample):
+        sfm = replace(
+            case.sfm,
+            v0_mps=float(s["v0_mps"][i]),
+            k_des_nspm=float(s["k_des_nspm"][i]),
+            mass_kg=float(s["mass_kg"][i]),
+            sigma_m=float(s["sigma_m"][i]),
+            lookahead_m=float(s["lookahead_m"][i]),
+            max_speed_mps=float(s["max_speed_mps"][i]),
+            max_accel_mps2=float(s["max_accel_mps2"][i]),
+            a_veh_n=float(s["a_veh_n"][i]),
+            b_veh_per_m=float(s["b_veh_per_m"][i]),
+            speed_from_recording=False,
+        )
+        out.append(replace(case, name=f"{case.name}#{i}", sfm=sfm))
+    return out
