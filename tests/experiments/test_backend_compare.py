@@ -63,3 +63,28 @@ def test_real_recording_on_esmini_agrees_with_the_builtin_engine(
     _check(cmp)
     # the automatic shift makes the replayed paths meet: the replay collides on both
     assert cmp.table["collision"].iloc[0]
+
+
+@pytest.mark.slow
+def test_real_recording_on_its_real_map_agrees(esmini, trafficmonitoring_root, data_dir, tmp_path):
+    """klinikum_01 on the real Ingolstadt network (SUMO -> OpenDRIVE): esmini loads the map
+    (LogicFile) and the five configurations agree with the engine."""
+    from vei.cli.main import main
+    from vei.datasets.trafficmonitoring import import_scenario
+    from vei.io.scenario import read_scenario
+    from vei.sim.backends.esmini import esmini_runner
+
+    net = data_dir / "maps" / "ingolstadt_research_intersection.net.xml.gz"
+    inter = import_scenario(
+        trafficmonitoring_root, "klinikum_01_marktkauf_geradeaus", tmp_path / "i"
+    )
+    assert main(["reconstruct", str(inter), "--out", str(tmp_path / "s"), "--map", str(net)]) == 0
+    scenario = read_scenario(tmp_path / "s")
+    work = tmp_path / "esmini"
+    cmp = compare_backends(scenario, backend=esmini_runner(esmini.root, work_dir=work))
+    print(format_comparison(cmp))
+    _check(cmp)
+    for run in sorted(work.glob("run*")):
+        assert 'LogicFile filepath="map.xodr"' in next(run.glob("*.xosc")).read_text()
+        log = (run / "esmini.log").read_text()
+        assert "No OpenDRIVE file" not in log and "[error]" not in log
