@@ -90,8 +90,16 @@ def test_birdseye_panels_paths_and_collision_star():
         {"t_s": [1.0, 2.0], "agent_id": ["s1", "s1"], "x_m": [20.1, 19.9], "y_m": [-3.0, -1.0]}
     )
     fig = plot_birdseye_configs(_frame(), other_id="s1", keyframes=kf)
-    assert len(fig.axes) == 2
-    by_panel = [{ln.get_label(): ln for ln in ax.get_lines()} for ax in fig.axes]
+    assert len(fig.axes) == 3  # two panels + the time colour bar
+    assert fig.axes[2].get_ylabel() == "time [s]"
+    by_panel = [{ln.get_label(): ln for ln in ax.get_lines()} for ax in fig.axes[:2]]
+    # time-coded: a dot at each whole second of the rider's span widened to whole seconds
+    # ([0.5, 1.5] -> [0, 2]): ego at t = 0 (x 0) and 1 s (x 5.6); the rider (present from
+    # 0.5 s) at t = 1 s (y -1)
+    dots = fig.axes[0].collections
+    assert [c.get_offsets().tolist() for c in dots] == [[[0.0, 0.0], [5.6, 0.0]], [[20.0, -1.0]]]
+    assert [c.get_array().tolist() for c in dots] == [[0.0, 1.0], [1.0]]
+    assert dots[0].get_clim() == (0.0, 2.0)
     replay, cap = by_panel
     assert replay["ego"].get_color() == "red"
     assert replay["ego"].get_xdata().tolist() == [0.0, 2.8, 5.6, 5.6]
@@ -127,4 +135,61 @@ def test_write_casestudy_figures_writes_every_png(tmp_path):
     assert set(paths) == set(FIGURE_FILES)
     for p in paths.values():
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert p.with_suffix(".pdf").read_bytes()[:5] == b"%PDF-"  # a vector copy
     assert not list(tmp_path.glob(".*tmp"))
+
+
+def test_speed_profiles_show_rider_speed_and_cap_band_zoomed():
+    frame = _frame()
+    on = (frame["config"] == "normal-cap") & (frame["agent_id"] == "ego")
+    frame.loc[on, "cap_state"] = ["CRUISE", "BRAKE", "BRAKE", "RECOVER"]
+    fig = plot_speed_profiles(frame, other_id="s1", window_s=(0.5, 1.5))
+    ego_ax, rider_ax, cap_ax = fig.axes
+    assert {ln.get_label(): ln.get_ydata().tolist() for ln in ego_ax.get_lines()}["replay"] == [
+        5.6, 5.6, 0.0, 0.0
+    ]  # fmt: skip
+    rider = {ln.get_label(): ln.get_ydata() for ln in rider_ax.get_lines()}
+    # NaN before the rider appears (inactive at t = 0), then its speed 4 m/s
+    np.testing.assert_array_equal(rider["normal-cap"], [np.nan, 4.0, 4.0, 4.0])
+    assert ego_ax.get_xlim() == (0.5, 1.5)
+    # CAP band: one row (the CAP configuration); BRAKE from t = 0.5 s for 1.0 s
+    assert [t.get_text() for t in cap_ax.get_yticklabels()] == ["normal-cap"]
+    bars = {c.get_label(): c for c in cap_ax.collections}
+    assert set(bars) == {"CRUISE", "BRAKE", "RECOVER"}
+    (x0, y0), (x1, y1) = bars["BRAKE"].get_paths()[0].vertices[[0, 2]]
+    assert (min(x0, x1), abs(x1 - x0)) == pytest.approx((0.5, 1.0))
+    # the two rider curves are identical: the note says so
+    texts = [t.get_text() for t in rider_ax.texts]
+    assert any("replay = normal-cap" in t for t in texts)
+
+
+def test_identical_groups_and_interaction_window():
+    from vei.report.casestudy_figures import identical_groups, interaction_window
+
+    a = np.array([1.0, np.nan, 2.0])
+    assert identical_groups({"x": a, "y": a.copy(), "z": a + 1}) == [["x", "y"]]
+    assert identical_groups({"x": a, "z": a + 1}) == []
+    # rider active from t = 0.5 s, within 30 m of the ego from then on; replay collides at
+    # 1.0 s, normal-cap never: near span [0.5, 1.5]; 2 s margins clipped to the run [0, 1.5]
+    assert interaction_window(_frame(), "s1") == (0.0, 1.5)
+    assert interaction_window(_frame(), "s1", margin_s=0.25) == (0.25, 1.5)
+    # centre distances (hand-computed): t 0.5 -> 17.46 m (both); t 1.0 -> replay 14.43
+    # (its collision step), normal-cap 15.23; t 1.5 -> replay 14.43 (after its collision:
+    # not counted), normal-cap 13.74. Under 15 m: replay at 1.0 s, normal-cap at 1.5 s.
+    assert interaction_window(_frame(), "s1", margin_s=0.0, near_m=15.0) == (1.0, 1.5)
+    assert interaction_window(_frame(), "nobody") is None
+
+
+def test_run_figures_are_titled_as_a_run(tmp_path):
+    from vei.report.casestudy_figures import figure_title
+
+    one = _summary().iloc[:1]
+    assert figure_title(one) == "Run replay"
+    assert figure_title(_summary(), "scen") == "Case study: scen"
+    frame = _frame()
+    paths = write_casestudy_figures(
+        tmp_path, frame=frame[frame["config"] == "replay"], summary=one, other_id="s1",
+        ttc_t_s=np.array([0.0, 0.5, 1.0, 1.5]), ttc_s=np.ones((1, 4)), formats=(),
+    )  # fmt: skip
+    assert not list(tmp_path.glob("*.pdf"))
+    assert len(paths) == len(FIGURE_FILES)

@@ -70,32 +70,173 @@ def _first_variants(frame: pd.DataFrame) -> pd.DataFrame:
     return frame[frame["variant"] == first]
 
 
-def plot_speed_profiles(frame: pd.DataFrame, *, ax=None, ego_id: str = EGO_ID):
-    """Fig. 5: ego speed [m/s] over time [s], one line per configuration (its first variant).
+#: Line styles cycled per configuration, so that identical curves stay visible.
+_STYLES: tuple = ("-", (0, (6, 2)), (0, (3, 2, 1, 2)), (0, (1, 1.5)), (0, (8, 2, 2, 2)))
+#: Colours of the CAP states in the state band.
+CAP_STATE_COLOURS: dict[str, str] = {"CRUISE": "#9ccc65", "BRAKE": "#e53935", "RECOVER": "#ffb300"}
+#: Seconds of context kept before / after the interaction on time axes.
+TIME_MARGIN_S = 2.0
+
+
+#: The interaction: ego and rider centres closer than this [m] (before any collision).
+NEAR_M = 30.0
+
+
+def interaction_window(
+    frame: pd.DataFrame,
+    other_id: str | None,
+    margin_s: float = TIME_MARGIN_S,
+    near_m: float = NEAR_M,
+    ego_id: str = EGO_ID,
+) -> tuple[float, float] | None:
+    """[t0, t1] [s] of the interaction, widened by ``margin_s`` and clipped to the run.
+
+    The interaction: the steps at which ``other_id`` is active and within ``near_m`` of the
+    ego, up to its first collision, in any configuration (so an event at 5 s of a 61 s run
+    is not drawn over 0-61 s). Falls back to the rider's active span when it never comes
+    that close; None if it is never active.
+    """
+    if other_id is None:
+        return None
+    sub = _first_variants(frame)
+    oth = sub[(sub["agent_id"] == other_id) & sub["active"].astype(bool)]
+    if oth.empty:
+        return None
+    ego = sub[sub["agent_id"] == ego_id][["config", "t_s", "x_m", "y_m"]]
+    both = oth.merge(ego, on=["config", "t_s"], suffixes=("", "_ego"))
+    dist = np.hypot(both["x_m"] - both["x_m_ego"], both["y_m"] - both["y_m_ego"])
+    first_hit = both[both["collided"].astype(bool)].groupby("config")["t_s"].min()
+    limit = both["config"].map(first_hit).fillna(np.inf)
+    near = both[(dist.to_numpy() < near_m) & (both["t_s"] <= limit).to_numpy()]
+    span = near if len(near) else oth
+    lo = max(float(span["t_s"].min()) - margin_s, float(frame["t_s"].min()))
+    hi = min(float(span["t_s"].max()) + margin_s, float(frame["t_s"].max()))
+    return lo, hi
+
+
+def identical_groups(curves: dict[str, np.ndarray], tol: float = 1e-6) -> list[list[str]]:
+    """Groups (>= 2 names, in input order) of curves equal within ``tol`` everywhere
+    (NaN equal to NaN): lines that would hide each other."""
+    names = list(curves)
+    seen: set[str] = set()
+    groups = []
+    for i, a in enumerate(names):
+        if a in seen:
+            continue
+        grp = [a]
+        for b in names[i + 1 :]:
+            x, y = np.asarray(curves[a], float), np.asarray(curves[b], float)
+            if b not in seen and x.shape == y.shape and np.allclose(x, y, atol=tol, equal_nan=True):
+                grp.append(b)
+        if len(grp) > 1:
+            seen.update(grp)
+            groups.append(grp)
+    return groups
+
+
+def _overlap_note(ax, curves: dict[str, np.ndarray]) -> None:
+    groups = identical_groups(curves)
+    if groups:
+        text = "; ".join(" = ".join(g) for g in groups)
+        ax.text(0.01, 0.02, f"identical curves (drawn with different dashes): {text}",
+                transform=ax.transAxes, fontsize=7, va="bottom", ha="left", color="0.25",
+                bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "0.7", "alpha": 0.85})  # fmt: skip
+
+
+def _speed_panel(ax, rows_by_name: dict[str, pd.DataFrame], ylabel: str, title: str) -> None:
+    curves = {}
+    for i, (name, rows) in enumerate(rows_by_name.items()):
+        speed = np.where(rows["active"].astype(bool), rows["speed_mps"], np.nan)
+        curves[name] = speed
+        ax.plot(rows["t_s"].to_numpy(), speed, lw=2.0 - 0.25 * (i % 5), ls=_STYLES[i % len(_STYLES)],
+                color=config_colour(name, i), label=name)  # fmt: skip
+    _overlap_note(ax, curves)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.set_ylim(bottom=0.0)
+    ax.grid(True, lw=0.3, alpha=0.5)
+
+
+def plot_speed_profiles(
+    frame: pd.DataFrame,
+    *,
+    ax=None,
+    ego_id: str = EGO_ID,
+    other_id: str | None = None,
+    window_s: tuple[float, float] | None = None,
+):
+    """Fig. 5: ego speed [m/s] over time [s], one line per configuration (its first variant);
+    with ``other_id`` also the rider's speed in a panel beside it and the CAP's state band.
+
+    Axes: ``fig.axes[0]`` ego speed (line labels = configuration names); with ``other_id``
+    ``fig.axes[1]`` the rider's speed while it is present, then one CAP-state band per
+    configuration that has a CAP (broken bars labelled CRUISE / BRAKE / RECOVER). Time
+    axes are zoomed to ``window_s`` (default: :func:`interaction_window`). Curves that are
+    identical are named in a note (and drawn with different dashes).
 
     Args:
         frame: long time series (vei.types.TIMESERIES_COLUMNS).
     Returns:
-        The Figure; each line's label is the configuration name.
+        The Figure.
     """
-    fig, ax = _new_axes(ax)
     sub = _first_variants(frame)
+    names = _configs(frame)
     ego = sub[sub["agent_id"] == ego_id]
-    for i, name in enumerate(_configs(frame)):
-        rows = ego[ego["config"] == name].sort_values("t_s")
-        ax.plot(
-            rows["t_s"].to_numpy(),
-            rows["speed_mps"].to_numpy(),
-            lw=1.8,
-            color=config_colour(name, i),
-            label=name,
-        )
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("ego speed [m/s]")
-    ax.set_title("Ego speed profiles")
-    ax.set_ylim(bottom=0.0)
-    ax.grid(True, lw=0.3, alpha=0.5)
-    ax.legend(fontsize=8, loc="lower left")
+    ego_rows = {n: ego[ego["config"] == n].sort_values("t_s") for n in names}
+    if ax is not None or other_id is None:
+        fig, ax = _new_axes(ax)
+        _speed_panel(ax, ego_rows, "ego speed [m/s]", "Ego speed profiles")
+        ax.set_xlabel("time [s]")
+        ax.legend(fontsize=8, loc="center right")
+        win = window_s or interaction_window(frame, other_id)
+        if win is not None:
+            ax.set_xlim(*win)
+        return fig
+    from matplotlib.figure import Figure
+
+    cap_names = [n for n in names if (ego_rows[n]["cap_state"].astype(str) != "").any()]
+    fig = Figure(figsize=(11.0, 4.2 + 0.28 * len(cap_names)))
+    heights = [4.0, max(0.28 * len(cap_names), 0.01)] if cap_names else [4.0]
+    gs = fig.add_gridspec(len(heights), 2, height_ratios=heights, hspace=0.12 if cap_names else 0.2)
+    ax_ego = fig.add_subplot(gs[0, 0])
+    ax_rider = fig.add_subplot(gs[0, 1], sharex=ax_ego)
+    oth = sub[sub["agent_id"] == other_id]
+    rider_rows = {n: oth[oth["config"] == n].sort_values("t_s") for n in names}
+    _speed_panel(ax_ego, ego_rows, "ego speed [m/s]", "Ego speed")
+    _speed_panel(ax_rider, rider_rows, f"{other_id} speed [m/s]", f"Rider speed ({other_id})")
+    ax_ego.legend(fontsize=8, loc="center right")
+    win = window_s or interaction_window(frame, other_id)
+    if win is not None:
+        ax_ego.set_xlim(*win)
+    if cap_names:
+        ax_cap = fig.add_subplot(gs[1, 0], sharex=ax_ego)
+        for k, name in enumerate(cap_names):
+            rows = ego_rows[name]
+            t = rows["t_s"].to_numpy()
+            state = rows["cap_state"].astype(str).to_numpy()
+            dt = float(np.median(np.diff(t))) if t.size > 1 else 0.05
+            for st, col in CAP_STATE_COLOURS.items():
+                on = state == st
+                if not on.any():
+                    continue
+                edges = np.flatnonzero(np.diff(np.r_[0, on.astype(int), 0]))
+                spans = [
+                    (t[a], t[b - 1] + dt - t[a])
+                    for a, b in zip(edges[::2], edges[1::2], strict=True)
+                ]
+                ax_cap.broken_barh(spans, (k - 0.4, 0.8), facecolors=col, label=st)
+        ax_cap.set_yticks(range(len(cap_names)), cap_names, fontsize=7)
+        ax_cap.set_ylim(-0.6, len(cap_names) - 0.4)
+        ax_cap.set_xlabel("time [s]")
+        ax_cap.set_title("CAP state", fontsize=8, loc="left", pad=2)
+        handles = {h.get_label(): h for h in ax_cap.containers}
+        ax_cap.legend([handles[k] for k in CAP_STATE_COLOURS if k in handles],
+                      [k for k in CAP_STATE_COLOURS if k in handles], fontsize=7, ncol=3,
+                      loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)  # fmt: skip
+        ax_ego.tick_params(labelbottom=False)
+    else:
+        ax_ego.set_xlabel("time [s]")
+    ax_rider.set_xlabel("time [s]")
     return fig
 
 
@@ -171,22 +312,37 @@ def plot_ttc_zones(
     safe_ttc_s: float = 2.0,
     alert_ttc_s: float = 1.0,
     ymax_s: float = 6.0,
+    window_s: tuple[float, float] | None = None,
 ):
     """The paper's TTC over time on its zone bands, one line per configuration.
 
     Args:
         t_s: [T] time [s]. ttc_s: [B, T] paper TTC [s] (NaN inactive, inf -> clipped at
             ymax_s for display only). names: B configuration names.
+        window_s: time axis limits [s]; default: where any TTC is defined, +-2 s.
     """
     fig, ax = _new_axes(ax)
     ax.axhspan(safe_ttc_s, ymax_s, color="tab:green", alpha=0.10, label="safe zone")
     ax.axhspan(alert_ttc_s, safe_ttc_s, color="gold", alpha=0.18, label="attention zone")
     ax.axhspan(0.0, alert_ttc_s, color="tab:red", alpha=0.12, label="alert zone")
     ttc = np.asarray(ttc_s, dtype=float)
+    curves = {}
     for i, name in enumerate(names):
         y = np.minimum(ttc[i], ymax_s)
-        ax.plot(t_s, y, lw=1.5, color=config_colour(name, i), label=name)
+        curves[name] = y
+        ax.plot(t_s, y, lw=1.8 - 0.2 * (i % 5), ls=_STYLES[i % len(_STYLES)],
+                color=config_colour(name, i), label=name)  # fmt: skip
+    _overlap_note(ax, curves)
     ax.set_ylim(0.0, ymax_s)
+    t = np.asarray(t_s, dtype=float)
+    defined = np.isfinite(ttc).any(axis=0) if ttc.ndim == 2 and ttc.size else np.zeros(t.size, bool)
+    if window_s is None and defined.any() and t.size > 1:
+        window_s = (
+            max(t[defined][0] - TIME_MARGIN_S, t[0]),
+            min(t[defined][-1] + TIME_MARGIN_S, t[-1]),
+        )
+    if window_s is not None and window_s[1] > window_s[0]:
+        ax.set_xlim(*window_s)
     ax.set_xlabel("time [s]")
     ax.set_ylabel(f"TTC = gap / v_ego [s] (clipped at {ymax_s:g})")
     ax.set_title("Time to collision and its zones")
@@ -241,6 +397,9 @@ def plot_birdseye_configs(
     panel_h = min(max(panel_w / aspect, 1.6), 4.6) + 0.7
     fig = Figure(figsize=(panel_w * cols, panel_h * rows))
     axes = [fig.add_subplot(rows, cols, i + 1) for i in range(n)]
+    t_lo = float(np.floor(oth["t_s"].min())) if len(oth) else float(sub["t_s"].min())
+    t_hi = float(np.ceil(oth["t_s"].max())) if len(oth) else float(sub["t_s"].max())
+    scat = None
     for ax, name in zip(axes, names, strict=True):
         if roads is not None:
             roads(ax)
@@ -291,6 +450,13 @@ def plot_birdseye_configs(
                 label="collision",
                 zorder=6,
             )
+        for rows, size in ((ego, 22), (rider, 16)):
+            t = rows["t_s"].to_numpy()
+            on = _every_second(t, t_lo, t_hi)
+            if on.any():
+                scat = ax.scatter(rows["x_m"].to_numpy()[on], rows["y_m"].to_numpy()[on], c=t[on],
+                                  cmap="viridis", vmin=t_lo, vmax=t_hi, s=size, zorder=7,
+                                  edgecolors="black", linewidths=0.3)  # fmt: skip
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])
         ax.set_aspect("equal", adjustable="box")
@@ -302,20 +468,50 @@ def plot_birdseye_configs(
     if axes:
         axes[0].legend(fontsize=7, loc="best")
     fig.suptitle(
-        f"Bird's-eye view: ego (red), original keyframes (dashed black), simulated {other_id} (dashed green)",
+        f"Bird's-eye view: ego (red), original keyframes (dashed black), simulated {other_id} (dashed green); "
+        "dots every 1 s coloured by time",
         fontsize=10,
     )
-    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.97))
+    fig.tight_layout(rect=(0.0, 0.0, 0.92, 0.97))
+    if scat is not None:
+        cax = fig.add_axes((0.93, 0.15, 0.012, 0.7))
+        fig.colorbar(scat, cax=cax, label="time [s]")
     return fig
 
 
-def save_figure(fig, path: str | Path, dpi: int = 130) -> Path:
-    """Save a figure atomically (format from the suffix, PNG by default); returns the path."""
+def _every_second(t: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Mask of the samples nearest to each whole second in [lo, hi] (one per second)."""
+    mask = np.zeros(t.size, dtype=bool)
+    if t.size == 0:
+        return mask
+    for sec in np.arange(np.ceil(lo), np.floor(hi) + 1):
+        k = int(np.argmin(np.abs(t - sec)))
+        if abs(t[k] - sec) < 0.5 * (np.median(np.diff(t)) if t.size > 1 else 1.0) + 1e-9:
+            mask[k] = True
+    return mask
+
+
+def save_figure(fig, path: str | Path, dpi: int = 130, *, also: Sequence[str] = ()) -> Path:
+    """Save a figure atomically (format from the suffix, PNG by default); returns the path.
+
+    ``also``: further formats written beside it with the same stem (e.g. ('pdf',) for a
+    vector copy a paper can use).
+    """
     path = Path(path)
     fmt = path.suffix.lstrip(".") or "png"
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, format=fmt, bbox_inches="tight")
+    for extra in also:
+        with atomic_path(path.with_suffix(f".{extra}")) as tmp:
+            fig.savefig(tmp, dpi=dpi, format=extra, bbox_inches="tight")
     return path
+
+
+def figure_title(summary: pd.DataFrame, scenario_id: str | None = None) -> str:
+    """'Run <config>' for one configuration (vei run), else 'Case study' (+ the scenario)."""
+    names = summary["name"].astype(str).tolist() if "name" in summary else []
+    head = f"Run {names[0]}" if len(names) == 1 else "Case study"
+    return f"{head}: {scenario_id}" if scenario_id else head
 
 
 def write_casestudy_figures(
@@ -330,20 +526,27 @@ def write_casestudy_figures(
     roads: Callable | None = None,
     safe_ttc_s: float = 2.0,
     alert_ttc_s: float = 1.0,
+    title: str | None = None,
+    formats: Sequence[str] = ("pdf",),
 ) -> dict[str, Path]:
-    """Write the five figures into ``out_dir`` (names in FIGURE_FILES); returns name -> path.
+    """Write the five figures into ``out_dir`` (names in FIGURE_FILES, PNG, plus a copy in
+    each of ``formats``, default PDF); returns name -> PNG path.
 
     Args:
         frame: long time series of the runs. summary: one row per configuration (columns
         name, collision, safety_index, ego_speed_std_mps). other_id: the primary threat.
         ttc_t_s [T], ttc_s [B, T]: the paper's TTC series (rows in summary order).
+        title: heading of every figure; default :func:`figure_title` ('Run <config>' when
+            one configuration was run, 'Case study' otherwise).
     """
     out = Path(out_dir)
+    heading = title if title is not None else figure_title(summary)
+    window = interaction_window(frame, other_id)
     figs = {
         "birdseye": plot_birdseye_configs(
             frame, other_id=other_id, keyframes=keyframes, roads=roads
         ),
-        "speed_profiles": plot_speed_profiles(frame),
+        "speed_profiles": plot_speed_profiles(frame, other_id=other_id, window_s=window),
         "speed_std": plot_speed_std(summary),
         "safety_index": plot_safety_index(summary),
         "ttc_zones": plot_ttc_zones(
@@ -352,6 +555,13 @@ def write_casestudy_figures(
             summary["name"].astype(str).tolist(),
             safe_ttc_s=safe_ttc_s,
             alert_ttc_s=alert_ttc_s,
+            window_s=window,
         ),
     }
-    return {key: save_figure(fig, out / FIGURE_FILES[key]) for key, fig in figs.items()}
+    for fig in figs.values():
+        sup = fig._suptitle.get_text() if fig._suptitle is not None else ""
+        fig.suptitle(f"{heading}" + (f"\n{sup}" if sup else ""), fontsize=10)
+    return {
+        key: save_figure(fig, out / FIGURE_FILES[key], also=tuple(formats))
+        for key, fig in figs.items()
+    }
