@@ -1,6 +1,5 @@
 import importlib.util
 import json
-from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -191,10 +190,13 @@ def test_demo_real_on_trafficmonitoring(trafficmonitoring_root, tmp_path, capsys
         assert (out / fig).exists()
 
 
-def test_esmini_backend_from_the_cli(demo_run, tmp_path, capsys, esmini):
+def test_esmini_backend_from_the_cli(demo_run, tmp_path, capsys, esmini, monkeypatch):
     """`vei run` / `vei casestudy` with --backend esmini: the closed loop inside esmini gives
     the built-in engine's outcome; the summary names the backend."""
     _, _, out = demo_run
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    monkeypatch.chdir(cwd)
     dest = tmp_path / "run"
     args = ["run", str(out / "scenario"), "--config", "normal-cap", "--out", str(dest)]
     args += ["--time-shift", "4.5", "--no-figures", "--backend", "esmini"]
@@ -207,7 +209,7 @@ def test_esmini_backend_from_the_cli(demo_run, tmp_path, capsys, esmini):
     assert doc["metrics"]["min_gap_m"] == pytest.approx(ref["metrics"]["min_gap_m"], abs=1e-3)
     ts = pd.read_parquet(dest / "timeseries.parquet")
     assert set(ts["config"]) == {"normal-cap"}
-    assert not list(Path.cwd().glob("log.txt*"))  # esmini's log never lands in the CWD
+    assert not list(cwd.iterdir())  # esmini's log (or anything else) never lands in the CWD
     capsys.readouterr()
     cs = tmp_path / "cs"
     code = main(
