@@ -76,3 +76,27 @@ def test_draws_into_given_axes_and_saves_atomically(scenario, tmp_path):
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     assert [p.name for p in path.parent.iterdir()] == ["b.png"]
     assert np.isfinite(ax.get_xlim()).all()
+
+
+def test_paths_are_time_coded_every_second(scenario):
+    fig = plot_birdseye(scenario)
+    ax = fig.axes[0]
+    dots = {c.get_label(): c for c in ax.collections}
+    ego = scenario.track("ego")
+    whole = np.isclose(ego["t_s"] % 1.0, 0.0, atol=1e-6) | np.isclose(
+        ego["t_s"] % 1.0, 1.0, atol=1e-6
+    )
+    e = dots["_ego seconds"]
+    np.testing.assert_allclose(e.get_offsets()[:, 0], ego["x_m"].to_numpy()[whole])
+    assert e.get_array().tolist() == pytest.approx(ego["t_s"].to_numpy()[whole])  # 0..6 s
+    assert e.get_array().tolist() == pytest.approx([0, 1, 2, 3, 4, 5, 6])
+    assert "_escooter_1 seconds" in dots  # the primary threat
+    assert fig.axes[1].get_ylabel().startswith("time [s]")  # the colour bar
+    assert len(plot_birdseye(scenario, time_dots=False).axes) == 1
+
+
+def test_save_figure_writes_vector_copies(scenario, tmp_path):
+    fig = plot_birdseye(scenario)
+    save_figure(fig, tmp_path / "b.png", also=("pdf", "svg"))
+    assert (tmp_path / "b.pdf").read_bytes()[:5] == b"%PDF-"
+    assert b"<svg" in (tmp_path / "b.svg").read_bytes()[:400]

@@ -36,6 +36,7 @@ def plot_birdseye(
     sim_tracks: pd.DataFrame | None = None,
     title: str | None = None,
     roads: Callable | None = None,
+    time_dots: bool = True,
 ):
     """Draw the scenario from above (plane x east, y north [m], equal aspect).
 
@@ -48,6 +49,8 @@ def plot_birdseye(
         roads: optional callable roads(ax) drawing the map underneath. When None and the
             scenario was read from a folder whose scenario.json names an OpenDRIVE map, that
             map's roads are drawn.
+        time_dots: time-code the ego's and the primary threat's paths (a dot every whole
+            second coloured by time, colour bar 'time [s]').
     Returns:
         The matplotlib Figure.
     """
@@ -144,7 +147,31 @@ def plot_birdseye(
         ax.legend(
             handles=handles, loc="best", fontsize=7, title="o start   x keyframes", title_fontsize=7
         )
+    if time_dots:
+        _time_dots(ax, traj, [a for a in (EGO_ID, primary) if a is not None])
     return fig
+
+
+def _time_dots(ax, traj: pd.DataFrame, agents: list[str]) -> None:
+    """Time-code the paths of ``agents``: a dot at each whole second, coloured by time
+    (one shared scale over the agents' spans), with a colour bar 'time [s]'."""
+    import numpy as np
+
+    rows = traj[traj["agent_id"].isin(agents)]
+    if rows.empty:
+        return
+    lo, hi = float(np.floor(rows["t_s"].min())), float(np.ceil(rows["t_s"].max()))
+    scat = None
+    for agent_id in agents:
+        tr = rows[rows["agent_id"] == agent_id].sort_values("t_s")
+        t = tr["t_s"].to_numpy()
+        whole = np.abs(t - np.round(t)) < 1e-6
+        if whole.any():
+            scat = ax.scatter(tr["x_m"].to_numpy()[whole], tr["y_m"].to_numpy()[whole], c=t[whole],
+                              cmap="viridis", vmin=lo, vmax=max(hi, lo + 1e-9), s=14, zorder=6,
+                              edgecolors="black", linewidths=0.3, label=f"_{agent_id} seconds")  # fmt: skip
+    if scat is not None:
+        ax.figure.colorbar(scat, ax=ax, shrink=0.6, pad=0.02, label="time [s] (dots every 1 s)")
 
 
 def scenario_roads(scenario: Scenario) -> Callable | None:
@@ -158,13 +185,14 @@ def scenario_roads(scenario: Scenario) -> Callable | None:
     return lambda ax: draw_roads(ax, geometry)
 
 
-def save_figure(fig, path: str | Path, dpi: int = 150) -> Path:
+def save_figure(fig, path: str | Path, dpi: int = 150, *, also: tuple[str, ...] = ()) -> Path:
     """Save a figure atomically as PNG (or the format the suffix names); closes nothing.
 
     Args:
         fig: matplotlib Figure.
         path: target file.
         dpi: resolution [dots per inch].
+        also: further formats written beside it with the same stem (e.g. ('pdf', 'svg')).
     Returns:
         The path.
     """
@@ -172,4 +200,7 @@ def save_figure(fig, path: str | Path, dpi: int = 150) -> Path:
     fmt = path.suffix.lstrip(".") or "png"
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, format=fmt, bbox_inches="tight")
+    for extra in also:
+        with atomic_path(path.with_suffix(f".{extra}")) as tmp:
+            fig.savefig(tmp, dpi=dpi, format=extra, bbox_inches="tight")
     return path
