@@ -185,3 +185,31 @@ def test_time_grid_stays_inside_the_span():
     assert time_grid(0.02, 0.31, 10.0) == pytest.approx([0.1, 0.2, 0.3])
     assert time_grid(1.0, 1.0, 20.0) == pytest.approx([1.0])
     assert time_grid(1.01, 1.04, 20.0).size == 0
+
+
+def test_kalman_is_registered_and_equals_smoothing_for_the_same_noise():
+    from vei.recon.interpolate import INTERP_METHODS, SmoothingParams, fit_track_segmented
+    from vei.recon.smoother import KalmanInterpolant, NoiseEstimate
+
+    assert "kalman" in INTERP_METHODS
+    rng = np.random.default_rng(1)
+    t = np.arange(12.0)
+    xy = np.column_stack([1.5 * t, 0.1 * t**2]) + rng.normal(0, 0.2, (12, 2))
+    params = SmoothingParams(noise_m=0.2, accel_psd_m2ps3=0.5)
+    k = fit_track(t, xy, "kalman", params)
+    s = fit_track(t, xy, "smoothing", SmoothingParams(0.2, 0.5, max_refits=0))
+    assert isinstance(k, KalmanInterpolant) and k.method == "kalman"
+    q = np.linspace(0, 11, 45)
+    assert k.position(q) == pytest.approx(s.position(q), abs=2e-3)
+    assert k.lam == pytest.approx(s.lam)
+    # Never split at gaps (its posterior bridges them, with a wider band in the gap).
+    tg = np.r_[t[:5], t[5:] + 4.0]
+    seg = fit_track_segmented(tg, xy, "kalman", params, max_gap_s=2.5)
+    assert isinstance(seg, KalmanInterpolant)
+    std = seg.std(np.array([3.0, 6.5]))
+    assert std[1] > 2 * std[0]
+    # An explicit noise estimate wins over the SmoothingParams.
+    est = NoiseEstimate(0.05, 2.0, method="ml")
+    assert fit_track(t, xy, "kalman", params, noise=est).noise is est
+    # One keyframe: a single point, as for the other methods.
+    assert fit_track(t[:1], xy[:1], "kalman").method == "linear"
