@@ -159,13 +159,23 @@ def test_ego_left_to_the_simulator_gets_its_path_without_timing(tmp_path, run_df
     assert vx["x_m"].iloc[-1] == pytest.approx(56.0)
     root = SafeET.parse(path).getroot()
     priv = [p for p in root.find("Storyboard/Init").iter("Private") if p.get("entityRef") == "ego"]
-    fta = priv[0].find(".//FollowTrajectoryAction")
+    assert float(priv[0].find(".//AbsoluteTargetSpeed").get("value")) == pytest.approx(5.6)
+    assert priv[0].find(".//FollowTrajectoryAction") is None  # no path in Init (conflicts)
+    events = {e.get("name"): e for e in root.iter("Event")}
+    fta = events["ego_path"].find(".//FollowTrajectoryAction")
     assert fta.find("TimeReference/None") is not None
     assert fta.find("TrajectoryFollowingMode").get("followingMode") == "follow"
-    assert float(priv[0].find(".//AbsoluteTargetSpeed").get("value")) == pytest.approx(5.6)
-    cruise = [e for e in root.iter("Event") if e.get("name") == "ego_cruise"][0]
+    start = events["ego_path"].find(".//SimulationTimeCondition")
+    assert (float(start.get("value")), start.get("rule")) == (0.0, "greaterThan")
+    cruise = events["ego_cruise"]
     assert float(cruise.find(".//AbsoluteTargetSpeed").get("value")) == pytest.approx(5.6)
     assert cruise.find(".//SpeedActionDynamics").get("dynamicsShape") == "linear"
+    end = events["ego_path_end"].find(".//StoryboardElementStateCondition")
+    assert (end.get("storyboardElementRef"), end.get("state")) == (
+        "ego_follow_path",
+        "endTransition",
+    )
+    assert float(events["ego_path_end"].find(".//AbsoluteTargetSpeed").get("value")) == 0.0
 
 
 def test_a_track_that_ends_early_is_deleted_then(tmp_path, run_df):

@@ -3,8 +3,11 @@
 ``vei export openscenario SCENARIO --out DIR`` writes ``DIR/<scenario id>.xosc`` and a copy
 of the scenario's OpenDRIVE map; without ``--config`` the recorded (replayed) trajectories,
 with ``--config NAME`` the run of that configuration on the built-in engine.
-``vei export check FILE.xosc`` validates a file against the official XSD of its version and
-runs the ASAM Quality Checker on it.
+``vei export check FILE.xosc`` validates a file against the official XSD of its version,
+runs the ASAM Quality Checker on it and, where esmini is found (``--esmini DIR``,
+``$VEI_ESMINI``, ``../shared/tools/esmini``), plays it headless and compares every entity's
+played path with the file's own vertices (vei.export.playback). Reports go into
+``--report-dir`` or a new temporary folder, never beside the input.
 """
 
 from __future__ import annotations
@@ -147,7 +150,9 @@ def register(app: typer.Typer) -> None:
         check: Annotated[
             bool,
             typer.Option(
-                "--check", help="Validate the result (XSD + ASAM Quality Checker) after writing."
+                "--check",
+                help="Check the result after writing (XSD, ASAM Quality Checker and, where "
+                "esmini is found, a playback); reports go into a temporary folder.",
             ),
         ] = False,
     ) -> None:
@@ -167,7 +172,7 @@ def register(app: typer.Typer) -> None:
         )
         typer.echo(f"wrote {path}")
         if check:
-            code = _check(path, qc_bin=None, run_qc=True)
+            code = _check(path, qc_bin=None, run_qc=True, play=True, esmini=None, report_dir=None)
             if code:
                 raise SystemExit(code)  # typer.Exit is swallowed by main() (standalone_mode=False)
 
@@ -187,36 +192,142 @@ def register(app: typer.Typer) -> None:
                 "--qc/--no-qc", help="Run the ASAM Quality Checker (besides the XSD validation)."
             ),
         ] = True,
+        play: Annotated[
+            bool,
+            typer.Option(
+                "--play/--no-play",
+                help="Play the file headless in esmini (where found) and compare every entity's "
+                "played path with the file's vertices.",
+            ),
+        ] = True,
+        esmini: Annotated[
+            Path | None,
+            typer.Option(
+                "--esmini",
+                help="esmini folder (holding bin/esmini); default: $VEI_ESMINI, else "
+                "../shared/tools/esmini. Given and not found: exit 2; not given and not found: "
+                "the playback is skipped.",
+            ),
+        ] = None,
+        report_dir: Annotated[
+            Path | None,
+            typer.Option(
+                "--report-dir",
+                help="Folder for the reports (.xqar, esmini's recording, log and playback.csv); "
+                "default: a new temporary folder (never beside FILE).",
+            ),
+        ] = None,
+        dt_s: Annotated[
+            float, typer.Option("--dt", help="esmini's fixed step for the playback [s].")
+        ] = 0.05,
     ) -> None:
-        """Validate FILE against the official OpenSCENARIO XSD and the ASAM Quality Checker.
+        """Check FILE: official OpenSCENARIO XSD, ASAM Quality Checker, esmini playback.
 
-        Exit code 0: no issue; 1: issues found (listed); 2: the file or the checker is missing.
+        Exit code 0: no issue; 1: issues found (listed); 2: the file or a checker that was
+        asked for is missing.
         """
-        code = _check(file, qc_bin=qc_bin, run_qc=qc)
+        code = _check(
+            file,
+            qc_bin=qc_bin,
+            run_qc=qc,
+            play=play,
+            esmini=esmini,
+            report_dir=report_dir,
+            dt_s=dt_s,
+        )
         if code:
             raise SystemExit(code)  # typer.Exit is swallowed by main() (standalone_mode=False)
 
     app.add_typer(export_app, name="export")
 
 
-def _check(path: Path, *, qc_bin: Path | None, run_qc: bool) -> int:
-    from vei.errors import InputError
+def _check(
+    path: Path,
+    *,
+    qc_bin: Path | None,
+    run_qc: bool,
+    play: bool,
+    esmini: Path | None,
+    report_dir: Path | None,
+    dt_s: float = 0.05,
+) -> int:
+    import tempfile
+
+    from vei.errors import ConfigError, DependencyError, InputError
     from vei.export.validate import declared_version, validate_openscenario
 
     out = Console()
     if not path.is_file():
         raise InputError("file not found", path=path)
+    if not dt_s > 0:
+        raise ConfigError(f"--dt must be > 0 s, got {dt_s}")
+    if report_dir is None:
+        report_dir = Path(tempfile.mkdtemp(prefix="vei-check-"))
+    report_dir.mkdir(parents=True, exist_ok=True)
     version = declared_version(path)
     errors = validate_openscenario(path)
     out.print(f"XSD (OpenSCENARIO {version}): {len(errors)} error(s)", highlight=False)
-    for e in errors:
+    for e in errors[:10]:
         out.print(f"  {e}", highlight=False, soft_wrap=True)
+    if len(errors) > 10:
+        out.print(f"  ... and {len(errors) - 10} more", highlight=False)
     ok = not errors
     if run_qc:
         from vei.export.qc import run_qc_openscenario
 
-        report = run_qc_openscenario(path, qc_bin=qc_bin)
+        report = run_qc_openscenario(
+            path, qc_bin=qc_bin, result_file=report_dir / f"{path.name}.xqar"
+        )
         out.print(f"ASAM Quality Checker: {report.summary()}", highlight=False, soft_wrap=True)
         out.print(f"result: {report.result_file}", highlight=False)
         ok = ok and report.ok
+    if play:
+        from vei.esmini import find_esmini
+
+        try:
+            tool = find_esmini(esmini)
+            tool.require_player()
+            tool.require_dat2csv()
+        except DependencyError as exc:
+            if esmini is not None:
+                raise
+            tool = None
+            out.print(f"esmini playback: skipped ({exc})", highlight=False, soft_wrap=True)
+        if tool is not None:
+            ok = _play(path, tool, report_dir, dt_s, out) and ok
+    out.print(f"reports: {report_dir}", highlight=False, soft_wrap=True)
     return 0 if ok else 1
+
+
+def _play(path: Path, tool, report_dir: Path, dt_s: float, out: Console) -> bool:
+    from vei.export.playback import play_xosc
+    from vei.io.atomic import write_text
+
+    rep = play_xosc(path, esmini=tool, dt_s=dt_s, work_dir=report_dir / "esmini")
+    table = rep.table()
+    write_text(report_dir / "playback.csv", table.to_csv(index=False))
+    issues = rep.issues()
+    pairs = sorted(" - ".join(sorted(p)) for p in rep.collision_pairs())
+    worst = (
+        f"worst median / max deviation {table['median_dev_m'].max():.3f} / "
+        f"{table['max_dev_m'].max():.3f} m"
+        if table["compared"].sum()
+        else "nothing compared"
+    )
+    out.print(
+        f"esmini playback (step {dt_s:g} s, {rep.wall_s:.2f} s, log {rep.log_bytes} bytes): "
+        f"{len(issues)} issue(s); {len(table)} entities, {worst}; "
+        f"collisions: {', '.join(pairs) if pairs else 'none'}",
+        highlight=False,
+        soft_wrap=True,
+    )
+    for i in issues:
+        out.print(f"  {i}", highlight=False, soft_wrap=True)
+    for w in rep.log.install_warnings[:1]:
+        out.print(
+            f"  note: {len(rep.log.install_warnings)} warning(s) about the esmini installation's "
+            f"resources, e.g. {w}",
+            highlight=False,
+            soft_wrap=True,
+        )
+    return not issues

@@ -410,12 +410,14 @@ def _parent_entity_ref(scope, action) -> str | None:
 
 def _vertex_rows(fta, actors, cats, wp) -> list[tuple]:
     """Rows (agent, category, t_s, x, y, yaw, 'vertex') of one FollowTrajectoryAction;
-    t_s is NaN for a vertex without time (a path without timing)."""
+    t_s is NaN on a path without timing (``TimeReference/None``: vertex times, which
+    1.0 requires, are ignored)."""
     out = []
+    timed = fta.find("TimeReference/Timing") is not None
     for ent in actors:
         for vert in fta.iter("Vertex"):
             x, y, h = wp(vert.find("Position"))
-            t = vert.get("time")
+            t = vert.get("time") if timed else None
             out.append(
                 (ent, cats.get(ent, ""), math.nan if t is None else float(t), x, y, h, "vertex")
             )

@@ -30,12 +30,16 @@ replaces: ``Priority.parallel`` exists in 1.0 (used throughout); the rule
 per category and warns that it found none (a headless install has no models): 1.0 files
 cannot avoid that message.
 
-``ego_controller='simulator'``: the ego keeps Init pose and speed and gets its path as a
-trajectory *without timing* (``TimeReference/None``, following mode ``follow``); the
-simulator's own speed control moves it along the path. An event at t = 0 sets its target
-speed to the run's cruise speed (median speed while moving, over 0.5 m/s) with a
-``linear`` rate of ``SIMULATOR_ACCEL_MPS2``, so the ego reaches the conflict area instead
-of standing (or crawling) at its initial speed.
+``ego_controller='simulator'``: the ego gets its Init pose and speed and, from the first
+step after the start, its path as a trajectory *without timing* (``TimeReference/None``,
+following mode ``follow``): the simulator's own speed control moves it along the path.
+When the recorded (or simulated) ego first moves (speed > ``MOVING_SPEED_MPS``), an event
+sets its target speed to the run's cruise speed (median speed while moving) with a
+``linear`` rate of ``SIMULATOR_ACCEL_MPS2``; when the path ends (the follow action's
+``endTransition``) a step to 0 m/s stops it there instead of letting it drive on along the
+road network. So the ego drives the recorded route and reaches the conflict area about
+when the recording did (esmini 3.6: path deviation <= 0.1 m on stadtmitte_12, where the
+ego waits 50 s at a light and then drives 60 m).
 
 Reference point and box: the reference point of every entity is its box centre (vei's
 trajectories are box centres), the ``BoundingBox`` ``Center`` is (0, 0, height / 2) and
@@ -241,7 +245,7 @@ def build_scenario(
         follow = None
         if t.size >= 2:
             if simulator_ego:
-                follow = _untimed_follow(xosc, aid, xy, yaw)
+                follow = _untimed_follow(xosc, aid, t, xy, yaw, minor)
             else:
                 idx = decimate(
                     t,
@@ -260,30 +264,11 @@ def build_scenario(
                 follow = xosc.FollowTrajectoryAction(
                     traj, xosc.FollowingMode.position, xosc.ReferenceContext.absolute, 1.0, 0.0
                 )
-        if t0 <= TRIGGER_MARGIN_S or simulator_ego:
+        if simulator_ego:
             init.add_init_action(aid, xosc.TeleportAction(first))
-            if simulator_ego:
-                v = speeds(track)
-                step = xosc.TransitionDynamics(
-                    xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0.0
-                )
-                init.add_init_action(aid, xosc.AbsoluteSpeedAction(r(max(v[0], 0.0), 4), step))
-                moving = v[v > MOVING_SPEED_MPS]
-                cruise = float(np.median(moving)) if moving.size else float(max(v[0], 0.0))
-                ev = xosc.Event(f"{aid}_cruise", parallel)
-                ev.add_action(
-                    f"{aid}_cruise_speed",
-                    xosc.AbsoluteSpeedAction(
-                        r(cruise, 4),
-                        xosc.TransitionDynamics(
-                            xosc.DynamicsShapes.linear,
-                            xosc.DynamicsDimension.rate,
-                            SIMULATOR_ACCEL_MPS2,
-                        ),
-                    ),
-                )
-                ev.add_trigger(_time_trigger(xosc, f"{aid}_cruise_start", 0.0))
-                events.append(ev)
+            events.extend(_simulator_ego_events(xosc, aid, track, follow, init))
+        elif t0 <= TRIGGER_MARGIN_S:
+            init.add_init_action(aid, xosc.TeleportAction(first))
             if follow is not None:
                 init.add_init_action(aid, follow)
         else:
@@ -334,6 +319,66 @@ def build_scenario(
     )
 
 
+def _simulator_ego_events(xosc, aid: str, track: pd.DataFrame, follow, init) -> list:
+    """Init speed and the events of a simulator-driven ego (module doc): its path from the
+    start, its cruise speed from the first moving sample, a stop at the path's end."""
+    v = speeds(track)
+    t = track["t_s"].to_numpy(dtype=float)
+    step = xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0.0)
+    init.add_init_action(aid, xosc.AbsoluteSpeedAction(r(max(v[0], 0.0), 4), step))
+    if follow is None:
+        return []
+    parallel = xosc.Priority.parallel
+    moving = np.flatnonzero(v > MOVING_SPEED_MPS)
+    cruise = float(np.median(v[moving])) if moving.size else float(max(v[0], 0.0))
+    t_move = float(t[moving[0]]) if moving.size else float(t[0])
+    path = xosc.Event(f"{aid}_path", parallel)
+    path.add_action(f"{aid}_follow_path", follow)
+    # time > t (no margin): never in the first step, where Init's TeleportAction and
+    # speed are still running (an action started in that step stops them, with a warning)
+    path.add_trigger(
+        xosc.ValueTrigger(
+            f"{aid}_path_start",
+            0.0,
+            xosc.ConditionEdge.none,
+            xosc.SimulationTimeCondition(r(t[0], 4), xosc.Rule.greaterThan),
+        )
+    )
+    go = xosc.Event(f"{aid}_cruise", parallel)
+    go.add_action(
+        f"{aid}_cruise_speed",
+        xosc.AbsoluteSpeedAction(
+            r(cruise, 4),
+            xosc.TransitionDynamics(
+                xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, SIMULATOR_ACCEL_MPS2
+            ),
+        ),
+    )
+    go.add_trigger(
+        xosc.ValueTrigger(
+            f"{aid}_cruise_start",
+            0.0,
+            xosc.ConditionEdge.none,
+            xosc.SimulationTimeCondition(r(t_move, 4), xosc.Rule.greaterThan),
+        )
+    )
+    stop = xosc.Event(f"{aid}_path_end", parallel)
+    stop.add_action(f"{aid}_stop", xosc.AbsoluteSpeedAction(0.0, step))
+    stop.add_trigger(
+        xosc.ValueTrigger(
+            f"{aid}_path_done",
+            0.0,
+            xosc.ConditionEdge.none,
+            xosc.StoryboardElementStateCondition(
+                xosc.StoryboardElementType.action,
+                f"{aid}_follow_path",
+                xosc.StoryboardElementState.endTransition,
+            ),
+        )
+    )
+    return [path, go, stop]
+
+
 def finish_element(element, minor: int):
     """Touch up the XML element tree of a built scenario (in place; returns it).
 
@@ -347,7 +392,7 @@ def finish_element(element, minor: int):
     return element
 
 
-def _untimed_follow(xosc, aid: str, xy: np.ndarray, yaw: np.ndarray):
+def _untimed_follow(xosc, aid: str, t_s: np.ndarray, xy: np.ndarray, yaw: np.ndarray, minor: int):
     """FollowTrajectoryAction along the path without timing (vertices every >= 0.5 m)."""
     keep = [0]
     for i in range(1, len(xy)):
@@ -357,7 +402,9 @@ def _untimed_follow(xosc, aid: str, xy: np.ndarray, yaw: np.ndarray):
         keep.append(len(xy) - 1)
     if len(keep) < 2:  # a standing ego: a path of one point plus itself is no path
         keep = [0, len(xy) - 1]
-    poly = xosc.Polyline([], [world_position(xosc, xy[i, 0], xy[i, 1], yaw[i]) for i in keep])
+    # 1.0 requires vertex times: the sample times, ignored under TimeReference/None
+    times = [r(t_s[i], 4) for i in keep] if minor == 0 else []
+    poly = xosc.Polyline(times, [world_position(xosc, xy[i, 0], xy[i, 1], yaw[i]) for i in keep])
     traj = xosc.Trajectory(f"{aid}_path", False)
     traj.add_shape(poly)
     return xosc.FollowTrajectoryAction(traj, xosc.FollowingMode.follow, None, None, None)

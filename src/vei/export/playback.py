@@ -34,7 +34,7 @@ import re
 import subprocess
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -211,7 +211,8 @@ class PlaybackReport:
         wall_s: wall time of the esmini process [s].
         log_path, log_bytes: esmini's log and its size.
         log: the sorted log (warnings, errors, collisions).
-        entities: one check per entity of the file, in file order.
+        entities: one check per entity of the file, in file order (empty when esmini
+            could not load the file).
         frames: the recording (dat2csv): time, id, name, x, y, h, speed, ... per step.
     """
 
@@ -242,7 +243,8 @@ class PlaybackReport:
         """Every way the playback differs from the file ([] when it plays as written)."""
         out = []
         if self.returncode != 0:
-            out.append(f"esmini exited with status {self.returncode}")
+            what = "played" if self.entities else "could not play the file"
+            out.append(f"esmini {what}: exit status {self.returncode}")
         if self.log_bytes > max_log_bytes:
             out.append(f"esmini's log is {self.log_bytes} bytes (> {max_log_bytes})")
         out.extend(f"esmini warning: {w}" for w in self.log.warnings)
@@ -261,7 +263,8 @@ class PlaybackReport:
 
     def table(self) -> pd.DataFrame:
         """One row per entity: frames, compared, median/max deviation, outside, missing."""
-        return pd.DataFrame([e.__dict__ for e in self.entities])
+        cols = [f.name for f in fields(EntityCheck)]
+        return pd.DataFrame([[getattr(e, c) for c in cols] for e in self.entities], columns=cols)
 
 
 def _seg_dist(p: np.ndarray, path: np.ndarray) -> np.ndarray:
@@ -356,9 +359,12 @@ def play_xosc(
     Returns:
         The :class:`PlaybackReport`.
 
+        A file esmini refuses to load gives a report with a non-zero ``returncode``, no
+        entity checks and the log's errors (``issues()`` lists them).
+
     Raises:
         InputError: the file does not exist or cannot be read. DependencyError: no esmini,
-        or it produced no recording (timeout, crash before the first frame).
+        esmini ran past ``timeout_s``, or dat2csv failed.
     """
     if not (dt_s > 0 and math.isfinite(dt_s)):
         raise ConfigError(f"dt_s must be > 0 s, got {dt_s!r}")
@@ -391,12 +397,15 @@ def _play(xosc, player, dat2csv, entities, dt_s, work: Path, timeout_s) -> Playb
     except subprocess.TimeoutExpired as exc:
         raise DependencyError(f"esmini did not finish {xosc.name} within {timeout_s:g} s") from exc
     wall = time.perf_counter() - t0
-    if not dat.is_file():
-        tail = (proc.stderr or proc.stdout or "").strip().splitlines()[-5:]
-        raise DependencyError(
-            f"esmini wrote no recording for {xosc} (exit status {proc.returncode}): "
-            + " | ".join(tail)
-        )
+    text = log.read_text(encoding="utf-8", errors="replace") if log.is_file() else ""
+    summary = parse_esmini_log(text)
+    log_bytes = log.stat().st_size if log.is_file() else 0
+    if not dat.is_file():  # esmini refused the file: its log says why
+        return PlaybackReport(
+            xosc=xosc, dt_s=dt_s, returncode=proc.returncode or -1, wall_s=wall,
+            log_path=log, log_bytes=log_bytes, log=summary, entities=(),
+            frames=pd.DataFrame(columns=["time", "id", "name", "x", "y", "h", "speed"]),
+        )  # fmt: skip
     conv = subprocess.run(
         [str(dat2csv), "--file", str(dat), "--csv", str(csv), "--precision", "6"],
         cwd=work, capture_output=True, text=True, timeout=timeout_s, check=False,
@@ -406,8 +415,6 @@ def _play(xosc, player, dat2csv, entities, dt_s, work: Path, timeout_s) -> Playb
     frames = pd.read_csv(csv, skipinitialspace=True)
     frames.columns = [c.strip() for c in frames.columns]
     frames["name"] = frames["name"].astype(str).str.strip()
-    text = log.read_text(encoding="utf-8", errors="replace") if log.is_file() else ""
-    summary = parse_esmini_log(text)
     t_last = float(frames["time"].max()) if len(frames) else 0.0
     checks = compare_playback(frames, entities, dt_s, t_last)
     return PlaybackReport(
@@ -416,7 +423,7 @@ def _play(xosc, player, dat2csv, entities, dt_s, work: Path, timeout_s) -> Playb
         returncode=proc.returncode,
         wall_s=wall,
         log_path=log,
-        log_bytes=log.stat().st_size if log.is_file() else 0,
+        log_bytes=log_bytes,
         log=summary,
         entities=checks,
         frames=frames,
