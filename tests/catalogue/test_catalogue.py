@@ -199,3 +199,16 @@ def test_cli_catalogue_and_report(tmp_path, trafficmonitoring_root):
     assert main(["catalogue", str(trafficmonitoring_root), "--out", str(tmp_path / "x"),
                  "--recording", "nope"]) == 2  # fmt: skip
     assert main(["report", str(tmp_path)]) == 2
+
+
+def test_ray_and_local_give_the_same_catalogue(tmp_path, trafficmonitoring_root):
+    """The same jobs as Ray tasks and in this process: identical rows."""
+    pytest.importorskip("ray")
+    recs = ["klinikum_01_marktkauf_geradeaus"]
+    cfg = small_config(sweep={**SMALL_SWEEP, "n_samples": 8})
+    local = run_catalogue(trafficmonitoring_root, tmp_path / "local", cfg, recordings=recs,
+                          engine="local", workers=1, progress=False)  # fmt: skip
+    ray = run_catalogue(trafficmonitoring_root, tmp_path / "ray", cfg, recordings=recs,
+                        engine="ray", workers=2, progress=False)  # fmt: skip
+    assert local.complete and ray.complete and len(local.rows) == 5 + 8
+    pd.testing.assert_frame_equal(local.rows, ray.rows)
