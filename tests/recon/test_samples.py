@@ -152,3 +152,10 @@ def test_sweep_over_reconstruction_samples_of_a_real_recording(probabilistic, tm
     # Sample k of the sweep is the scenario with sample k in place of the rider.
     assert r.groupby(SAMPLE_COLUMN)["min_gap_m"].sum().nunique() > 1
     assert (tmp_path / "out" / "riskmap.png").is_file()
+    assert (tmp_path / "out" / "reconstruction_share.png").is_file()
+    import json
+
+    summary = json.loads((tmp_path / "out" / "reconstruction_samples.json").read_text())
+    assert summary["n_design_points"] == 4 and summary["n_samples"] == 6
+    assert summary["always_collide"] + summary["never_collide"] + summary["sample_dependent"] == 4
+    assert summary["max_min_gap_spread_m"] == pytest.approx(spread.max())

@@ -8,6 +8,9 @@ Output folder layout (``out_dir``)::
     critical.csv / .json  the most critical variants (see :func:`most_critical`)
     configs/<variant_id>.yaml   each critical variant as a run configuration (vei run --config)
     riskmap.png           mean safety index over the first two range parameters + boundary
+    reconstruction_samples.json, reconstruction_share.png   with ``reconstruction: {samples:
+                          N}``: how many design points depend on the rider's sample, and
+                          the share of samples without collision per design point
 
 Resume design: a chunk's rows reach the disk only as a whole part file (temporary file +
 rename), so a part file that exists is complete. On (re)start the variant ids in the
@@ -262,7 +265,17 @@ def run_sweep(
             write_variant_configs(
                 out / "configs", rows, spec, evaluator.auto_shift_s(prepared[_key_of(d, prepared)])
             )
-        sweep_risk_map(results, spec, out / "riskmap.png")
+        risk = sweep_risk_map(results, spec, out / "riskmap.png")
+        if spec.reconstruction_samples and SAMPLE_COLUMN in results.columns:
+            from vei.report.uncertainty import sample_dependence, write_sample_share_map
+
+            design = ["scenario_id", *spec.names]
+            summary, per_point = sample_dependence(results, design, SAMPLE_COLUMN)
+            write_json(out / "reconstruction_samples.json", summary)
+            if risk is not None:
+                write_sample_share_map(
+                    per_point, risk["x"], risk["y"], out / "reconstruction_share.png"
+                )
         manifest["status"] = "complete"
         manifest["updated_utc"] = datetime.now(UTC).isoformat(timespec="seconds")
         write_json(manifest_path, manifest)

@@ -145,3 +145,63 @@ def plot_uncertainty(
     ax.legend(loc="best", fontsize=8)
     ax.grid(True, lw=0.3)
     return fig
+
+
+def sample_dependence(
+    results, design_columns: list[str], sample_column: str = "reconstruction_sample"
+) -> tuple[dict, object]:
+    """How much a sweep's outcome depends on the reconstruction sample.
+
+    Args:
+        results: sweep results (pandas DataFrame) with ``sample_column``, the design
+            columns, ``collision`` (bool) and ``min_gap_m``.
+        design_columns: the swept parameters (a design point = one combination of them).
+        sample_column: the reconstruction-sample column.
+    Returns:
+        (summary, per_point): per_point is a DataFrame, one row per design point, with
+        n_samples, collision_share (share of samples that collide), min_gap_spread_m
+        (max - min of the minimum gap over the samples [m]); summary counts the design
+        points that always collide, never collide, and depend on the sample (0 < share < 1),
+        with the median / max gap spread [m].
+    """
+    cols = [c for c in design_columns if c in results.columns]
+    grouped = results.groupby(cols, sort=True) if cols else results.groupby(lambda _: 0)
+    per_point = grouped.agg(
+        n_samples=(sample_column, "nunique"),
+        collision_share=("collision", "mean"),
+        min_gap_spread_m=("min_gap_m", lambda g: float(np.nanmax(g) - np.nanmin(g))),
+    ).reset_index()
+    share = per_point["collision_share"].to_numpy(float)
+    spread = per_point["min_gap_spread_m"].to_numpy(float)
+    summary = {
+        "n_design_points": int(len(per_point)),
+        "n_samples": int(results[sample_column].nunique()),
+        "always_collide": int(np.sum(share == 1.0)),
+        "never_collide": int(np.sum(share == 0.0)),
+        "sample_dependent": int(np.sum((share > 0.0) & (share < 1.0))),
+        "median_min_gap_spread_m": float(np.nanmedian(spread)) if spread.size else None,
+        "max_min_gap_spread_m": float(np.nanmax(spread)) if spread.size else None,
+    }
+    return summary, per_point
+
+
+def write_sample_share_map(per_point, x: str, y: str, path, title: str = ""):
+    """Heatmap of the share of reconstruction samples without collision per design point
+    (x, y: two swept parameters; with more, the cells average over the others). Cells
+    strictly between 0 and 1 are design points whose outcome depends on where the rider
+    really was. Written atomically; returns the path."""
+    from vei.report.riskmap import write_risk_map
+
+    cell = per_point.groupby([y, x], sort=True)["collision_share"].mean().unstack(x)
+    return write_risk_map(
+        path,
+        x_centres=cell.columns.to_numpy(float),
+        y_centres=cell.index.to_numpy(float),
+        value=1.0 - cell.to_numpy(float),
+        segments=np.zeros((0, 2, 2)),
+        x_label=x,
+        y_label=y,
+        value_label="share of reconstruction samples without collision",
+        title=title
+        or "outcome over reconstruction samples: 1 = no sample collides, 0 = all collide",
+    )
