@@ -9,12 +9,14 @@ entity of the file:
   vertex time) against the file's own vertices, linearly interpolated in time [m]; an
   entity whose path has no timing (a simulator-driven ego) is compared with its path (the
   distance from the polyline);
-- **presence**: frames recorded outside the window the file gives the entity (from 0 when
-  it is placed in Init, else from its ``AddEntityAction``'s condition time; to the first
-  step past its ``DeleteEntityAction``'s condition time, else to the end) count as
-  *outside*; steps of the window in which it is missing count as *missing* (esmini
-  evaluates triggers before it advances its clock, so an entity added at step T is first
-  recorded at T + dt: that one frame is not counted);
+- **presence**: frames recorded outside the entity's own span count as *outside*: the
+  span of its timed trajectory (first to last vertex time), so that standing before its
+  trajectory begins or after it ends is caught; for an entity without timed trajectory
+  the window the file gives it (from 0 when placed in Init, else from its
+  ``AddEntityAction``'s condition time, to the step that deletes it, else to the end).
+  Steps of the span in which it is missing count as *missing* (esmini evaluates triggers
+  before it advances its clock, so an entity added at step T is first recorded at
+  T + dt: that one frame is not counted);
 - **collisions**: esmini's ``--collision`` reports each new overlap of two bounding boxes
   as a log line ``[t] [warn] Collision between A and B`` (and ``... dissolved`` when it
   ends); every pair is kept with the time it first touched;
@@ -184,8 +186,8 @@ class EntityCheck:
             path without timing).
         median_dev_m, max_dev_m: deviation from the file's vertices [m] (NaN: nothing
             compared).
-        outside: frames recorded outside the file's presence window.
-        missing: steps of the window (after its first) in which it was not recorded.
+        outside: frames recorded outside its span (module doc).
+        missing: steps of its span in which it was not recorded (module doc).
         first_s, last_s: first / last recorded time [s] (NaN: never recorded).
     """
 
@@ -314,12 +316,16 @@ def compare_playback(
             dev = np.hypot(*(xy[sel] - ref).T)
         elif len(ent.vertices):
             dev = _seg_dist(xy, ent.vertices[:, 1:3])
-        # deleted at the first step T > end_s, recorded last at T < end_s + dt
-        last_ok = ent.end_s + dt_s - TIME_TOL_S
-        outside = int(((t < ent.start_s - TIME_TOL_S) | (t > last_ok)).sum())
-        window = grid[(grid >= ent.start_s - TIME_TOL_S) & (grid <= last_ok)]
-        if ent.start_s > TIME_TOL_S:  # added by a trigger: first recorded one step later
-            window = window[window > ent.start_s + TIME_TOL_S][1:]
+        if ent.timed and len(ent.vertices):
+            # the entity's own span: its timed trajectory, first to last vertex
+            lo, hi = float(ent.vertices[0, 0]), float(ent.vertices[-1, 0])
+        else:
+            # the file's window: Init / AddEntityAction to the step that deletes it
+            lo, hi = ent.start_s, ent.end_s + dt_s - 2 * TIME_TOL_S
+        outside = int(((t < lo - TIME_TOL_S) | (t > hi + TIME_TOL_S)).sum())
+        window = grid[(grid >= lo - TIME_TOL_S) & (grid <= hi + TIME_TOL_S)]
+        if ent.start_s > TIME_TOL_S and window.size:  # added by a trigger: recorded from
+            window = window[1:]  # the step after the one that adds it (esmini's order)
         seen = set(np.round(t, 6).tolist())
         missing = int(sum(round(float(w), 6) not in seen for w in window))
         out.append(
