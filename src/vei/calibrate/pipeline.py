@@ -99,7 +99,12 @@ def calibrate_riders(
     by_name = {s.scenario: s for s in scenes}
     tracks = [t for s in scenes for t in s.riders if category == "all" or t.category == category]
     if not tracks:
-        raise InputError(f"no {category} track passes the filter in any scenario", path=root)
+        what = "rider" if category == "all" else category
+        raise InputError(
+            f"no {what} track passes the filter in the scenario(s) "
+            f"{', '.join(s.scenario for s in scenes)}: nothing to fit",
+            path=root,
+        )
     result = fit_tracks(tracks, by_name, horizon_s=horizon_s, bootstrap=bootstrap)
     source = {
         "dataset": f"github.com/{DATASET_REPO}@{DATASET_COMMIT}",

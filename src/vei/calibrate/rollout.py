@@ -79,17 +79,44 @@ class PackedPaths:
     ds_m: float
     arc_m: tuple[FloatArray, ...]
 
+    def __post_init__(self) -> None:
+        tab = np.column_stack([self.x_m, self.y_m, self.cos, self.sin])
+        dtab = np.zeros_like(tab)
+        dtab[:-1] = np.diff(tab, axis=0)
+        object.__setattr__(self, "tab", tab)
+        object.__setattr__(self, "dtab", dtab)
+
+    def rows(self, j: IntArray) -> tuple[FloatArray, ...]:
+        """Per-rider constants of :meth:`index_rows` for path indices j [B] (gather once)."""
+        nj = self.n[j]
+        return (
+            self.s_start_m[j],
+            (nj - 1.0).astype(np.float64),
+            np.maximum(nj - 2, 0),
+            self.off[j],
+            self.length_m[j],
+        )
+
+    def index_rows(
+        self, rows: tuple[FloatArray, ...], s_m: FloatArray
+    ) -> tuple[IntArray, FloatArray]:
+        """Global entry index and weight of arc lengths s [B] (clamped) given :meth:`rows`."""
+        s0, nm1, imax, off, _ = rows
+        f = np.clip((s_m - s0) * (1.0 / self.ds_m), 0.0, nm1)
+        i = np.minimum(f.astype(np.intp), imax)
+        return i + off, f - i
+
     def index(self, j: IntArray, s_m: FloatArray) -> tuple[IntArray, FloatArray]:
         """Global entry index and weight of arc lengths s [B] on paths j [B] (clamped)."""
-        f = (s_m - self.s_start_m[j]) / self.ds_m
-        nj = self.n[j]
-        f = np.clip(f, 0.0, nj - 1.0)
-        i = np.minimum(f.astype(np.intp), np.maximum(nj - 2, 0))
-        return i + self.off[j], f - i
+        return self.index_rows(self.rows(j), s_m)
 
     def at(self, gi: IntArray, w: FloatArray, table: FloatArray) -> FloatArray:
         """Linear interpolation of one table (x_m, y_m, cos, sin) at (gi, w)."""
         return table[gi] + w * (table[gi + 1] - table[gi])
+
+    def at4(self, gi: IntArray, w: FloatArray) -> FloatArray:
+        """[..., 4] interpolated x_m, y_m, cos, sin at (gi, w) (one gather)."""
+        return self.tab[gi] + w[..., None] * self.dtab[gi]
 
 
 def decimated(x: FloatArray, y: FloatArray, spacing_m: float) -> IntArray:
@@ -288,7 +315,7 @@ def make_windows(
 
 def sfm_force(
     paths: PackedPaths,
-    j: IntArray,
+    j: IntArray | tuple[FloatArray, ...],
     x: FloatArray,
     y: FloatArray,
     vx: FloatArray,
@@ -300,20 +327,22 @@ def sfm_force(
     """Social force on riders [B] (capped at m a_max) and their updated progress.
 
     Args:
-        paths, j: the packed paths and each rider's path index [B].
+        paths, j: the packed paths and each rider's path index [B] (or its
+            ``paths.rows(j)``, gathered once per rollout).
         x, y, vx, vy: rider state [B] (m, m/s). prog0: progress before the step [B] (m).
         p: parameters (PARAM_NAMES) [B]. veh: (x, y, yaw, length, width, active) [B, K]
             of the vehicles at this step, or None.
     Returns:
         (fx_n, fy_n, prog_m) [B].
     """
-    gi, w = paths.index(j, prog0)
-    px, py = paths.at(gi, w, paths.x_m), paths.at(gi, w, paths.y_m)
-    pc, ps = paths.at(gi, w, paths.cos), paths.at(gi, w, paths.sin)
-    prog = np.maximum(prog0 + (x - px) * pc + (y - py) * ps, prog0)
-    gi, w = paths.index(j, np.minimum(prog + p["lookahead_m"], paths.length_m[j]))
-    dx = paths.at(gi, w, paths.x_m) - x
-    dy = paths.at(gi, w, paths.y_m) - y
+    rows = paths.rows(j) if isinstance(j, np.ndarray) else j
+    gi, w = paths.index_rows(rows, prog0)
+    q = paths.at4(gi, w)
+    prog = np.maximum(prog0 + (x - q[:, 0]) * q[:, 2] + (y - q[:, 1]) * q[:, 3], prog0)
+    gi, w = paths.index_rows(rows, np.minimum(prog + p["lookahead_m"], rows[4]))
+    g = paths.at4(gi, w)
+    dx = g[:, 0] - x
+    dy = g[:, 1] - y
     f = p["v0_mps"] / np.sqrt(dx * dx + dy * dy + p["sigma_m"] ** 2)
     k = p["k_des_nspm"]
     fx = k * (f * dx - vx)
@@ -333,7 +362,10 @@ def sfm_force(
         fy = fy + np.sum(mag * uy / un, axis=1)
     fmax = p["max_accel_mps2"] * p["mass_kg"]
     fmag = np.sqrt(fx * fx + fy * fy)
-    sc = np.where(fmag > fmax, fmax / np.maximum(fmag, 1e-12), 1.0)
+    over = fmag > fmax
+    if not over.any():
+        return fx, fy, prog
+    sc = np.where(over, fmax / np.maximum(fmag, 1e-12), 1.0)
     return fx * sc, fy * sc, prog
 
 
@@ -359,6 +391,7 @@ def rollout_sfm(
     outx[:, 0], outy[:, 0] = x, y
     inv_m = 1.0 / p["mass_kg"]
     vmax = p["max_speed_mps"]
+    rows = paths.rows(win.track)
     for k in range(h):
         veh = None
         if use_veh:
@@ -370,12 +403,14 @@ def rollout_sfm(
                 win.veh_width_m[:, k],
                 win.veh_active[:, k],
             )
-        fx, fy, prog = sfm_force(paths, win.track, x, y, vx, vy, prog, p, veh)
+        fx, fy, prog = sfm_force(paths, rows, x, y, vx, vy, prog, p, veh)
         vx = vx + fx * inv_m * dt
         vy = vy + fy * inv_m * dt
         sp = np.sqrt(vx * vx + vy * vy)
-        sc = np.where(sp > vmax, vmax / np.maximum(sp, 1e-12), 1.0)
-        vx, vy = vx * sc, vy * sc
+        fast = sp > vmax
+        if fast.any():
+            sc = np.where(fast, vmax / np.maximum(sp, 1e-12), 1.0)
+            vx, vy = vx * sc, vy * sc
         x = x + vx * dt
         y = y + vy * dt
         outx[:, k + 1], outy[:, k + 1] = x, y
