@@ -5,7 +5,8 @@
 shift, and tabulates per configuration: the collision outcome and time, the safety
 index, the minimum gap, the RMS difference of the ego's speed over the run, and the RMS
 distance between the two rider paths (over the steps where the rider is in the scene in
-both runs). :func:`format_comparison` renders the table as text.
+both runs), and the largest distance between the two backends' replayed road users (how
+exactly the other backend plays them). :func:`format_comparison` renders the table.
 """
 
 from __future__ import annotations
@@ -70,6 +71,7 @@ COLUMNS: tuple[str, ...] = (
     "min_gap_m",
     "ego_speed_rms_diff_mps",
     "rider_path_rms_m",
+    "others_max_dev_m",
 )
 
 
@@ -107,6 +109,26 @@ def run_differences(
     return float(np.sqrt(np.mean(dv * dv))), path
 
 
+def others_max_deviation(
+    ref: pd.DataFrame, other: pd.DataFrame, config: str, ids: Sequence[str]
+) -> float:
+    """Largest distance [m] between the two backends' replayed road users ``ids`` over the
+    steps where both have them active (0 if none; NaN if their step counts differ)."""
+    worst = 0.0
+    for aid in ids:
+        a, b = _series(ref, config, aid), _series(other, config, aid)
+        if len(a) != len(b):
+            return float("nan")
+        both = a["active"].to_numpy(bool) & b["active"].to_numpy(bool)
+        if both.any():
+            d = np.hypot(
+                a["x_m"].to_numpy()[both] - b["x_m"].to_numpy()[both],
+                a["y_m"].to_numpy()[both] - b["y_m"].to_numpy()[both],
+            )
+            worst = max(worst, float(d.max()))
+    return worst
+
+
 def compare_backends(
     scenario: Scenario,
     *,
@@ -137,9 +159,11 @@ def compare_backends(
     rows: list[dict[str, Any]] = []
     s_ref = ref.summary.set_index("name")
     s_got = got.summary.set_index("name")
+    others = sorted(set(ref.frame["agent_id"]) - {EGO_ID, ref.other_id})  # replayed users
     for case in ref.cases:
         a, b = s_ref.loc[case.name], s_got.loc[case.name]
         dv, dp = run_differences(ref.frame, got.frame, case.name, ref.other_id)
+        do = others_max_deviation(ref.frame, got.frame, case.name, others)
         rows.append(
             {
                 "config": case.name,
@@ -154,6 +178,7 @@ def compare_backends(
                 "min_gap_m": float(b["min_gap_m"]),
                 "ego_speed_rms_diff_mps": dv,
                 "rider_path_rms_m": dp,
+                "others_max_dev_m": do,
             }
         )
     table = pd.DataFrame(rows, columns=list(COLUMNS))
@@ -183,6 +208,7 @@ def format_comparison(cmp: BackendComparison) -> str:
         (f"min gap [m] {ref}/{got}", ("min_gap_ref_m", "min_gap_m"), ".3f"),
         ("ego speed RMS diff [m/s]", "ego_speed_rms_diff_mps", ".2e"),
         ("rider path RMS [m]", "rider_path_rms_m", ".2e"),
+        ("others max dev. [m]", "others_max_dev_m", ".2e"),
     ]
     lines = [head, "", "| " + " | ".join(c[0] for c in cols) + " |"]
     lines.append("|" + "|".join("---" for _ in cols) + "|")

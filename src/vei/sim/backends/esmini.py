@@ -397,7 +397,7 @@ class EsminiBackend(Backend):
                 _wrap_near(float(rs.h), rider_ref),
                 vx,
                 vy,
-                float(rs.speed),
+                abs(float(rs.speed)),  # esmini's speed is signed along the heading
             )
         # the replayed road users (while the recording has them)
         others = np.full((len(a.other_ids), 4), np.nan)
@@ -415,7 +415,7 @@ class EsminiBackend(Backend):
                 os_.x,
                 os_.y,
                 _wrap_near(float(os_.h), float(a.other_yaw_rad[k, j])),
-                os_.speed,
+                abs(float(os_.speed)),
             )
             dev = math.hypot(os_.x - a.other_x_m[k, j], os_.y - a.other_y_m[k, j])
             self._dev[j] = max(self._dev[j], dev)

@@ -217,6 +217,9 @@ class EsminiSession:
         try:
             args = ["vei", "--headless", "--osc", str(self.xosc), "--disable_stdout"]
             args += ["--logfile_path", str(self.log_path)]
+            # esmini merges trajectory vertices closer than 0.1 m by default: a slow road
+            # user (vertices 1 cm apart at 0.2 m/s and 20 Hz) then lags up to 0.1 m
+            args += ["--traj_filter", "0"]
             if collision:
                 args.append("--collision")
             args += list(extra_args)
