@@ -105,3 +105,52 @@ def test_user_errors_exit_2(tmp_path, scenario_dir):
         main(["export", "openscenario", str(tmp_path / "nowhere"), "--out", str(tmp_path / "o")])
         == 2
     )
+
+
+def test_check_plays_in_esmini_and_writes_reports_only_where_told(
+    tmp_path, scenario_dir, esmini, capsys, monkeypatch
+):
+    out = tmp_path / "osc"
+    assert main(["export", "openscenario", str(scenario_dir), "--out", str(out)]) == 0
+    xosc = out / "crossing.xosc"
+    before = sorted(p.name for p in out.iterdir())
+    reports = tmp_path / "reports"
+    args = ["export", "check", str(xosc), "--no-qc", "--esmini", str(esmini.root),
+            "--report-dir", str(reports)]  # fmt: skip
+    capsys.readouterr()
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "esmini playback" in text and "0 issue(s)" in text
+    assert (reports / "playback.csv").is_file() and (reports / "esmini" / "run.dat").is_file()
+    table = __import__("pandas").read_csv(reports / "playback.csv")
+    assert set(table["name"]) == {"ego", "s7", "c1"}
+    assert (table["outside"] == 0).all() and (table["max_dev_m"] < 0.3).all()
+    # without --report-dir: a temporary folder; nothing is ever written beside the input
+    monkeypatch.setenv("VEI_ESMINI", str(esmini.root))
+    assert main(["export", "check", str(xosc), "--no-qc"]) == 0
+    text = capsys.readouterr().out
+    assert "esmini playback" in text and "vei-check-" in text
+    assert sorted(p.name for p in out.iterdir()) == before
+    # --no-play: XSD only
+    assert main(["export", "check", str(xosc), "--no-qc", "--no-play"]) == 0
+    assert "esmini playback" not in capsys.readouterr().out
+
+
+def test_check_flags_a_file_that_plays_wrong_and_a_missing_esmini(
+    tmp_path, scenario_dir, esmini, capsys
+):
+    out = tmp_path / "osc"
+    assert main(["export", "openscenario", str(scenario_dir), "--out", str(out)]) == 0
+    xosc = out / "crossing.xosc"
+    # valid XML and XSD, but the ego's trajectory is shifted by 2 s
+    shifted = out / "shifted.xosc"
+    shifted.write_text(xosc.read_text().replace('offset="0.0"', 'offset="2.0"', 1))
+    args = ["export", "check", str(shifted), "--no-qc", "--esmini", str(esmini.root),
+            "--report-dir", str(tmp_path / "r")]  # fmt: skip
+    capsys.readouterr()
+    assert main(args) == 1
+    text = capsys.readouterr().out
+    assert "0 error(s)" in text and "from the file's trajectory" in text
+    # an esmini folder that is given and absent is a user error
+    assert main(["export", "check", str(xosc), "--no-qc", "--esmini", str(tmp_path / "no")]) == 2
+    assert "esmini not found" in capsys.readouterr().err
