@@ -9,7 +9,7 @@
 - per encounter: the map of all recorded tracks (the encounter's rider highlighted), an
   animated bird's-eye replay of each configuration (play / pause / time slider; ego and
   rider boxes, the other riders, the ego box coloured by the TTC zone, the CAP's state),
-  ego and rider speed, the paper's TTC over time with its zones, the case-study summary
+  ego and rider speed, the paper's TTC over time (time axes zoomed to the interaction) with its zones, the case-study summary
   table and the sweep's risk map (mean safety index over time-shift offset x cruise speed).
 
 Why Plotly: a maintained library (MIT) whose full JavaScript bundle ships inside the Python
@@ -38,7 +38,8 @@ from vei.io.atomic import write_text
 ASSETS = Path(__file__).parent / "html" / "assets"
 #: Replay rate in the report [Hz] (the engine's 20 Hz time series, every other step).
 REPLAY_RATE_HZ = 10.0
-#: Seconds of replay kept before the rider appears and after it leaves.
+#: Seconds of replay kept before / after the interaction (rider within 30 m of the ego, up to
+#: a collision: vei.report.casestudy_figures.interaction_window).
 REPLAY_MARGIN_S = 2.0
 #: Overview columns: (key, header, format, title).
 OVERVIEW_COLUMNS: tuple[tuple[str, str, str, str], ...] = (
@@ -118,9 +119,10 @@ def _replay(
     t_all = np.sort(ts["t_s"].unique())
     dt = float(np.median(np.diff(t_all))) if t_all.size > 1 else 0.05
     step = max(1, int(round(1.0 / (REPLAY_RATE_HZ * dt))))
-    rider_on = ts[(ts["agent_id"] == rider_id) & ts["active"]]
-    lo = float(rider_on["t_s"].min()) - REPLAY_MARGIN_S if len(rider_on) else float(t_all[0])
-    hi = float(rider_on["t_s"].max()) + REPLAY_MARGIN_S if len(rider_on) else float(t_all[-1])
+    from vei.report.casestudy_figures import interaction_window
+
+    win = interaction_window(ts, rider_id, margin_s=REPLAY_MARGIN_S)
+    lo, hi = win if win is not None else (float(t_all[0]), float(t_all[-1]))
     grid = t_all[(t_all >= lo - 1e-9) & (t_all <= hi + 1e-9)][::step]
     configs = []
     for name, g in ts.groupby("config", sort=False):

@@ -127,7 +127,7 @@
       traces.push({ x: t, y: c.ego.speed, mode: "lines", name: "ego " + c.name, legendgroup: c.name, line: { color: colour(c.name, i), width: 2 } });
       traces.push({ x: t, y: c.rider.speed, mode: "lines", name: "rider " + c.name, legendgroup: c.name, line: { color: colour(c.name, i), width: 1.5, dash: "dash" } });
     });
-    Plotly.newPlot("speed-plot", traces, lay({ xaxis: { title: { text: "t [s]" } }, yaxis: { title: { text: "speed [m/s]" }, rangemode: "tozero" } }), CONF);
+    Plotly.newPlot("speed-plot", traces, lay({ xaxis: { title: { text: "t [s]" }, range: e.replay.window }, yaxis: { title: { text: "speed [m/s]" }, rangemode: "tozero" } }), CONF);
   }
 
   function ttcShapes(e) {
