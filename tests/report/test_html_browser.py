@@ -81,7 +81,7 @@ def small_catalogue(trafficmonitoring_root):
 def loaded(browser, small_catalogue):
     from selenium.webdriver.support.ui import WebDriverWait
 
-    from vei.report.html_report import write_report
+    from vei.catalogue.report_data import write_report
 
     html = write_report(small_catalogue, small_catalogue / "report.html")
     browser.get(html.resolve().as_uri())
@@ -92,7 +92,7 @@ def loaded(browser, small_catalogue):
 
 
 def test_report_is_offline(small_catalogue):
-    from vei.report.html_report import write_report
+    from vei.catalogue.report_data import write_report
 
     text = write_report(small_catalogue, small_catalogue / "offline.html").read_text()
     import re

@@ -93,7 +93,7 @@ def catalogue(
     )
     _print_result(console, result, top)
     if report:
-        from vei.report.html_report import write_report
+        from vei.catalogue.report_data import write_report
 
         path = write_report(out)
         console.print(f"report: {path}")
@@ -160,7 +160,7 @@ def report_cmd(
     ] = None,
 ) -> None:
     """Write the self-contained HTML report of a catalogue (works offline)."""
-    from vei.report.html_report import write_report
+    from vei.catalogue.report_data import write_report
 
     path = write_report(catalogue_dir, out)
     typer.echo(f"report: {path}")
