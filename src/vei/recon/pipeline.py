@@ -288,8 +288,10 @@ def reconstruct(
     track_info: list[dict] = []
     dropped: list[str] = []
     noise = None
+    primed: dict[str, object] = {}
     if cfg.interp == "kalman":
         noise = _rider_noise(keyframes, cfg)
+        primed = _primed_kalman(keyframes, cfg, noise)
     for agent_id, kf in keyframes.groupby("agent_id", sort=True):
         tk = kf["t_s"].to_numpy(dtype=np.float64)
         xyk = kf[["x_m", "y_m"]].to_numpy(dtype=np.float64)
@@ -299,7 +301,9 @@ def reconstruct(
         if grid.size == 0:
             dropped.append(str(agent_id))
             continue
-        interp = fit_track_segmented(tk, xyk, cfg.interp, cfg.smoothing, cfg.max_gap_s, noise)
+        interp = primed.get(str(agent_id)) or fit_track_segmented(
+            tk, xyk, cfg.interp, cfg.smoothing, cfg.max_gap_s, noise
+        )
         interpolants[str(agent_id)] = interp
         xy = interp.position(grid)
         vel = interp.velocity(grid)
@@ -439,6 +443,21 @@ def _rider_noise(keyframes: pd.DataFrame, cfg: ReconstructionConfig) -> smoother
         for _, g in keyframes.groupby("agent_id", sort=True)
     ]
     return smoother_mod.estimate_noise(tracks, default=fixed)
+
+
+def _primed_kalman(keyframes: pd.DataFrame, cfg: ReconstructionConfig, noise) -> dict:
+    """'kalman' interpolants of every track, their posteriors on the rate_hz grid computed
+    in one batch (the per-track loop then reads them from the cache)."""
+    out, grids = {}, []
+    for agent_id, kf in keyframes.groupby("agent_id", sort=True):
+        tk = kf["t_s"].to_numpy(dtype=np.float64)
+        xyk = kf[["x_m", "y_m"]].to_numpy(dtype=np.float64)
+        out[str(agent_id)] = fit_track_segmented(
+            tk, xyk, "kalman", cfg.smoothing, cfg.max_gap_s, noise
+        )
+        grids.append(time_grid(tk[0], tk[-1], cfg.rate_hz))
+    smoother_mod.prime(list(out.values()), grids)
+    return out
 
 
 def _smooth_ego(ego, t_ego: np.ndarray, xy_before: np.ndarray, yaw_before: np.ndarray):

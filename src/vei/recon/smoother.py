@@ -274,6 +274,37 @@ def sample_tracks(
     return draws[:, idx, 0, :], draws[:, idx, 1, :]
 
 
+def prime(interpolants: list, queries: list[FloatArray]) -> None:
+    """Compute the posteriors of several KalmanInterpolants at their query times in one
+    batch (one filter and smoother pass over all of them) and keep them in their caches,
+    so the next ``position`` / ``velocity`` / ``std`` call at exactly those times is free.
+    Interpolants of another type, with one keyframe, or with other noise than the first
+    are left alone.
+
+    Args:
+        interpolants: [M] interpolants; queries: [M] arrays of times [s] inside each span.
+    """
+    todo = [
+        (ip, np.clip(np.asarray(q, float).ravel(), ip.t_start_s, ip.t_end_s))
+        for ip, q in zip(interpolants, queries, strict=True)
+        if isinstance(ip, KalmanInterpolant) and ip.t_key_s.size > 1 and np.size(q)
+    ]
+    if not todo:
+        return
+    noise = todo[0][0].noise
+    todo = [(ip, q) for ip, q in todo if ip.noise == noise]
+    sorted_q = [np.sort(q) for _, q in todo]
+    posts = posterior(
+        [(ip.t_key_s, ip.xy_key_m) for ip, _ in todo],
+        sorted_q,
+        noise.noise_m,
+        noise.accel_psd_m2ps3,
+    )
+    for (ip, q), sq, p in zip(todo, sorted_q, posts, strict=True):
+        idx = np.searchsorted(sq, q)
+        ip._cache = (q.tobytes(), Posterior(q, p.xy_m[idx], p.vel_mps[idx], p.std_m[idx]))
+
+
 class KalmanInterpolant:
     """RTS-smoothed track with the interface of :class:`vei.recon.interpolate.TrackInterpolant`.
 
