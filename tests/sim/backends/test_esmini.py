@@ -110,6 +110,13 @@ def test_a_file_esmini_refuses_is_a_backend_error_and_frees_the_slot(tmp_path, e
     assert "bad.xosc" in str(exc.value)
     with pytest.raises(BackendError, match="no scenario file"):
         EsminiSession(lib, tmp_path / "missing.xosc", tmp_path / "log.txt")
+    # a scenario whose map esmini cannot read: esmini's own words, no crash
+    scn = tmp_path / "badmap"
+    scn.mkdir()
+    (scn / "map.xodr").write_text("not OpenDRIVE")
+    backend = EsminiBackend(EsminiSettings(root=esmini.root))
+    with pytest.raises(BackendError, match="Failed to load OpenDRIVE file .*map.xodr"):
+        run_backend(backend, crossing_scenario(scn), "normal", time_shift_s=0.0)
     # the process is fine and esmini loads the next file
     scenario = crossing_scenario()
     frame = run_backend(

@@ -265,9 +265,17 @@ class EsminiBackend(Backend):
         self._runs += 1
         out = self._dir / f"run{self._runs:02d}_{loop.case.name}"
         xosc = write_run_xosc(loop, out, xodr=self._xodr, osc_version=self.settings.osc_version)
-        self._session = EsminiSession(
-            self._library, xosc, out / "esmini.log", collision=self.settings.collision
-        )
+        try:
+            self._session = EsminiSession(
+                self._library, xosc, out / "esmini.log", collision=self.settings.collision
+            )
+        except BackendError as exc:
+            if not self._temp:
+                raise
+            raise BackendError(
+                f"{exc} (the run's files are in a temporary folder that vei removes; keep them "
+                "with EsminiSettings(work_dir=...))"
+            ) from exc
         self._loop = loop
         s = self._session
         a = loop.arrays

@@ -167,12 +167,18 @@ def _captured_output(sink: Path) -> Iterator[None]:
         os.close(fd)
 
 
-def _tail(path: Path, n_chars: int = 600) -> str:
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace").strip()
-    except OSError:
-        return ""
-    return text[-n_chars:]
+def _digest(*paths: Path, n_lines: int = 4) -> str:
+    """esmini's own words from its log / console files: the error lines (else the last ones)."""
+    lines: list[str] = []
+    for path in paths:
+        try:
+            text = path.read_text(encoding="utf-8", errors="replace")
+        except OSError:
+            continue
+        lines += [ln.strip() for ln in text.splitlines() if ln.strip()]
+    errors = [ln for ln in lines if "error" in ln.lower()]
+    picked = errors[-n_lines:] if errors else lines[-n_lines:]
+    return " | ".join(picked) if picked else "(nothing)"
 
 
 class EsminiSession:
@@ -181,7 +187,8 @@ class EsminiSession:
     Args:
         library: path of ``libesminiLib.so``.
         xosc: the OpenSCENARIO file to load.
-        log_path: esmini's log file (created; the console output of loading is appended).
+        log_path: esmini's log file (created); what esmini prints while loading goes to
+            ``<log_path>.console.txt`` beside it.
         collision: esmini's own collision detection on (``--collision``).
         extra_args: further esmini command-line options.
 
@@ -203,6 +210,7 @@ class EsminiSession:
         self.lib = load_library(library)
         self.xosc = Path(xosc)
         self.log_path = Path(log_path)
+        self.console_path = self.log_path.with_name(self.log_path.name + ".console.txt")
         self._state = ObjectState()
         self._open = False
         if not self.xosc.is_file():
@@ -225,14 +233,14 @@ class EsminiSession:
             args += list(extra_args)
             argv = (ct.c_char_p * len(args))(*[a.encode() for a in args])
             self.lib.SE_SetLogFilePath(str(self.log_path).encode())
-            with _captured_output(self.log_path):
+            with _captured_output(self.console_path):
                 rc = self.lib.SE_InitWithArgs(len(args), argv)
             if rc != 0:
                 with contextlib.suppress(Exception):
                     self.lib.SE_Close()
                 raise BackendError(
                     f"esmini could not load {self.xosc} (SE_InitWithArgs returned {rc}); "
-                    f"its log {self.log_path} ends: {_tail(self.log_path) or '(empty)'}"
+                    f"esmini says: {_digest(self.log_path, self.console_path)}"
                 )
             self._open = True
         except BaseException:
@@ -349,7 +357,7 @@ class EsminiSession:
             what = f" for object {oid}" if oid is not None else ""
             raise BackendError(
                 f"esmini: {call}{what} failed (return code {rc}) in {self.xosc.name}; "
-                f"its log {self.log_path} ends: {_tail(self.log_path) or '(empty)'}"
+                f"esmini says: {_digest(self.log_path, self.console_path)}"
             )
 
 
