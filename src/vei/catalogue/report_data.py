@@ -133,13 +133,15 @@ def _risk_map(rows: pd.DataFrame) -> dict[str, Any] | None:
     xe = np.linspace(xs.min(), xs.max(), n + 1)
     ye = np.linspace(ys.min(), ys.max(), n + 1)
     si = sw["safety_index"].to_numpy(float)
-    num, _, _ = np.histogram2d(xs, ys, bins=[xe, ye], weights=si)
+    fin = np.isfinite(si)  # NaN: the shifted rider never met the ego in the simulated span
+    num, _, _ = np.histogram2d(xs[fin], ys[fin], bins=[xe, ye], weights=si[fin])
+    n_si, _, _ = np.histogram2d(xs[fin], ys[fin], bins=[xe, ye])
     cnt, _, _ = np.histogram2d(xs, ys, bins=[xe, ye])
     col, _, _ = np.histogram2d(
         xs, ys, bins=[xe, ye], weights=sw["collision"].astype(float).to_numpy()
     )
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.where(cnt > 0, num / cnt, np.nan)
+        mean = np.where(n_si > 0, num / n_si, np.nan)
         share = np.where(cnt > 0, col / cnt, np.nan)
     return {
         "x": 0.5 * (xe[:-1] + xe[1:]),
@@ -147,6 +149,7 @@ def _risk_map(rows: pd.DataFrame) -> dict[str, Any] | None:
         "z": mean.T,
         "share": share.T,
         "count": cnt.T,
+        "count_si": n_si.T,
         "x_label": "time-shift offset to the automatic shift [s]",
         "y_label": "ego cruise speed [m/s]",
         "n": int(len(sw)),

@@ -70,7 +70,8 @@ def _clean(v: Any) -> Any:
 def _script_json(obj: Any) -> str:
     """JSON safe inside a <script> element."""
     text = json.dumps(_clean(obj), separators=(",", ":"), allow_nan=False)
-    return text.replace("</", "<\\/").replace("<!--", "<\\!--")
+    # \u003c etc. are valid JSON escapes: no '</script>' or '<!--' can end the element
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
 
 
 def _fmt(v: Any, f: str) -> str:

@@ -1,0 +1,86 @@
+"""The report data and page, without a browser."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tests.catalogue.helpers import build_small_catalogue
+from vei.catalogue.report_data import collect
+from vei.report.html_report import _script_json, render
+
+
+@pytest.fixture(scope="module")
+def data(trafficmonitoring_root):
+    return collect(build_small_catalogue(str(trafficmonitoring_root)))
+
+
+def test_script_json_cannot_close_the_script_element():
+    text = _script_json(
+        {"id": "</script><script>alert(1)</script><!--", "x": [np.nan, np.inf, 1.23456]}
+    )
+    assert "</script" not in text and "<!--" not in text
+    assert json.loads(text) == {
+        "id": "</script><script>alert(1)</script><!--",
+        "x": [None, None, 1.2346],
+    }
+
+
+def test_replay_data_matches_the_case_study(data, trafficmonitoring_root):
+    root = build_small_catalogue(str(trafficmonitoring_root))
+    enc = {e["id"]: e for e in data["encounters"]}["stadtmitte_12_audi_geradeaus_03__cyclist_60"]
+    rep = enc["replay"]
+    assert [c["name"] for c in rep["configs"]] == [
+        "replay",
+        "normal",
+        "aggressive",
+        "normal-cap",
+        "aggressive-cap",
+    ]
+    t = np.asarray(rep["t"], float)
+    assert np.allclose(np.diff(t), 0.1)  # 10 Hz
+    lo, hi = rep["window"]
+    assert t[0] >= lo - 1e-9 and t[-1] <= hi + 1e-9 and hi - lo < 30.0  # zoomed, not 0-61 s
+    ts = pd.read_parquet(root / "encounters" / enc["id"] / "casestudy" / "timeseries.parquet")
+    for c in rep["configs"]:
+        ego = ts[(ts["config"] == c["name"]) & (ts["agent_id"] == "ego")].set_index("t_s")
+        k = len(t) // 2
+        assert c["ego"]["x"][k] == pytest.approx(ego["x_m"].loc[t[k]], abs=1e-3)
+        zone = np.asarray(c["zone"])
+        collided = ego["collided"].reindex(t).to_numpy(bool)
+        assert ((zone == 3) == collided).all()  # the collision zone is exactly the collided steps
+        assert set(np.unique(zone)) <= {0, 1, 2, 3}
+    hit = {c["name"]: bool(np.asarray(c["zone"]).max() == 3) for c in rep["configs"]}
+    assert hit == {"replay": True, "normal": True, "aggressive": True,
+                   "normal-cap": False, "aggressive-cap": False}  # fmt: skip
+
+
+def test_risk_map_bins_are_the_mean_safety_index(data, trafficmonitoring_root):
+    root = build_small_catalogue(str(trafficmonitoring_root))
+    rows = pd.read_parquet(root / "catalogue.parquet")
+    for enc in data["encounters"]:
+        m = enc["riskmap"]
+        sw = rows[(rows["encounter_id"] == enc["id"]) & (rows["kind"] == "sweep")]
+        assert m["n"] == len(sw) == 24
+        z = np.array(m["z"], dtype=float)
+        assert np.array(m["count"], dtype=float).sum() == 24
+        # the count-weighted mean of the bins is the mean safety index of the variants
+        # (variants whose shifted rider never meets the ego have none: NaN, left out)
+        count = np.array(m["count_si"], dtype=float)
+        ok = count > 0
+        n = int(sw["safety_index"].notna().sum())
+        assert count.sum() == n
+        assert np.sum(z[ok] * count[ok]) / n == pytest.approx(sw["safety_index"].mean(), abs=1e-3)
+
+
+def test_page_lists_every_encounter_and_recording(data):
+    page = render(data)
+    ids = re.findall(r'<tr data-encounter="([^"]+)"', page)
+    assert ids == [e["id"] for e in data["encounters"]]
+    assert len(ids) == 3
+    for r in data["recordings"]:
+        assert r["recording"] in page
