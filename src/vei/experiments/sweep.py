@@ -45,7 +45,13 @@ import numpy as np
 import pandas as pd
 
 from vei.errors import ConfigError, InputError
-from vei.experiments.sweep_spec import SAMPLE_COLUMN, SweepSpec, variants_table
+from vei.experiments.sweep_spec import (
+    RIDER_COLUMN,
+    RIDER_PARAM_COLUMNS,
+    SAMPLE_COLUMN,
+    SweepSpec,
+    variants_table,
+)
 from vei.io.atomic import write_json, write_parquet
 
 SWEEP_FORMAT = "vei.sweep/1"
@@ -563,7 +569,16 @@ def read_results(out_dir: str | Path) -> pd.DataFrame:
 
 def numeric_metric_columns(results: pd.DataFrame, spec_names: Sequence[str]) -> list[str]:
     """Metric columns of a results table (those that are not variant columns)."""
-    fixed = {"variant_id", "scenario_id", "variant_index", "seed", SAMPLE_COLUMN, *spec_names}
+    fixed = {
+        "variant_id",
+        "scenario_id",
+        "variant_index",
+        "seed",
+        SAMPLE_COLUMN,
+        RIDER_COLUMN,
+        *RIDER_PARAM_COLUMNS,
+        *spec_names,
+    }
     return [
         c for c in results.columns if c not in fixed and np.issubdtype(results[c].dtype, np.number)
     ]
@@ -605,7 +620,7 @@ def write_variant_configs(
     folder = Path(folder)
     paths = []
     for row in variants.to_dict("records"):
-        params = {n: row[n] for n in spec.names if n in row}
+        params = {n: row[n] for n in (*spec.names, *RIDER_PARAM_COLUMNS) if n in row}
         cfg = variant_config(
             params, spec, auto_shift_s=auto_shift_s, name=f"variant-{row['variant_id']}"
         )
@@ -732,7 +747,11 @@ _PARAM_FIELDS: dict[str, str] = {
     "cap.d_buf_m": "d_buf_m",
     "cap.a_min_mps2": "a_min_mps2",
     "perception_delay_s": "perception_delay_s",
+    # A population rider's parameters (vei.experiments.sweep_spec.RIDER_PARAM_COLUMNS).
+    **RIDER_PARAM_COLUMNS,
 }
+#: Columns of a destination gain (scaled by the configuration's k_des_factor).
+_K_DES_COLUMNS = ("sfm.k_des", "rider.k_des_nspm")
 
 
 @dataclass(frozen=True)
@@ -805,7 +824,7 @@ def variant_params(
         for col, fname in _PARAM_FIELDS.items():
             if col in grp.columns:
                 v = grp[col].to_numpy(np.float64)
-                if col == "sfm.k_des":
+                if col in _K_DES_COLUMNS:
                     v = v * case.sfm.k_des_factor
                 overrides[fname] = v
         if case.ego_mode == "cap":

@@ -21,6 +21,11 @@ A sweep spec is a YAML (or JSON) mapping loaded into frozen dataclasses at the e
                                      # posterior samples of the primary rider's trajectory
                                      # (vei.recon.samples, drawn with `seed`; column
                                      # reconstruction_sample = 0..199)
+    rider: {profile: calibrated, sample: 50}   # optional: every design point runs with each
+                                     # of 50 riders sampled from a rider profile's population
+                                     # (vei calibrate riders; keys profile, sample, category,
+                                     # seed (default: the spec's); columns rider_sample and
+                                     # rider.<parameter>)
 
 Unknown keys are errors that name the key and the file; ``0`` never means "default".
 Parameters that a spec does not name keep the values of the ``base`` configuration (one of
@@ -45,7 +50,7 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
-from vei.config import CASE_PRESETS, SFM_PRESETS, RunConfig
+from vei.config import CASE_PRESETS, SFM_PRESETS, RiderPopulationConfig, RunConfig, load_config
 from vei.errors import ConfigError, InputError
 
 Design = Literal["grid", "random", "lhs"]
@@ -192,6 +197,10 @@ class SweepSpec:
         base: configuration preset (``vei.config.CASE_PRESETS``) for what is not swept.
         reconstruction_samples: N posterior samples of the primary rider's trajectory that
             every design point runs on (None: the reconstruction's mean trajectory only).
+        rider: a rider population: every design point runs with each of its N sampled
+            riders (their SFM parameters in columns RIDER_PARAM_COLUMNS); None: the base
+            configuration's rider. Cannot be combined with sweeping sfm.k_des / A / b / v0
+            / mass (the population sets them).
         source: file it was loaded from, if any (for messages).
     """
 
@@ -202,6 +211,7 @@ class SweepSpec:
     time_shift_reference: str = "auto"
     base: str = "normal-cap"
     reconstruction_samples: int | None = None
+    rider: RiderPopulationConfig | None = None
     source: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -253,6 +263,15 @@ class SweepSpec:
         names = [p.name for p in self.parameters]
         if len(set(names)) != len(names):
             raise ConfigError(f"{where}: a parameter is given twice: {names}")
+        if self.rider is not None:
+            if not isinstance(self.rider, RiderPopulationConfig):
+                raise ConfigError(f"{where}: rider must be a mapping {{profile, sample}}")
+            clash = sorted(set(names) & set(_POPULATION_SET))
+            if clash:
+                raise ConfigError(
+                    f"{where}: rider (a population) sets the rider's parameters; do not also "
+                    f"sweep {', '.join(clash)}"
+                )
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -288,6 +307,13 @@ class SweepSpec:
         out["parameters"] = params
         if self.reconstruction_samples is not None:
             out["reconstruction"] = {"samples": self.reconstruction_samples}
+        if self.rider is not None:
+            out["rider"] = {
+                "profile": self.rider.profile,
+                "sample": self.rider.sample,
+                "category": self.rider.category,
+                "seed": self.rider.seed,
+            }
         return out
 
     def digest(self) -> str:
@@ -297,7 +323,7 @@ class SweepSpec:
 
     def n_variants(self) -> int:
         """Number of design points per scenario (before removing duplicates)."""
-        per_sample = self.reconstruction_samples or 1
+        per_sample = (self.reconstruction_samples or 1) * (self.rider.sample if self.rider else 1)
         if self.design == "grid":
             grid = int(np.prod([len(p.grid_values()) for p in self.parameters], dtype=np.int64))
             return grid * per_sample
@@ -313,9 +339,30 @@ _SPEC_KEYS = {
     "base",
     "parameters",
     "reconstruction",
+    "rider",
 }
 #: Variants-table column of the reconstruction sample a variant runs on.
 SAMPLE_COLUMN = "reconstruction_sample"
+#: Variants-table column of the population rider a variant runs with (0..N-1).
+RIDER_COLUMN = "rider_sample"
+#: Variants-table columns of a population rider's parameters -> VariantParams field
+#: (rider.k_des_nspm before the configuration's k_des_factor).
+RIDER_PARAM_COLUMNS: dict[str, str] = {
+    f"rider.{f}": f
+    for f in (
+        "v0_mps",
+        "k_des_nspm",
+        "mass_kg",
+        "sigma_m",
+        "lookahead_m",
+        "max_speed_mps",
+        "max_accel_mps2",
+        "a_veh_n",
+        "b_veh_per_m",
+    )
+}
+#: Sweep parameters a rider population sets (not sweepable together with it).
+_POPULATION_SET = ("sfm.k_des", "sfm.A", "sfm.b", "sfm.v0", "sfm.mass")
 _PARAM_KEYS = {"min", "max", "num", "choices"}
 
 
@@ -402,8 +449,31 @@ def spec_from_dict(raw: Any, *, source: str | None = None) -> SweepSpec:
         time_shift_reference=raw.get("time_shift_reference", "auto"),
         base=raw.get("base", "normal-cap"),
         reconstruction_samples=_parse_reconstruction(raw.get("reconstruction"), where),
+        rider=_parse_rider(raw.get("rider"), where, raw.get("seed", 0)),
         source=source,
     )
+
+
+def _parse_rider(raw: Any, where: str, spec_seed: Any) -> RiderPopulationConfig | None:
+    """``rider: {profile, sample[, category, seed]}`` -> the population (None when absent).
+
+    The population's seed defaults to the spec's seed.
+    """
+    if raw is None:
+        return None
+    if not isinstance(raw, Mapping):
+        raise ConfigError(
+            f"{where}: 'rider' must be a mapping like {{profile: calibrated, sample: 50}}"
+        )
+    raw = dict(raw)
+    if "sample" not in raw:
+        raise ConfigError(f"{where}: rider: missing 'sample' (number of riders)")
+    if "seed" not in raw and isinstance(spec_seed, int) and not isinstance(spec_seed, bool):
+        raw["seed"] = spec_seed
+    try:
+        return load_config(raw, RiderPopulationConfig)
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: rider: {exc}".replace("config: ", "")) from None
 
 
 def _parse_reconstruction(raw: Any, where: str) -> int | None:
@@ -530,13 +600,26 @@ def variants_table(spec: SweepSpec, scenario_id: str) -> pd.DataFrame:
     column per spec parameter (float / bool / str). Design points whose parameters repeat
     an earlier row (possible when only sets are varied) are identical simulations with the
     same id and are kept once. With ``reconstruction_samples`` N, every design point is
-    repeated for samples 0..N-1 (column SAMPLE_COLUMN, int, part of the variant id).
+    repeated for samples 0..N-1 (column SAMPLE_COLUMN, int, part of the variant id). With
+    a rider population of N riders, every point is repeated for riders 0..N-1 (column
+    RIDER_COLUMN, int, and the rider's parameters in RIDER_PARAM_COLUMNS, float; part of
+    the variant id); the same N riders for every scenario (seeded).
     """
     pts = design_points(spec)
     if spec.reconstruction_samples is not None:
         n_rec = spec.reconstruction_samples
         pts = pts.loc[pts.index.repeat(n_rec)].reset_index(drop=True)
         pts[SAMPLE_COLUMN] = np.tile(np.arange(n_rec, dtype=np.int64), len(pts) // n_rec)
+    if spec.rider is not None:
+        from vei.calibrate.population import sample_riders
+
+        n_r = spec.rider.sample
+        riders = sample_riders(spec.rider)
+        pts = pts.loc[pts.index.repeat(n_r)].reset_index(drop=True)
+        reps = len(pts) // n_r
+        pts[RIDER_COLUMN] = np.tile(np.arange(n_r, dtype=np.int64), reps)
+        for col, fname in RIDER_PARAM_COLUMNS.items():
+            pts[col] = np.tile(riders[fname].astype(np.float64), reps)
     records = pts.to_dict("records")
     ids = [variant_id(scenario_id, r) for r in records]
     df = pd.DataFrame(
@@ -560,8 +643,12 @@ def variants_table(spec: SweepSpec, scenario_id: str) -> pd.DataFrame:
 
 
 def row_params(row: Mapping[str, Any], spec: SweepSpec) -> dict[str, Any]:
-    """The parameter values of one variants-table row, as a {dotted name: value} dict."""
-    return {n: row[n] for n in spec.names}
+    """The parameter values of one variants-table row, as a {dotted name: value} dict
+    (with the population rider's ``rider.*`` parameters where the spec has a population)."""
+    out = {n: row[n] for n in spec.names}
+    if spec.rider is not None:
+        out.update({c: row[c] for c in RIDER_PARAM_COLUMNS if c in row})
+    return out
 
 
 #: Sweep parameter -> (config section, field) of vei.config (time shift and rider model aside).
@@ -625,6 +712,9 @@ def variant_config(
     if "cap.enabled" in params:
         updates["ego_mode"] = "cap" if bool(params["cap.enabled"]) else "pid"
     case = replace(case, **updates) if updates else case
+    rider_vals = {f: float(params[c]) for c, f in RIDER_PARAM_COLUMNS.items() if c in params}
+    if rider_vals and case.rider == "sfm":  # a population rider: its own SFM parameters
+        case = replace(case, sfm=replace(case.sfm, speed_from_recording=False, **rider_vals))
     offset = float(params.get("time_shift_s", 0.0))
     if spec.time_shift_reference == "auto":
         if auto_shift_s is None:
