@@ -214,13 +214,19 @@ def test_esmini_backend_from_the_cli(demo_run, tmp_path, capsys, esmini, monkeyp
     cs = tmp_path / "cs"
     code = main(
         ["casestudy", str(out / "scenario"), "--out", str(cs), "--time-shift", "4.5"]
-        + ["--no-figures", "--backend", "esmini", "--esmini", str(esmini.root)]
+        + ["--no-figures", "--backend", "esmini", "--esmini", str(esmini.root), "--compare"]
     )
     text = capsys.readouterr().out
     assert code == 0, text
     assert "backend esmini" in text
     doc = json.loads((cs / "summary.json").read_text())
+    assert doc["backend"] == "esmini"
     assert [c["collision"] for c in doc["configs"]] == [True, True, True, False, False]
+    # --compare: the side-by-side table with the built-in engine, printed and written
+    assert "esmini vs builtin" in text and "| replay | yes / yes |" in text
+    table = pd.read_csv(cs / "backend_comparison.csv")
+    assert table["config"].tolist() == list(PAPER_CASES)
+    assert table["same_collision"].all() and (table["ego_speed_rms_diff_mps"] < 0.1).all()
 
 
 def test_backend_options_are_checked(demo_run, tmp_path, capsys):
@@ -232,6 +238,8 @@ def test_backend_options_are_checked(demo_run, tmp_path, capsys):
     assert "--backend carla only" in capsys.readouterr().err
     assert main([*args, "--backend", "carla", "--carla-timeout", "0"]) == 2
     assert "--carla-timeout must be > 0" in capsys.readouterr().err
+    assert main([*args, "--compare"]) == 2  # the built-in engine compared with itself
+    assert "--backend esmini or carla" in capsys.readouterr().err
     # an esmini folder that is not one: a clear error, exit 2
     assert main([*args, "--backend", "esmini", "--esmini", str(tmp_path / "none")]) == 2
     assert "esmini not found" in capsys.readouterr().err

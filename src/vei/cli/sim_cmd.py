@@ -41,6 +41,11 @@ _BACKEND_HELP = (
     "esmini through its C library; see --esmini) or 'carla' (a CARLA server; see --host/--port)."
 )
 _ESMINI_HELP = "esmini folder (holding bin/ and lib/; backend esmini only; default $VEI_ESMINI, else ../shared/tools/esmini)."
+_COMPARE_HELP = (
+    "Also run the built-in engine with the same time shift and print both side by side "
+    "(collision, safety index, min gap, ego speed and rider path differences); writes "
+    "backend_comparison.csv. Needs --backend esmini or carla."
+)
 _CARLA_TIMEOUT_HELP = (
     "Seconds to wait for the CARLA server to connect and answer (backend carla only; default 10)."
 )
@@ -300,6 +305,7 @@ def register(app: typer.Typer) -> None:
         carla_timeout: Annotated[
             float | None, typer.Option("--carla-timeout", help=_CARLA_TIMEOUT_HELP)
         ] = None,
+        compare: Annotated[bool, typer.Option("--compare", help=_COMPARE_HELP)] = False,
         figures: Annotated[
             bool, typer.Option("--figures/--no-figures", help="Write the figures.")
         ] = True,
@@ -308,10 +314,17 @@ def register(app: typer.Typer) -> None:
         from vei.experiments.casestudy import run_casestudy, write_casestudy
 
         scen = _read_scenario(scenario)
+        runner = _backend(backend, host, port, esmini, carla_timeout)
+        if compare:
+            _casestudy_compared(
+                scen, runner, out, time_shift=time_shift, threat=threat,
+                make_critical=make_critical, figures=figures,
+            )  # fmt: skip
+            return
         result = run_casestudy(
             scen,
             time_shift=time_shift,
-            backend=_backend(backend, host, port, esmini, carla_timeout),
+            backend=runner,
             threat=threat,
             make_critical=make_critical,
         )
@@ -354,6 +367,25 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """The whole pipeline on a built-in SYNTHETIC example shaped like the paper's case study (or --real data)."""
         run_demo(out=out, real=real, data_dir=data_dir, time_shift=time_shift, interp=interp)
+
+
+def _casestudy_compared(scen, runner, out: Path, *, figures: bool, **options) -> None:
+    """`vei casestudy --compare`: the backend's case study, written and printed, and the
+    side-by-side table with the built-in engine (backend_comparison.csv)."""
+    from vei.errors import ConfigError
+    from vei.experiments.backend_compare import compare_backends, format_comparison
+    from vei.experiments.casestudy import write_casestudy
+    from vei.io.atomic import write_text
+
+    if runner == "builtin":
+        raise ConfigError(
+            "--compare compares a backend with the built-in engine: pass --backend esmini or carla"
+        )
+    cmp = compare_backends(scen, backend=runner, reference="builtin", **options)
+    write_casestudy(cmp.other, out, figures=figures)
+    write_text(Path(out) / "backend_comparison.csv", cmp.table.to_csv(index=False))
+    print_summary(cmp.other, out)
+    _console().print(format_comparison(cmp), markup=False, highlight=False)
 
 
 def find_trafficmonitoring_root(data_dir: Path | None) -> Path:

@@ -137,6 +137,7 @@ def compare_backends(
     cases: Sequence[str | CaseConfig] | None = None,
     time_shift: str | float = "auto",
     sim: SimConfig | None = None,
+    **casestudy: Any,
 ) -> BackendComparison:
     """Run the configurations on ``reference`` and on ``backend`` (same shift); compare.
 
@@ -146,14 +147,24 @@ def compare_backends(
         cases: configurations (default: the paper's five).
         time_shift: 'auto' (resolved once, on the reference) or seconds.
         sim: engine settings.
+        casestudy: further run_casestudy arguments for the reference run (threat,
+            make_critical, metrics_config); the other backend runs the scenario, rider
+            and shift that the reference run used.
     Returns:
         BackendComparison (table, both results, wall times).
     """
     t0 = time.perf_counter()
-    ref = run_casestudy(scenario, cases=cases, time_shift=time_shift, backend=reference, sim=sim)
+    ref = run_casestudy(
+        scenario, cases=cases, time_shift=time_shift, backend=reference, sim=sim, **casestudy
+    )
     t1 = time.perf_counter()
     got = run_casestudy(
-        scenario, cases=ref.cases, time_shift=ref.time_shift_s, backend=backend, sim=sim
+        ref.scenario,
+        cases=ref.cases,
+        time_shift=ref.time_shift_s,
+        backend=backend,
+        sim=sim,
+        metrics_config=ref.metrics_config,
     )
     t2 = time.perf_counter()
     rows: list[dict[str, Any]] = []
