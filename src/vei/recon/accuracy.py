@@ -138,6 +138,22 @@ def _prime(ids: pd.DataFrame, by_track: dict, interpolants: dict) -> None:
     prime(items, queries)
 
 
+def _keyframe_error(
+    keyframes: pd.DataFrame, agent_id: str, t_gt: FloatArray, gsg: FloatArray
+) -> float:
+    """RMSE [m] of a track's keyframes against the denoised ground truth (linearly
+    interpolated to the keyframe times): the noise the keyframes carry, a floor that
+    interpolating through them cannot beat without smoothing."""
+    kf = keyframes[keyframes["agent_id"] == agent_id]
+    tk = kf["t_s"].to_numpy(dtype=np.float64)
+    ok = (tk >= t_gt[0]) & (tk <= t_gt[-1])
+    if not ok.any():
+        return float("nan")
+    ref = np.column_stack([np.interp(tk[ok], t_gt, gsg[:, j]) for j in (0, 1)])
+    d = kf[["x_m", "y_m"]].to_numpy(dtype=np.float64)[ok] - ref
+    return float(np.sqrt(np.mean(np.sum(d**2, axis=1))))
+
+
 def evaluate(
     ground_truth: pd.DataFrame, frame: LocalFrame, keyframes: pd.DataFrame, interpolants: dict
 ) -> dict:
@@ -150,7 +166,9 @@ def evaluate(
         interpolants: agent_id -> interpolant (position(t) [N, 2]; probabilistic ones also
             std(t) [N] and noise.noise_m).
     Returns:
-        {'tracks': [{agent_id, source_track_id, category, **track_errors}], 'riders':
+        {'tracks': [{agent_id, source_track_id, category, **track_errors,
+        keyframe_rmse_sg_m (the keyframes' own RMSE against the denoised ground truth)}],
+        'riders':
         {n_tracks, mean_rmse_m, max_rmse_m, max_error_m, p95_m, mean_rmse_sg_m and, for
         probabilistic methods, coverage_sg / coverage_raw over all rider samples} over
         e-scooters and cyclists (None when there are none)}. Errors are Euclidean
@@ -182,6 +200,7 @@ def evaluate(
         std = interp.std(t[inside]) if hasattr(interp, "std") else None
         noise = interp.noise.noise_m if std is not None else None
         e = track_errors(est, gxy[inside], gsg[inside], std, noise)
+        e["keyframe_rmse_sg_m"] = _keyframe_error(keyframes, agent_id, t, gsg)
         rows.append({"agent_id": agent_id, "source_track_id": track_id, "category": category, **e})
         if category in RIDER_CATEGORIES:
             rider_err.append(np.hypot(*(est - gxy[inside]).T))

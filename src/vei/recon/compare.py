@@ -29,7 +29,8 @@ def compare_methods(
         methods: interpolation methods (INTERP_METHODS).
     Returns:
         DataFrame, one row per (recording, rider track, method): recording, agent_id,
-        method, n_keyframes, n_samples, rmse_m, rmse_sg_m, coverage_sg, coverage_raw,
+        method, n_keyframes, n_samples, rmse_m, rmse_sg_m, keyframe_rmse_sg_m (the
+        keyframes themselves vs the denoised ground truth), coverage_sg, coverage_raw,
         mean_std_m (NaN for non-probabilistic methods), noise_m, accel_psd_m2ps3 (the
         'kalman' estimate of the recording).
     """
@@ -52,6 +53,7 @@ def compare_methods(
                         "n_samples": tr["n_samples"],
                         "rmse_m": tr["rmse_m"],
                         "rmse_sg_m": tr["rmse_sg_m"],
+                        "keyframe_rmse_sg_m": tr.get("keyframe_rmse_sg_m", np.nan),
                         "coverage_sg": tr.get("coverage_sg", np.nan),
                         "coverage_raw": tr.get("coverage_raw", np.nan),
                         "mean_std_m": tr.get("mean_std_m", np.nan),
@@ -78,6 +80,7 @@ def summarise(table: pd.DataFrame) -> pd.DataFrame:
                 "max_rmse_m": g["rmse_m"].max(),
                 "mean_rmse_sg_m": g["rmse_sg_m"].mean(),
                 "max_rmse_sg_m": g["rmse_sg_m"].max(),
+                "mean_keyframe_rmse_sg_m": g["keyframe_rmse_sg_m"].mean(),
                 "coverage_sg": float(np.sum(w * cov_sg) / w.sum())
                 if np.isfinite(cov_sg).all()
                 else np.nan,
