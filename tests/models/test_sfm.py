@@ -110,3 +110,43 @@ def test_aggressive_rider_ignores_the_car_normal_rider_deviates() -> None:
     assert np.all(aggressive == 1.5)  # no lateral force at all
     assert normal.max() > 1.5 + 0.01  # pushed away from the car (to +y)
     assert normal.min() >= 1.5 - 1e-9
+
+
+def test_speed_from_recording_by_hand() -> None:
+    # 10 standing samples, 50 at 2 m/s, one at 3 m/s: median moving speed 2 m/s.
+    speeds = np.r_[np.zeros(10), np.full(50, 2.0), 3.0, np.nan]
+    v0, vmax = sfm.speed_from_recording(speeds, 1.0, 1.0, 5.0, None)
+    # Cruise speed of the normalised form at L = sigma = 1: v0 / sqrt(2) = 2.
+    assert v0 == pytest.approx(2.0 * math.sqrt(2.0))
+    # 99th percentile of the 61 finite samples: 2 + 0.4 * (3 - 2) (linear interpolation).
+    assert vmax == pytest.approx(2.4)
+    # A rider that never moves keeps the fallbacks.
+    assert sfm.speed_from_recording(np.zeros(5), 1.0, 1.0, 4.2, 4.7) == (4.2, 4.7)
+
+
+def test_calibrated_preset_takes_the_riders_own_speed() -> None:
+    from dataclasses import replace
+
+    from vei.config import SFM_PRESETS, case_preset
+    from vei.experiments.demo_data import demo_interaction
+    from vei.recon.pipeline import reconstruct
+    from vei.sim.state import VariantParams, prepare_scenario
+
+    arrays = prepare_scenario(reconstruct(demo_interaction()))
+    cal = SFM_PRESETS["calibrated"]
+    case = replace(case_preset("normal"), sfm=cal)
+    p = VariantParams.from_case(case, arrays, 1)
+    tr = arrays.rider_track
+    sp = tr.data[:, tr.col("speed_mps")]
+    med = float(np.median(sp[sp > 0.5]))
+    # The demo's e-scooter rides at 4.0-4.8 m/s (the reconstruction's spline adds a few
+    # percent): the calibrated rider cruises at its median.
+    assert 4.0 <= med <= 5.0
+    la = cal.lookahead_m
+    assert p.v0_mps[0] * la / math.hypot(la, cal.sigma_m) == pytest.approx(med)
+    assert p.max_speed_mps[0] == pytest.approx(max(np.quantile(sp, 0.99), med))
+    assert p.k_des_nspm[0] == cal.k_des_nspm and p.lookahead_m[0] == la
+    assert p.max_accel_mps2[0] == cal.max_accel_mps2
+    # The paper's preset keeps v0 = 5 m/s and no limits.
+    q = VariantParams.from_case(case_preset("normal", sfm=SFM_PRESETS["paper"]), arrays, 1)
+    assert q.v0_mps[0] == 5.0 and math.isinf(q.max_speed_mps[0])
