@@ -251,3 +251,22 @@ def test_xsd_validation_catches_a_broken_file(tmp_path, run_df):
     broken.write_text(text)
     errors = validate_openscenario(broken)
     assert len(errors) == 1 and "vehicleCategory" in errors[0]
+
+
+def test_everyone_present_throughout_and_a_standing_simulator_ego(tmp_path):
+    # ego standing (two samples at one place, as vei's esmini backend writes it) and a
+    # cyclist from 0 s to the end: nothing to trigger, yet the act holds a (idle) group
+    df = crossing_run(duration_s=2.0)
+    df = df[df["agent_id"] != "7"].copy()
+    ego = df["agent_id"] == "ego"
+    df.loc[ego, ["x_m", "y_m"]] = (0.0, -1.5)
+    for version in ("1.0", "1.3"):
+        path = export_openscenario(
+            df, AGENTS, tmp_path / version, osc_version=version, ego_controller="simulator"
+        )
+        assert validate_openscenario(path) == []
+        root = SafeET.parse(path).getroot()
+        assert [g.get("name") for g in root.iter("ManeuverGroup")] == ["vei_idle"]
+        assert not list(root.iter("Event"))
+        init = {p.get("entityRef") for p in root.find("Storyboard/Init").iter("Private")}
+        assert init == {"ego", "c1"}

@@ -299,6 +299,10 @@ def build_scenario(
     act = xosc.Act(
         "vei_act", xosc.ValueTrigger("vei_act_start", 0.0, xosc.ConditionEdge.none, act_cond)
     )
+    if not groups:  # nothing to trigger (all present throughout): an act needs a group
+        idle = xosc.ManeuverGroup("vei_idle")
+        idle.add_actor(agents[0].agent_id)
+        groups.append(idle)
     for g in groups:
         act.add_maneuver_group(g)
     story = xosc.Story("vei_story")
@@ -393,15 +397,17 @@ def finish_element(element, minor: int):
 
 
 def _untimed_follow(xosc, aid: str, t_s: np.ndarray, xy: np.ndarray, yaw: np.ndarray, minor: int):
-    """FollowTrajectoryAction along the path without timing (vertices every >= 0.5 m)."""
+    """FollowTrajectoryAction along the path without timing (vertices every >= 0.5 m);
+    None when the path is shorter than 0.5 m (the ego then keeps its Init pose and speed
+    and the file has no event for it: vei's esmini backend replaces such an ego)."""
     keep = [0]
     for i in range(1, len(xy)):
         if math.hypot(*(xy[i] - xy[keep[-1]])) >= 0.5:
             keep.append(i)
     if keep[-1] != len(xy) - 1 and math.hypot(*(xy[-1] - xy[keep[-1]])) > 1e-3:
         keep.append(len(xy) - 1)
-    if len(keep) < 2:  # a standing ego: a path of one point plus itself is no path
-        keep = [0, len(xy) - 1]
+    if len(keep) < 2:  # a standing ego (< 0.5 m in all): no path to follow
+        return None
     # 1.0 requires vertex times: the sample times, ignored under TimeReference/None
     times = [r(t_s[i], 4) for i in keep] if minor == 0 else []
     poly = xosc.Polyline(times, [world_position(xosc, xy[i, 0], xy[i, 1], yaw[i]) for i in keep])
