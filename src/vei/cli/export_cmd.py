@@ -135,8 +135,10 @@ def register(app: typer.Typer) -> None:
             str,
             typer.Option(
                 "--ego-controller",
-                help="'trajectory': the ego follows its timed trajectory; 'simulator': only its initial "
-                "position and speed are set and the simulator (or the system under test) drives it.",
+                help="'trajectory': the ego follows its timed trajectory; 'simulator': the ego gets its "
+                "initial pose and speed and its path without timing, and the simulator's speed "
+                "control (or the system under test) drives it along the path: cruise speed from "
+                "when the recording moves, stop at the path's end.",
             ),
         ] = "trajectory",
         vertex_rate_hz: Annotated[
