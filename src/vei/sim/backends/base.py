@@ -207,6 +207,9 @@ class ClosedLoop:
         self.lookahead_time_s = lookahead_time_s
         self.wheelbase_m = wheelbase_m
         self.max_steer_rad = max_steer_rad
+        #: compute the pure-pursuit steering (a backend that places the ego itself, like
+        #: esmini or the ideal plant, switches it off in load(); TickCommand.steer is 0 then)
+        self.steering = True
         path = self.arrays.ego_path
         self._path_xy = np.stack([path.x_m, path.y_m], axis=1)
         self._states: list[Any] = []
@@ -263,9 +266,12 @@ class ClosedLoop:
                 hist[0, slot, 0], hist[1, slot, 0], hist[2, slot, 0] = r.x_m, r.y_m, r.yaw_rad
                 rider["hist"] = hist
             st = st._replace(**rider)
-        s, _ = ego_model.project_onto_path(
-            a.ego_path, np.array([em.x_m]), np.array([em.y_m]), st.ego_s_m
-        )
+        if em.x_m == float(st.ego_x_m[0]) and em.y_m == float(st.ego_y_m[0]):
+            s = st.ego_s_m  # the ego is where the step put it: its arc length stands
+        else:
+            s, _ = ego_model.project_onto_path(
+                a.ego_path, np.array([em.x_m]), np.array([em.y_m]), st.ego_s_m
+            )
         ex, ey, eyaw = np.array([em.x_m]), np.array([em.y_m]), np.array([em.yaw_rad])
         overlap = st.rider_active & boxes_overlap(
             ex, ey, eyaw, a.ego_length_m, a.ego_width_m,
@@ -301,7 +307,12 @@ class ClosedLoop:
             if 0 <= j < hit.shape[1] and bool(a.other_active[k, j]):
                 hit[0, j] = True
         if meas.others is not None:
-            for j in np.flatnonzero(a.other_active[k] & ~hit[0]):
+            reach = 0.5 * (
+                np.hypot(a.ego_length_m, a.ego_width_m)
+                + np.hypot(a.other_length_m, a.other_width_m)
+            )
+            near = np.hypot(meas.others[:, 0] - ex[0], meas.others[:, 1] - ey[0]) <= reach
+            for j in np.flatnonzero(a.other_active[k] & ~hit[0] & near):
                 x, y, yaw = meas.others[j, :3]
                 if np.isfinite(x) and bool(
                     boxes_overlap(
@@ -318,15 +329,17 @@ class ClosedLoop:
         st = self.state
         new = self._engine.step(st, self.params, self.arrays, self.flags)
         collided = bool(st.collided[0])
-        v = float(st.ego_v_mps[0])
-        ld = max(self.lookahead_min_m, self.lookahead_time_s * v)
-        yaw = float(st.ego_yaw_rad[0])
-        rear_x = float(st.ego_x_m[0]) - 0.5 * self.wheelbase_m * math.cos(yaw)
-        rear_y = float(st.ego_y_m[0]) - 0.5 * self.wheelbase_m * math.sin(yaw)
-        steer = pure_pursuit_steer(
-            rear_x, rear_y, yaw, self._path_xy,
-            lookahead_m=ld, wheelbase_m=self.wheelbase_m, max_steer_rad=self.max_steer_rad,
-        )  # fmt: skip
+        steer = 0.0
+        if self.steering:
+            v = float(st.ego_v_mps[0])
+            ld = max(self.lookahead_min_m, self.lookahead_time_s * v)
+            yaw = float(st.ego_yaw_rad[0])
+            rear_x = float(st.ego_x_m[0]) - 0.5 * self.wheelbase_m * math.cos(yaw)
+            rear_y = float(st.ego_y_m[0]) - 0.5 * self.wheelbase_m * math.sin(yaw)
+            steer = pure_pursuit_steer(
+                rear_x, rear_y, yaw, self._path_xy,
+                lookahead_m=ld, wheelbase_m=self.wheelbase_m, max_steer_rad=self.max_steer_rad,
+            )  # fmt: skip
         self.state = new
         return TickCommand(
             u=-1.0 if collided else float(new.ego_cmd[0]),

@@ -25,6 +25,7 @@ class BuiltinBackend(Backend):
     def load(self, loop: ClosedLoop) -> Measurement:
         """The engine's initial state as the measurement at t = 0."""
         self._loop = loop
+        loop.steering = False  # the ego is placed, not steered
         st = loop.state
         return Measurement(
             ego=EgoMeasurement(

@@ -277,6 +277,7 @@ class EsminiBackend(Backend):
                 "with EsminiSettings(work_dir=...))"
             ) from exc
         self._loop = loop
+        loop.steering = False  # the ego is placed, not steered
         s = self._session
         a = loop.arrays
         # The file's ego (Init pose, its path for a player driving it) is replaced by an
