@@ -212,3 +212,26 @@ def test_ray_and_local_give_the_same_catalogue(tmp_path, trafficmonitoring_root)
                         engine="ray", workers=2, progress=False)  # fmt: skip
     assert local.complete and ray.complete and len(local.rows) == 5 + 8
     pd.testing.assert_frame_equal(local.rows, ray.rows)
+
+
+def test_folder_of_interaction_folders(tmp_path):
+    """The interaction-format layout (any source): one recording per folder; a broken one is
+    reported and skipped."""
+    from tests.helpers_interaction import make_interaction
+
+    data = tmp_path / "data"
+    make_interaction(data, name="rec_a", id="rec_a")
+    make_interaction(data, name="rec_b", id="rec_b")
+    bad = make_interaction(data, name="rec_c", id="rec_c")
+    (bad / "ego.csv").write_text("t_s,lat_deg,lon_deg\n0,1e999,x\n")
+    result = run_catalogue(data, tmp_path / "cat", small_config(sweep=None), progress=False)
+    by = {d["recording"]: d for d in result.recordings}
+    assert by["rec_c"]["status"] == "failed" and "ego.csv" in by["rec_c"]["reason"]
+    for rec in ("rec_a", "rec_b"):
+        # the synthetic e-scooter crosses the ego's path (helpers_interaction): an encounter
+        assert "escooter_1" in [e["rider_id"] for e in by[rec]["encounters"]]
+    assert result.complete
+    assert set(result.rows["recording"]) == {"rec_a", "rec_b"}
+    # a single interaction folder is a dataset of one recording
+    one = run_catalogue(data / "rec_a", tmp_path / "one", small_config(sweep=None), progress=False)
+    assert [d["recording"] for d in one.recordings] == ["rec_a"] and one.complete

@@ -49,8 +49,8 @@ def list_recordings(dataset: str | Path) -> tuple[str, list[str]]:
         raise InputError("dataset folder not found", path=root)
     if (root / MEASUREMENTS_DIR).is_dir():
         return KIND_TRAFFICMONITORING, list_scenarios(root)
-    if (root / "interaction.json").is_file():
-        return KIND_INTERACTIONS, ["."]
+    if (root / "interaction.json").is_file():  # one interaction folder: one recording
+        return KIND_INTERACTIONS, [root.name]
     subs = sorted(p.name for p in root.iterdir() if (p / "interaction.json").is_file())
     if not subs:
         raise InputError(
@@ -119,7 +119,7 @@ def _recording(
             if not (inter_dir / "interaction.json").is_file():
                 import_scenario(dataset, recording, inter_dir, rate_hz=config.annotation_rate_hz)
         else:
-            inter_dir = dataset / recording
+            inter_dir = dataset if (dataset / "interaction.json").is_file() else dataset / recording
         scenario = reconstruct(read_interaction(inter_dir), config.recon_config())
         writers: dict[str, Any] = {}
         if config.map_source is not None:

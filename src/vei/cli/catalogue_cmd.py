@@ -101,6 +101,7 @@ def catalogue(
 
 
 def _print_result(console, result, top: int) -> None:
+    from rich.markup import escape
     from rich.table import Table
 
     table = Table(title="recordings")
@@ -111,38 +112,42 @@ def _print_result(console, result, top: int) -> None:
             d["recording"],
             d["status"],
             ", ".join(e["rider_id"] for e in d.get("encounters", [])) or "-",
-            d.get("reason", ""),
+            escape(d.get("reason", "")),
         )
     console.print(table)
     for f in result.failed_encounters:
-        console.print(f"[red]encounter failed[/] {f['encounter_id']}: {f['reason']}")
+        console.print(
+            f"[red]encounter failed[/] {escape(f['encounter_id'])}: {escape(f['reason'])}"
+        )
     enc = result.encounters
     if len(enc):
         t = Table(
             title=f"encounters ranked by criticality (top {min(top, len(enc))} of {len(enc)})"
         )
         cols = (
-            ("rank", "{:d}"),
-            ("encounter_id", "{}"),
-            ("category", "{}"),
-            ("rec_path_distance_m", "{:.2f}"),
-            ("rec_pet_s", "{:.2f}"),
-            ("rec_min_gap_m", "{:.2f}"),
-            ("time_shift_auto_s", "{:.2f}"),
-            ("n_configs", "{:d}"),
-            ("collision_share", "{:.3f}"),
-            ("mean_safety_index", "{:.3f}"),
-            ("worst_min_gap_m", "{:.2f}"),
-            ("casestudy_collisions", "{:d}"),
+            ("rank", "rank", "{:d}"),
+            ("encounter_id", "encounter", "{}"),
+            ("category", "rider", "{}"),
+            ("rec_path_distance_m", "route dist [m]", "{:.2f}"),
+            ("rec_pet_s", "PET [s]", "{:.2f}"),
+            ("rec_min_gap_m", "rec. gap [m]", "{:.2f}"),
+            ("time_shift_auto_s", "shift [s]", "{:.2f}"),
+            ("n_configs", "configs", "{:d}"),
+            ("collision_share", "collision share", "{:.3f}"),
+            ("mean_safety_index", "mean SI", "{:.3f}"),
+            ("worst_min_gap_m", "worst gap [m]", "{:.2f}"),
+            ("casestudy_collisions", "case-study collisions", "{:d}"),
         )
-        for c, _ in cols:
+        from rich.markup import escape
+
+        for c, head, _ in cols:
             t.add_column(
-                c,
+                escape(head),
                 justify="left" if c in ("encounter_id", "category") else "right",
-                overflow="fold",
+                no_wrap=c == "encounter_id",
             )
         for rec in enc.head(top).to_dict("records"):
-            t.add_row(*(fmt.format(rec[c]) if rec[c] == rec[c] else "-" for c, fmt in cols))
+            t.add_row(*(fmt.format(rec[c]) if rec[c] == rec[c] else "-" for c, _, fmt in cols))
         console.print(t)
     console.print(
         f"{len(result.rows)} rows (encounter x configuration) in {result.out_dir / 'catalogue.parquet'}; "
