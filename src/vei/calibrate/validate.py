@@ -118,7 +118,10 @@ class ValidationTable:
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready form."""
-        key = lambda d: {f"{h:g}": v for h, v in d.items()}  # noqa: E731
+
+        def key(d: dict[float, float] | dict[float, int]) -> dict[str, float | int | None]:
+            return {f"{h:g}": (v if np.isfinite(v) else None) for h, v in d.items()}
+
         return {
             "horizons_s": list(self.horizons_s),
             "ade_m": {m: key(v) for m, v in self.ade_m.items()},
