@@ -129,3 +129,27 @@ def test_the_demo_collides_in_esmini_exactly_where_vei_does(playback_world, esmi
     ego = report.frames[report.frames["name"] == "ego"]
     after = ego[ego["time"] > t_vei + 2 * DT_S]
     assert np.ptp(after["x"]) < 1e-3 and np.ptp(after["y"]) < 1e-3  # standing after the hit
+
+
+@pytest.mark.slow
+def test_cli_export_of_a_real_recording_then_check_plays_clean(
+    playback_world, esmini, tmp_path, capsys
+):
+    """The user's path: `vei export openscenario REAL --config normal-cap` then `vei export
+    check` (XSD + esmini playback) on the written file: exit 0, nothing beside the file."""
+    from vei.cli.main import main
+
+    world = playback_world("klinikum_01_marktkauf_geradeaus")
+    out = tmp_path / "osc"
+    args = ["export", "openscenario", str(world.folder), "--out", str(out), "--config",
+            "normal-cap", "--osc-version", "1.0"]  # fmt: skip
+    assert main(args) == 0
+    (xosc,) = out.glob("*.xosc")
+    before = sorted(p.name for p in out.iterdir())
+    capsys.readouterr()
+    args = ["export", "check", str(xosc), "--no-qc", "--esmini", str(esmini.root),
+            "--report-dir", str(tmp_path / "reports")]  # fmt: skip
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "0 error(s)" in text and "0 issue(s)" in text
+    assert sorted(p.name for p in out.iterdir()) == before == sorted([xosc.name, "map.xodr"])
