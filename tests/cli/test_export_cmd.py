@@ -154,3 +154,12 @@ def test_check_flags_a_file_that_plays_wrong_and_a_missing_esmini(
     # an esmini folder that is given and absent is a user error
     assert main(["export", "check", str(xosc), "--no-qc", "--esmini", str(tmp_path / "no")]) == 2
     assert "esmini not found" in capsys.readouterr().err
+
+
+def test_a_checker_asked_for_and_missing_is_exit_2(tmp_path, scenario_dir, capsys):
+    out = tmp_path / "osc"
+    assert main(["export", "openscenario", str(scenario_dir), "--out", str(out)]) == 0
+    xosc = out / "crossing.xosc"
+    args = ["export", "check", str(xosc), "--no-play", "--qc-bin", str(tmp_path / "nope")]
+    assert main(args) == 2
+    assert "qc_openscenario" in capsys.readouterr().err

@@ -225,8 +225,9 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Check FILE: official OpenSCENARIO XSD, ASAM Quality Checker, esmini playback.
 
-        Exit code 0: no issue; 1: issues found (listed); 2: the file or a checker that was
-        asked for is missing.
+        A checker that is not found is skipped (said so) unless it was asked for
+        (--qc-bin / $VEI_QC_BIN, --esmini). Exit code 0: no issue; 1: issues found
+        (listed); 2: the file, or a checker that was asked for, is missing.
         """
         code = _check(
             file,
@@ -275,14 +276,24 @@ def _check(
         out.print(f"  ... and {len(errors) - 10} more", highlight=False)
     ok = not errors
     if run_qc:
-        from vei.export.qc import run_qc_openscenario
+        import os
 
-        report = run_qc_openscenario(
-            path, qc_bin=qc_bin, result_file=report_dir / f"{path.name}.xqar"
-        )
-        out.print(f"ASAM Quality Checker: {report.summary()}", highlight=False, soft_wrap=True)
-        out.print(f"result: {report.result_file}", highlight=False)
-        ok = ok and report.ok
+        from vei.export.qc import find_qc_openscenario, run_qc_openscenario
+
+        try:
+            exe = find_qc_openscenario(qc_bin)
+        except DependencyError as exc:
+            if qc_bin is not None or os.environ.get("VEI_QC_BIN"):
+                raise  # asked for explicitly: missing is an error (exit 2)
+            exe = None
+            out.print(f"ASAM Quality Checker: skipped ({exc})", highlight=False, soft_wrap=True)
+        if exe is not None:
+            report = run_qc_openscenario(
+                path, qc_bin=exe, result_file=report_dir / f"{path.name}.xqar"
+            )
+            out.print(f"ASAM Quality Checker: {report.summary()}", highlight=False, soft_wrap=True)
+            out.print(f"result: {report.result_file}", highlight=False)
+            ok = ok and report.ok
     if play:
         from vei.esmini import find_esmini
 
