@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vei.calibrate.population import sample_riders
+from vei.calibrate.population import RIDER_COLUMN, RIDER_PARAM_COLUMNS, sample_riders
 from vei.calibrate.profile import SAMPLE_BOUNDS
 from vei.config import RiderPopulationConfig, RunConfig, load_config
 from vei.errors import ConfigError
@@ -20,8 +20,6 @@ from vei.experiments.sweep import (
     write_variant_configs,
 )
 from vei.experiments.sweep_spec import (
-    RIDER_COLUMN,
-    RIDER_PARAM_COLUMNS,
     row_params,
     spec_from_dict,
     variant_config,

@@ -10,14 +10,16 @@ A and b are the profile's. A rider's vehicle force switch and k_des factor stay 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+import pandas as pd
 
 from vei.calibrate.profile import load_profile, sample_population
-from vei.config import CaseConfig, RiderPopulationConfig
+from vei.config import CaseConfig, RiderPopulationConfig, load_config
 from vei.errors import ConfigError
 
 FloatArray = npt.NDArray[np.float64]
@@ -34,6 +36,58 @@ POPULATION_FIELDS: tuple[str, ...] = (
     "a_veh_n",
     "b_veh_per_m",
 )
+#: Sweep variants-table column of the population rider a variant runs with (0..N-1).
+RIDER_COLUMN = "rider_sample"
+#: Sweep variants-table columns of a population rider's parameters -> VariantParams field
+#: (rider.k_des_nspm before the configuration's k_des_factor).
+RIDER_PARAM_COLUMNS: dict[str, str] = {f"rider.{f}": f for f in POPULATION_FIELDS}
+#: Sweep parameters a rider population sets (not sweepable together with it).
+POPULATION_SET: tuple[str, ...] = ("sfm.k_des", "sfm.A", "sfm.b", "sfm.v0", "sfm.mass")
+
+
+def parse_population(raw: Any, where: str, default_seed: Any = 0) -> RiderPopulationConfig | None:
+    """``rider: {profile, sample[, category, seed]}`` of a file -> the population (or None).
+
+    Args:
+        raw: the mapping (None: no population). where: file name for messages.
+        default_seed: the seed when the mapping has none (a sweep spec's own seed).
+    Raises:
+        ConfigError naming the file and the key.
+    """
+    if raw is None:
+        return None
+    if not isinstance(raw, Mapping):
+        raise ConfigError(
+            f"{where}: 'rider' must be a mapping like {{profile: calibrated, sample: 50}}"
+        )
+    raw = dict(raw)
+    if "sample" not in raw:
+        raise ConfigError(f"{where}: rider: missing 'sample' (number of riders)")
+    if "seed" not in raw and isinstance(default_seed, int) and not isinstance(default_seed, bool):
+        raw["seed"] = default_seed
+    try:
+        return load_config(raw, RiderPopulationConfig)
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: rider: {exc}".replace("config: ", "")) from None
+
+
+def with_population(points: pd.DataFrame, pop: RiderPopulationConfig) -> pd.DataFrame:
+    """Every row of a design repeated for the N riders (RIDER_COLUMN, RIDER_PARAM_COLUMNS).
+
+    Args:
+        points: [P rows] design points. pop: the population.
+    Returns:
+        [P * N rows]: row p * N + i is point p with rider i (the same N riders for every
+        point, seeded).
+    """
+    n = pop.sample
+    riders = sample_riders(pop)
+    out = points.loc[points.index.repeat(n)].reset_index(drop=True)
+    reps = len(out) // n
+    out[RIDER_COLUMN] = np.tile(np.arange(n, dtype=np.int64), reps)
+    for col, fname in RIDER_PARAM_COLUMNS.items():
+        out[col] = np.tile(riders[fname].astype(np.float64), reps)
+    return out
 
 
 def sample_riders(pop: RiderPopulationConfig) -> dict[str, FloatArray]:

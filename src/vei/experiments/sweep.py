@@ -44,14 +44,9 @@ from typing import Any, Protocol
 import numpy as np
 import pandas as pd
 
+from vei.calibrate.population import RIDER_COLUMN, RIDER_PARAM_COLUMNS
 from vei.errors import ConfigError, InputError
-from vei.experiments.sweep_spec import (
-    RIDER_COLUMN,
-    RIDER_PARAM_COLUMNS,
-    SAMPLE_COLUMN,
-    SweepSpec,
-    variants_table,
-)
+from vei.experiments.sweep_spec import SAMPLE_COLUMN, SweepSpec, variants_table
 from vei.io.atomic import write_json, write_parquet
 
 SWEEP_FORMAT = "vei.sweep/1"
@@ -747,7 +742,7 @@ _PARAM_FIELDS: dict[str, str] = {
     "cap.d_buf_m": "d_buf_m",
     "cap.a_min_mps2": "a_min_mps2",
     "perception_delay_s": "perception_delay_s",
-    # A population rider's parameters (vei.experiments.sweep_spec.RIDER_PARAM_COLUMNS).
+    # A population rider's parameters (vei.calibrate.population.RIDER_PARAM_COLUMNS).
     **RIDER_PARAM_COLUMNS,
 }
 #: Columns of a destination gain (scaled by the configuration's k_des_factor).

@@ -50,7 +50,13 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
-from vei.config import CASE_PRESETS, SFM_PRESETS, RiderPopulationConfig, RunConfig, load_config
+from vei.calibrate.population import (
+    POPULATION_SET,
+    RIDER_PARAM_COLUMNS,
+    parse_population,
+    with_population,
+)
+from vei.config import CASE_PRESETS, SFM_PRESETS, RiderPopulationConfig, RunConfig
 from vei.errors import ConfigError, InputError
 
 Design = Literal["grid", "random", "lhs"]
@@ -266,7 +272,7 @@ class SweepSpec:
         if self.rider is not None:
             if not isinstance(self.rider, RiderPopulationConfig):
                 raise ConfigError(f"{where}: rider must be a mapping {{profile, sample}}")
-            clash = sorted(set(names) & set(_POPULATION_SET))
+            clash = sorted(set(names) & set(POPULATION_SET))
             if clash:
                 raise ConfigError(
                     f"{where}: rider (a population) sets the rider's parameters; do not also "
@@ -343,26 +349,6 @@ _SPEC_KEYS = {
 }
 #: Variants-table column of the reconstruction sample a variant runs on.
 SAMPLE_COLUMN = "reconstruction_sample"
-#: Variants-table column of the population rider a variant runs with (0..N-1).
-RIDER_COLUMN = "rider_sample"
-#: Variants-table columns of a population rider's parameters -> VariantParams field
-#: (rider.k_des_nspm before the configuration's k_des_factor).
-RIDER_PARAM_COLUMNS: dict[str, str] = {
-    f"rider.{f}": f
-    for f in (
-        "v0_mps",
-        "k_des_nspm",
-        "mass_kg",
-        "sigma_m",
-        "lookahead_m",
-        "max_speed_mps",
-        "max_accel_mps2",
-        "a_veh_n",
-        "b_veh_per_m",
-    )
-}
-#: Sweep parameters a rider population sets (not sweepable together with it).
-_POPULATION_SET = ("sfm.k_des", "sfm.A", "sfm.b", "sfm.v0", "sfm.mass")
 _PARAM_KEYS = {"min", "max", "num", "choices"}
 
 
@@ -449,31 +435,9 @@ def spec_from_dict(raw: Any, *, source: str | None = None) -> SweepSpec:
         time_shift_reference=raw.get("time_shift_reference", "auto"),
         base=raw.get("base", "normal-cap"),
         reconstruction_samples=_parse_reconstruction(raw.get("reconstruction"), where),
-        rider=_parse_rider(raw.get("rider"), where, raw.get("seed", 0)),
+        rider=parse_population(raw.get("rider"), where, raw.get("seed", 0)),
         source=source,
     )
-
-
-def _parse_rider(raw: Any, where: str, spec_seed: Any) -> RiderPopulationConfig | None:
-    """``rider: {profile, sample[, category, seed]}`` -> the population (None when absent).
-
-    The population's seed defaults to the spec's seed.
-    """
-    if raw is None:
-        return None
-    if not isinstance(raw, Mapping):
-        raise ConfigError(
-            f"{where}: 'rider' must be a mapping like {{profile: calibrated, sample: 50}}"
-        )
-    raw = dict(raw)
-    if "sample" not in raw:
-        raise ConfigError(f"{where}: rider: missing 'sample' (number of riders)")
-    if "seed" not in raw and isinstance(spec_seed, int) and not isinstance(spec_seed, bool):
-        raw["seed"] = spec_seed
-    try:
-        return load_config(raw, RiderPopulationConfig)
-    except ConfigError as exc:
-        raise ConfigError(f"{where}: rider: {exc}".replace("config: ", "")) from None
 
 
 def _parse_reconstruction(raw: Any, where: str) -> int | None:
@@ -611,15 +575,7 @@ def variants_table(spec: SweepSpec, scenario_id: str) -> pd.DataFrame:
         pts = pts.loc[pts.index.repeat(n_rec)].reset_index(drop=True)
         pts[SAMPLE_COLUMN] = np.tile(np.arange(n_rec, dtype=np.int64), len(pts) // n_rec)
     if spec.rider is not None:
-        from vei.calibrate.population import sample_riders
-
-        n_r = spec.rider.sample
-        riders = sample_riders(spec.rider)
-        pts = pts.loc[pts.index.repeat(n_r)].reset_index(drop=True)
-        reps = len(pts) // n_r
-        pts[RIDER_COLUMN] = np.tile(np.arange(n_r, dtype=np.int64), reps)
-        for col, fname in RIDER_PARAM_COLUMNS.items():
-            pts[col] = np.tile(riders[fname].astype(np.float64), reps)
+        pts = with_population(pts, spec.rider)
     records = pts.to_dict("records")
     ids = [variant_id(scenario_id, r) for r in records]
     df = pd.DataFrame(
