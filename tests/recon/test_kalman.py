@@ -121,6 +121,10 @@ def test_kalman_interpolant_yaw_speed_and_no_extrapolation():
     assert interp.acceleration(q) == pytest.approx(np.zeros((11, 2)), abs=2e-3)
     std = interp.std(q)
     assert np.all(std < 0.2) and std[5] < std[0]  # data on both sides beats one side
+    post = interp.posterior(q)
+    # The velocity's posterior spread agrees with that of joint posterior samples (FFBS).
+    _, vel = smoother.sample_tracks(t, xy, q, 0.2, 1.0, 4000, seed=2)
+    assert vel.std(axis=0).mean(axis=1) == pytest.approx(post.vel_std_mps, rel=0.06)
     with pytest.raises(ValueError, match="never extrapolate"):
         interp.position([5.5])
 

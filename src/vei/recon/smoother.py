@@ -203,12 +203,28 @@ class Posterior:
         vel_mps: [N, 2] posterior mean velocity [m/s].
         std_m: [N] posterior standard deviation of the position per axis [m] (the same
             for x and y: isotropic noise and common keyframe times).
+        vel_std_mps: [N] posterior standard deviation of the velocity per axis [m/s].
+        pos_vel_cov: [N] posterior covariance of position and velocity along one axis
+            [m^2/s] (the two axes are independent).
     """
 
     t_s: FloatArray
     xy_m: FloatArray
     vel_mps: FloatArray
     std_m: FloatArray
+    vel_std_mps: FloatArray | None = None
+    pos_vel_cov: FloatArray | None = None
+
+    def take(self, idx: npt.ArrayLike, t_s: FloatArray) -> Posterior:
+        """The posterior at positions ``idx`` of its arrays, labelled with times t_s."""
+        return Posterior(
+            t_s,
+            self.xy_m[idx],
+            self.vel_mps[idx],
+            self.std_m[idx],
+            None if self.vel_std_mps is None else self.vel_std_mps[idx],
+            None if self.pos_vel_cov is None else self.pos_vel_cov[idx],
+        )
 
 
 def posterior(
@@ -241,6 +257,8 @@ def posterior(
                 xy_m=m_s[i, idx, 0, :],
                 vel_mps=m_s[i, idx, 1, :],
                 std_m=np.sqrt(np.clip(p_s[i, idx, 0, 0], 0.0, None)),
+                vel_std_mps=np.sqrt(np.clip(p_s[i, idx, 1, 1], 0.0, None)),
+                pos_vel_cov=p_s[i, idx, 0, 1],
             )
         )
     return out
@@ -302,7 +320,7 @@ def prime(interpolants: list, queries: list[FloatArray]) -> None:
     )
     for (ip, q), sq, p in zip(todo, sorted_q, posts, strict=True):
         idx = np.searchsorted(sq, q)
-        ip._cache = (q.tobytes(), Posterior(q, p.xy_m[idx], p.vel_mps[idx], p.std_m[idx]))
+        ip._cache = (q.tobytes(), p.take(idx, q))
 
 
 class KalmanInterpolant:
@@ -353,7 +371,7 @@ class KalmanInterpolant:
             )[0]
             inv = np.empty_like(order)
             inv[order] = np.arange(order.size)
-            post = Posterior(t, p.xy_m[inv], p.vel_mps[inv], p.std_m[inv])
+            post = p.take(inv, t)
         self._cache = (key, post)
         return post
 
