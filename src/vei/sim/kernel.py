@@ -28,7 +28,7 @@ from vei.errors import DependencyError
 ) = range(34)  # fmt: skip
 N_PARAMS = 34
 
-# Rows of the float output O [N_OUT, T, B] (same order as engine._RECORDED floats).
+# Rows of the float output O [N_OUT, T, B] (same order as vei.sim.result._RECORDED floats).
 O_S, O_X, O_Y, O_YAW, O_V, O_A, O_U, O_RX, O_RY, O_RYAW, O_RSP, O_RVX, O_RVY, O_RA = range(14)
 N_OUT = 14
 
@@ -97,7 +97,7 @@ def run(arrays: Any, params: Any, state0: Any, hist_len: int, record: bool) -> d
         :func:`vei.sim.engine.initial_state`). hist_len: perception ring length H.
         record: keep the time series.
     Returns:
-        dict with 'series' (name -> [B, T] arrays of engine._RECORDED (views of a
+        dict with 'series' (name -> [B, T] arrays of vei.sim.result._RECORDED (views of a
         variant-major buffer), or None), 'hit' ([B, T, n_o] or None), 'final' (SimState
         fields), 'collision_time_s',
         'min_center_distance_m'.

@@ -1,0 +1,272 @@
+"""Outputs of the built-in engine: :class:`SimResult` (time series, summaries, frames)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import pandas as pd
+
+from vei.errors import ConfigError
+from vei.sim.state import EGO_CAP, SimState, VariantParams
+from vei.types import EGO_CATEGORY, EGO_ID, TIMESERIES_COLUMNS, Trace
+
+FloatArray = npt.NDArray[np.float64]
+
+
+# --------------------------------------------------------------------------------------
+# Result
+# --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SimResult:
+    """Outputs of a batched run. Time series are ``[B, T]`` (transposed views of the
+    engine's time-major buffers); ``None`` when the run used ``record="none"``.
+
+    Attributes:
+        t_s: [T] step times [s].
+        labels: [B] configuration name of each variant.
+        params: the VariantParams that ran.
+        scenario_id, rider_id, rider_category: identities.
+        ego_length_m, ego_width_m, rider_length_m, rider_width_m: footprints [m].
+        ego_s_m, ego_x_m, ego_y_m, ego_yaw_rad, ego_speed_mps: [B, T] ego path position
+            [m], pose [m, rad], speed [m/s].
+        ego_accel_mps2: [B, T] longitudinal acceleration (actuator; 0 standing / after a
+            collision: the crash itself shows as the speed drop, not as an acceleration).
+        ego_command: [B, T] the command u in [-1, 1] applied during the step that ended
+            here (0 at k = 0). cap_state: [B, T] int8 (0 CRUISE, 1 BRAKE, 2 RECOVER; 0 for
+            non-CAP variants).
+        rider_x_m, rider_y_m, rider_yaw_rad, rider_speed_mps, rider_vx_mps, rider_vy_mps,
+            rider_accel_mps2: [B, T] the primary rider (finite while inactive: first /
+            last pose, speed 0). rider_active: [B, T] bool.
+        collided: [B, T] bool latch of the ego / rider collision.
+        hit_other: [B, T, n_o] bool latch, the ego touched replayed other j.
+        collision_time_s: [B] first collision time [s] (NaN if none) (always present).
+        min_center_distance_m: [B] minimum ego-rider centre distance while the rider is
+            active [m] (inf if never active) (always present).
+        other_ids, other_categories, other_length_m, other_width_m: replayed others.
+        other_x_m, other_y_m, other_yaw_rad, other_speed_mps, other_active: [T, n_o]
+            (the same for every variant).
+        final_state: the SimState at the last step.
+    """
+
+    t_s: FloatArray
+    labels: npt.NDArray[np.object_]
+    params: VariantParams
+    scenario_id: str
+    rider_id: str
+    rider_category: str
+    ego_length_m: float
+    ego_width_m: float
+    rider_length_m: float
+    rider_width_m: float
+    ego_s_m: FloatArray | None
+    ego_x_m: FloatArray | None
+    ego_y_m: FloatArray | None
+    ego_yaw_rad: FloatArray | None
+    ego_speed_mps: FloatArray | None
+    ego_accel_mps2: FloatArray | None
+    ego_command: FloatArray | None
+    cap_state: npt.NDArray[np.int8] | None
+    rider_x_m: FloatArray | None
+    rider_y_m: FloatArray | None
+    rider_yaw_rad: FloatArray | None
+    rider_speed_mps: FloatArray | None
+    rider_vx_mps: FloatArray | None
+    rider_vy_mps: FloatArray | None
+    rider_accel_mps2: FloatArray | None
+    rider_active: npt.NDArray[np.bool_] | None
+    collided: npt.NDArray[np.bool_] | None
+    hit_other: npt.NDArray[np.bool_] | None
+    collision_time_s: FloatArray
+    min_center_distance_m: FloatArray
+    other_ids: tuple[str, ...]
+    other_categories: tuple[str, ...]
+    other_length_m: FloatArray
+    other_width_m: FloatArray
+    other_x_m: FloatArray
+    other_y_m: FloatArray
+    other_yaw_rad: FloatArray
+    other_speed_mps: FloatArray
+    other_active: npt.NDArray[np.bool_]
+    final_state: SimState
+
+    @property
+    def batch_size(self) -> int:
+        """B."""
+        return int(self.labels.shape[0])
+
+    @property
+    def collision(self) -> npt.NDArray[np.bool_]:
+        """[B] bool: the ego and the primary rider collided at some step."""
+        return np.isfinite(self.collision_time_s)
+
+    def _require(self) -> None:
+        if self.ego_x_m is None:
+            raise ConfigError("this SimResult was run with record='none': no time series")
+
+    def to_trace(self, variant_slice: slice | Sequence[int] | int | None = None) -> Trace:
+        """Ego vs primary rider as a :class:`vei.types.Trace` (copies, C-contiguous).
+
+        Args:
+            variant_slice: which variants (slice, index list or int); None = all.
+        Returns:
+            Trace with B' = the selected variants.
+        """
+        self._require()
+        sel: slice | npt.NDArray[np.intp]
+        if variant_slice is None:
+            sel = slice(None)
+        elif isinstance(variant_slice, slice):
+            sel = variant_slice
+        else:
+            sel = np.atleast_1d(np.asarray(variant_slice, dtype=np.intp))
+
+        def c(a: np.ndarray) -> np.ndarray:
+            return np.ascontiguousarray(a[sel])
+
+        return Trace(
+            t_s=self.t_s.copy(),
+            ego_xy_m=np.stack([c(self.ego_x_m), c(self.ego_y_m)], axis=-1),
+            ego_yaw_rad=c(self.ego_yaw_rad),
+            ego_speed_mps=c(self.ego_speed_mps),
+            ego_accel_mps2=c(self.ego_accel_mps2),
+            other_xy_m=np.stack([c(self.rider_x_m), c(self.rider_y_m)], axis=-1),
+            other_yaw_rad=c(self.rider_yaw_rad),
+            other_speed_mps=c(self.rider_speed_mps),
+            other_vel_mps=np.stack([c(self.rider_vx_mps), c(self.rider_vy_mps)], axis=-1),
+            other_active=c(self.rider_active),
+            collided=c(self.collided),
+            ego_length_m=self.ego_length_m,
+            ego_width_m=self.ego_width_m,
+            other_length_m=self.rider_length_m,
+            other_width_m=self.rider_width_m,
+        )
+
+    def to_frame(
+        self,
+        config_name: str | Sequence[str] | None = None,
+        variant_slice: slice | Sequence[int] | int | None = None,
+        *,
+        include_others: bool = True,
+    ) -> pd.DataFrame:
+        """Long-format time series with columns ``vei.types.TIMESERIES_COLUMNS``.
+
+        One row per agent per step per variant: the ego, the primary rider (all steps,
+        ``active`` telling presence) and, if ``include_others``, each replayed road user
+        over the steps where it is present. ``collided`` is the ego/rider latch for both
+        of them and the ego-contact latch for the others. ``accel_mps2`` of the others is
+        the finite difference of their speed. ``cap_state`` is set on ego rows of CAP
+        variants only.
+
+        Args:
+            config_name: name written in the ``config`` column: one string for all the
+                selected variants, one per variant, or None = the variants' labels.
+            variant_slice: which variants (None = all); ``variant`` keeps the batch index.
+            include_others: add the replayed other road users.
+        Returns:
+            DataFrame sorted by (variant, t_s, agent order: ego, rider, others).
+        """
+        self._require()
+        b, t = self.batch_size, self.t_s.shape[0]
+        if variant_slice is None:
+            idx = np.arange(b)
+        elif isinstance(variant_slice, slice):
+            idx = np.arange(b)[variant_slice]
+        else:
+            idx = np.atleast_1d(np.asarray(variant_slice, dtype=np.intp))
+        nb = idx.size
+        if config_name is None:
+            names = np.asarray(self.labels[idx], dtype=object)
+        elif isinstance(config_name, str):
+            names = np.full(nb, config_name, dtype=object)
+        else:
+            names = np.asarray(list(config_name), dtype=object)
+            if names.size != nb:
+                raise ConfigError(f"config_name has {names.size} names for {nb} variants")
+        cap_names = np.array(["CRUISE", "BRAKE", "RECOVER"], dtype=object)
+        is_cap = self.params.ego_mode[idx] == EGO_CAP
+        tt = np.broadcast_to(self.t_s, (nb, t))
+        var = np.broadcast_to(idx[:, None], (nb, t))
+        cfg = np.broadcast_to(names[:, None], (nb, t))
+        ego_cap = np.where(is_cap[:, None], cap_names[self.cap_state[idx]], "")
+        parts = [
+            {
+                "config": cfg, "variant": var, "t_s": tt, "agent_id": EGO_ID, "category": EGO_CATEGORY,
+                "x_m": self.ego_x_m[idx], "y_m": self.ego_y_m[idx], "yaw_rad": self.ego_yaw_rad[idx],
+                "speed_mps": self.ego_speed_mps[idx], "accel_mps2": self.ego_accel_mps2[idx],
+                "active": np.ones((nb, t), dtype=bool), "collided": self.collided[idx], "cap_state": ego_cap,
+            },
+            {
+                "config": cfg, "variant": var, "t_s": tt, "agent_id": self.rider_id,
+                "category": self.rider_category, "x_m": self.rider_x_m[idx], "y_m": self.rider_y_m[idx],
+                "yaw_rad": self.rider_yaw_rad[idx], "speed_mps": self.rider_speed_mps[idx],
+                "accel_mps2": self.rider_accel_mps2[idx], "active": self.rider_active[idx],
+                "collided": self.collided[idx], "cap_state": "",
+            },
+        ]  # fmt: skip
+        frames = []
+        for order, part in enumerate(parts):
+            frames.append(_flatten(part, nb, t, order))
+        if include_others:
+            for j, oid in enumerate(self.other_ids):
+                act = self.other_active[:, j]
+                acc = np.zeros(t)
+                if t > 1:
+                    acc[1:] = np.diff(self.other_speed_mps[:, j]) / (self.t_s[1] - self.t_s[0])
+                part = {
+                    "config": cfg, "variant": var, "t_s": tt, "agent_id": oid,
+                    "category": self.other_categories[j],
+                    "x_m": np.broadcast_to(self.other_x_m[:, j], (nb, t)),
+                    "y_m": np.broadcast_to(self.other_y_m[:, j], (nb, t)),
+                    "yaw_rad": np.broadcast_to(self.other_yaw_rad[:, j], (nb, t)),
+                    "speed_mps": np.broadcast_to(self.other_speed_mps[:, j], (nb, t)),
+                    "accel_mps2": np.broadcast_to(acc, (nb, t)),
+                    "active": np.broadcast_to(act, (nb, t)),
+                    "collided": self.hit_other[idx, :, j], "cap_state": "",
+                }  # fmt: skip
+                df = _flatten(part, nb, t, 2 + j)
+                frames.append(df[np.broadcast_to(act, (nb, t)).ravel()])
+        out = pd.concat(frames, ignore_index=True)
+        out = out.sort_values(["variant", "t_s", "_order"], kind="stable").drop(columns="_order")
+        out = out.reset_index(drop=True)
+        out["variant"] = out["variant"].astype(np.int64)
+        for col in ("config", "agent_id", "category", "cap_state"):
+            out[col] = out[col].astype(str)
+        return out[list(TIMESERIES_COLUMNS)]
+
+
+def _flatten(part: dict, nb: int, t: int, order: int) -> pd.DataFrame:
+    cols = {}
+    for key, val in part.items():
+        if isinstance(val, str):
+            cols[key] = np.full(nb * t, val, dtype=object)
+        else:
+            cols[key] = np.asarray(val).reshape(nb * t)
+    cols["_order"] = np.full(nb * t, order, dtype=np.int16)
+    return pd.DataFrame(cols)
+
+
+# --------------------------------------------------------------------------------------
+# Simulation loop
+# --------------------------------------------------------------------------------------
+_RECORDED = (
+    ("ego_s_m", "ego_s_m", np.float64),
+    ("ego_x_m", "ego_x_m", np.float64),
+    ("ego_y_m", "ego_y_m", np.float64),
+    ("ego_yaw_rad", "ego_yaw_rad", np.float64),
+    ("ego_speed_mps", "ego_v_mps", np.float64),
+    ("ego_accel_mps2", "ego_a_mps2", np.float64),
+    ("ego_command", "ego_cmd", np.float64),
+    ("cap_state", "cap_state", np.int8),
+    ("rider_x_m", "rider_x_m", np.float64),
+    ("rider_y_m", "rider_y_m", np.float64),
+    ("rider_yaw_rad", "rider_yaw_rad", np.float64),
+    ("rider_speed_mps", "rider_speed_mps", np.float64),
+    ("rider_vx_mps", "rider_vx_mps", np.float64),
+    ("rider_vy_mps", "rider_vy_mps", np.float64),
+    ("rider_accel_mps2", "rider_a_mps2", np.float64),
+    ("rider_active", "rider_active", np.bool_),
+    ("collided", "collided", np.bool_),
+)
