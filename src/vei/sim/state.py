@@ -3,121 +3,41 @@
 - :class:`ScenarioArrays`: everything the engine needs from a :class:`vei.types.Scenario`,
   precomputed once (ego path arc-length table, recorded tracks as uniform time tables,
   replayed other road users at every engine step).
-- :class:`VariantParams`: every per-variant parameter as an array ``[B]`` (a sweep varies
-  any of them without Python loops).
+- :class:`VariantParams` (vei.sim.params): every per-variant parameter as an array ``[B]``
+  (a sweep varies any of them without Python loops). :class:`TimeTable` (vei.sim.tables).
 - :class:`SimState`: the engine state at one step, arrays ``[B]``.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
-from vei.config import AUTO, MAX_RUN_UP_M, MEDIAN_MOVING, CaseConfig, SimConfig
-from vei.errors import ConfigError, InputError
+from vei.config import SimConfig
+from vei.errors import InputError
 from vei.models.drivable_path import (
     PATH_SPEED_MARGIN,
     EgoPathInfo,
     build_ego_path,
     recorded_arc_length,
 )
-from vei.models.ego import PathTable, build_path, median_moving_speed_mps, uniform_grid_index
+from vei.models.ego import PathTable, build_path, median_moving_speed_mps
+from vei.sim.params import (
+    EGO_CAP,
+    EGO_MODE_CODES,
+    EGO_PID,
+    EGO_REPLAY_SPEED,
+    VariantParams,
+)
+from vei.sim.tables import TimeTable, _uniform_track
 from vei.types import EGO_ID, Scenario
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
-
-#: Ego modes (int8 codes of VariantParams.ego_mode).
-EGO_REPLAY_SPEED, EGO_PID, EGO_CAP = 0, 1, 2
-EGO_MODE_CODES: dict[str, int] = {"replay-speed": EGO_REPLAY_SPEED, "pid": EGO_PID, "cap": EGO_CAP}
-
-
-# --------------------------------------------------------------------------------------
-# Uniform time tables
-# --------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class TimeTable:
-    """A recorded track resampled on a uniform time grid ``t0_s + i * dt_s``.
-
-    Attributes:
-        t0_s: time of the first sample [s] (recording time, before any shift).
-        dt_s: sample spacing [s].
-        data: [M, C] samples, columns named by ``columns``.
-        columns: column names.
-    """
-
-    t0_s: float
-    dt_s: float
-    data: FloatArray
-    columns: tuple[str, ...]
-
-    def __post_init__(self) -> None:
-        d = np.asarray(self.data, dtype=np.float64)
-        slope = np.zeros_like(d)
-        if d.shape[0] > 1:
-            slope[:-1] = np.diff(d, axis=0)
-        object.__setattr__(
-            self, "_cols", {c: np.ascontiguousarray(d[:, j]) for j, c in enumerate(self.columns)}
-        )
-        object.__setattr__(
-            self,
-            "_slopes",
-            {c: np.ascontiguousarray(slope[:, j]) for j, c in enumerate(self.columns)},
-        )
-
-    def index(self, t_s: npt.ArrayLike) -> tuple[npt.NDArray[np.intp], FloatArray]:
-        """Sample index and weight of times t (clamped): t lies between samples i and i + 1."""
-        return uniform_grid_index(t_s, self.t0_s, self.dt_s, self.data.shape[0])
-
-    def values_at(self, i: npt.NDArray[np.intp], w: FloatArray, *names: str) -> list[FloatArray]:
-        """Linearly interpolated named columns at (i, w) from :meth:`index`."""
-        cols = self._cols  # type: ignore[attr-defined]
-        slopes = self._slopes  # type: ignore[attr-defined]
-        return [cols[n][i] + w * slopes[n][i] for n in names]
-
-    @property
-    def t_end_s(self) -> float:
-        """Time of the last sample [s]."""
-        return self.t0_s + (self.data.shape[0] - 1) * self.dt_s
-
-    def col(self, name: str) -> int:
-        """Index of a column."""
-        return self.columns.index(name)
-
-    def lookup(self, t_s: npt.ArrayLike) -> FloatArray:
-        """Linear interpolation at times t (clamped to the first / last sample).
-
-        Args:
-            t_s: [B] recording times [s].
-        Returns:
-            [B, C] interpolated samples.
-        """
-        i, w = self.index(t_s)
-        return np.stack(self.values_at(i, w, *self.columns), axis=-1)
-
-
-def _uniform_track(df: Any, cols: Sequence[str], where: str) -> tuple[float, float, FloatArray]:
-    t = df["t_s"].to_numpy(dtype=np.float64)
-    if t.size == 0:
-        raise InputError("track has no samples", path=where)
-    if np.any(np.diff(t) <= 0):
-        raise InputError("track times must be strictly increasing", path=where, field="t_s")
-    vals = np.stack([df[c].to_numpy(dtype=np.float64) for c in cols], axis=1)
-    if t.size == 1:
-        return float(t[0]), 1.0, vals
-    dt = float(np.median(np.diff(t)))
-    n = int(round((t[-1] - t[0]) / dt)) + 1
-    grid = t[0] + np.arange(n) * dt
-    if n == t.size and np.allclose(grid, t, atol=1e-6):
-        return float(t[0]), dt, vals
-    out = np.stack([np.interp(grid, t, vals[:, j]) for j in range(vals.shape[1])], axis=1)
-    return float(t[0]), dt, out
 
 
 # --------------------------------------------------------------------------------------
@@ -340,301 +260,6 @@ def _conflict_arc_m(
 
 
 # --------------------------------------------------------------------------------------
-# Per-variant parameters
-# --------------------------------------------------------------------------------------
-_BOOL_FIELDS = ("rider_sfm", "use_vehicle_force", "paper_vdes", "front_bumper", "paper_per_step")
-_INT_FIELDS = ("ego_mode",)
-
-
-@dataclass(frozen=True)
-class VariantParams:
-    """Per-variant parameters, every field an array ``[B]`` (float64 unless noted).
-
-    Build with :meth:`from_case` (a configuration broadcast to B variants, with optional
-    per-variant overrides), :meth:`concat` (stack several) or directly.
-
-    Attributes:
-        time_shift_s: shift of the primary rider's timing [s]; the rider at engine time t
-            is the recording at t - time_shift_s (positive = the rider comes later).
-        rider_sfm: bool; False = kinematic replay, True = social-force rider.
-        k_des_nspm: effective destination gain (k_des * k_des_factor) [N s/m].
-        a_veh_n, b_veh_per_m, v0_mps, mass_kg, sigma_m, lookahead_m, arrive_radius_m:
-            SFM parameters (SFMConfig).
-        use_vehicle_force, paper_vdes, front_bumper: bool switches (SFMConfig:
-            use_vehicle_force, desired_velocity == 'paper', influential_point ==
-            'front_bumper').
-        max_speed_mps, max_accel_mps2: rider limits; +inf = none.
-        ego_mode: int8, 0 replay-speed, 1 pid, 2 cap.
-        cruise_speed_mps: v_d [m/s]. initial_speed_mps: ego speed at t = 0 [m/s].
-        ego_start_s_m: ego arc length at t = 0 [m] (-run_up_m; 0 for replay-speed),
-            in [-250, 0].
-        kp, ki, kd, integral_limit: PID. integral_window_s: the integral's memory [s]
-            (+inf = plain integral). max_accel_mps2_ego, max_decel_mps2_ego,
-            actuator_lag_s: actuator (EgoConfig).
-        t_safe_s, d_buf_m, a_min_mps2, corridor_half_width_m, detection_range_m,
-            release_margin_m, recover_tolerance_mps: CAP (CAPConfig).
-        paper_per_step: bool, CAP braking law 'paper_per_step'.
-        perception_delay_s: CAP perception delay [s] (rounded to whole steps).
-        labels: [B] object array of configuration names (for outputs).
-    """
-
-    time_shift_s: FloatArray
-    rider_sfm: BoolArray
-    k_des_nspm: FloatArray
-    a_veh_n: FloatArray
-    b_veh_per_m: FloatArray
-    v0_mps: FloatArray
-    mass_kg: FloatArray
-    sigma_m: FloatArray
-    lookahead_m: FloatArray
-    arrive_radius_m: FloatArray
-    use_vehicle_force: BoolArray
-    paper_vdes: BoolArray
-    front_bumper: BoolArray
-    max_speed_mps: FloatArray
-    max_accel_mps2: FloatArray
-    ego_mode: npt.NDArray[np.int8]
-    cruise_speed_mps: FloatArray
-    initial_speed_mps: FloatArray
-    ego_start_s_m: FloatArray
-    kp: FloatArray
-    ki: FloatArray
-    kd: FloatArray
-    integral_limit: FloatArray
-    integral_window_s: FloatArray
-    max_accel_mps2_ego: FloatArray
-    max_decel_mps2_ego: FloatArray
-    actuator_lag_s: FloatArray
-    t_safe_s: FloatArray
-    d_buf_m: FloatArray
-    a_min_mps2: FloatArray
-    corridor_half_width_m: FloatArray
-    detection_range_m: FloatArray
-    release_margin_m: FloatArray
-    recover_tolerance_mps: FloatArray
-    paper_per_step: BoolArray
-    perception_delay_s: FloatArray
-    labels: npt.NDArray[np.object_]
-
-    def __post_init__(self) -> None:
-        b = None
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if not isinstance(v, np.ndarray) or v.ndim != 1:
-                raise ConfigError(f"VariantParams.{f.name} must be a 1-D array [B]")
-            if b is None:
-                b = v.shape[0]
-            elif v.shape[0] != b:
-                raise ConfigError(f"VariantParams.{f.name} has {v.shape[0]} entries, expected {b}")
-            if v.dtype.kind == "f" and not np.all(np.isfinite(v) | np.isposinf(v)):
-                raise ConfigError(f"VariantParams.{f.name} has NaN or -inf values")
-        if b == 0:
-            raise ConfigError("VariantParams needs at least one variant")
-        for name in (
-            "mass_kg",
-            "sigma_m",
-            "lookahead_m",
-            "arrive_radius_m",
-            "k_des_nspm",
-            "max_accel_mps2_ego",
-            "max_decel_mps2_ego",
-            "corridor_half_width_m",
-            "detection_range_m",
-            "recover_tolerance_mps",
-            "max_speed_mps",
-            "max_accel_mps2",
-            "integral_window_s",
-        ):
-            if np.any(getattr(self, name) <= 0):
-                raise ConfigError(f"VariantParams.{name} must be > 0")
-        for name in (
-            "a_veh_n",
-            "b_veh_per_m",
-            "v0_mps",
-            "cruise_speed_mps",
-            "initial_speed_mps",
-            "kp",
-            "ki",
-            "kd",
-            "actuator_lag_s",
-            "t_safe_s",
-            "d_buf_m",
-            "release_margin_m",
-            "perception_delay_s",
-            "integral_limit",
-        ):
-            if np.any(getattr(self, name) < 0):
-                raise ConfigError(f"VariantParams.{name} must be >= 0")
-        if np.any((self.ego_start_s_m > 0) | (self.ego_start_s_m < -250.0)):
-            raise ConfigError("VariantParams.ego_start_s_m must lie in [-250, 0] m")
-        if np.any(self.a_min_mps2 >= 0):
-            raise ConfigError("VariantParams.a_min_mps2 must be < 0")
-        if np.any((self.ego_mode < 0) | (self.ego_mode > 2)):
-            raise ConfigError("VariantParams.ego_mode must be 0 (replay-speed), 1 (pid) or 2 (cap)")
-
-    @property
-    def batch_size(self) -> int:
-        """B, the number of variants."""
-        return int(self.time_shift_s.shape[0])
-
-    @classmethod
-    def from_case(
-        cls,
-        case: CaseConfig,
-        arrays: ScenarioArrays,
-        batch_size: int = 1,
-        *,
-        time_shift_s: npt.ArrayLike = 0.0,
-        **overrides: npt.ArrayLike,
-    ) -> VariantParams:
-        """B copies of one configuration, with optional per-variant overrides.
-
-        The cruise speed 'median-moving' resolves to the scenario's median moving speed;
-        initial_speed 'cruise' to v_d, 'recorded' to the recorded speed at t = 0 (the
-        replay-speed mode always starts from the recorded speed).
-
-        Args:
-            case: the configuration. arrays: the scenario's arrays (for resolved defaults).
-            batch_size: B. time_shift_s: scalar or [B] [s].
-            overrides: any field of VariantParams, scalar or [B] (e.g. cruise_speed_mps=
-                np.linspace(4, 8, B)). An overridden cruise_speed_mps also sets
-                initial_speed_mps when the case starts at cruise and it is not overridden.
-        Returns:
-            VariantParams with B variants.
-        """
-        sfm, ego, cap = case.sfm, case.ego, case.cap
-        if ego.cruise_speed_mps == MEDIAN_MOVING:
-            vd = arrays.ego_median_moving_speed_mps
-            if not math.isfinite(vd):
-                raise InputError(
-                    "cannot derive the cruise speed: the recorded ego never moves; set ego.cruise_speed_mps",
-                    path=f"scenario {arrays.scenario_id}",
-                    field="cruise_speed_mps",
-                )
-        else:
-            vd = float(ego.cruise_speed_mps)
-        v_init: Any
-        if case.ego_mode == "replay-speed" or ego.initial_speed == "recorded":
-            v_init = arrays.ego_speed0_mps
-        else:
-            v_init = overrides.get("cruise_speed_mps", vd)
-        if ego.run_up_m == AUTO:
-            # Per variant: the cruise speed may be overridden per variant (sweeps).
-            v_cruise = np.asarray(overrides.get("cruise_speed_mps", vd), dtype=np.float64)
-            run_up_m: Any = np.clip(
-                v_cruise * ego.approach_time_s - arrays.conflict_s_m, 0.0, MAX_RUN_UP_M
-            )
-        else:
-            run_up_m = float(ego.run_up_m)
-        inf = math.inf
-        v0, vmax = sfm.v0_mps, sfm.max_speed_mps
-        if sfm.speed_from_recording:  # calibrated rider: speeds from its own recording
-            from vei.models.sfm import speed_from_recording
-
-            tr = arrays.rider_track
-            v0, vmax = speed_from_recording(
-                tr.data[:, tr.col("speed_mps")], sfm.lookahead_m, sfm.sigma_m, v0, vmax
-            )
-        base: dict[str, Any] = {
-            "time_shift_s": time_shift_s,
-            "rider_sfm": case.rider == "sfm",
-            "k_des_nspm": sfm.k_des_effective_nspm,
-            "a_veh_n": sfm.a_veh_n,
-            "b_veh_per_m": sfm.b_veh_per_m,
-            "v0_mps": v0,
-            "mass_kg": sfm.mass_kg,
-            "sigma_m": sfm.sigma_m,
-            "lookahead_m": sfm.lookahead_m,
-            "arrive_radius_m": sfm.arrive_radius_m,
-            "use_vehicle_force": sfm.use_vehicle_force,
-            "paper_vdes": sfm.desired_velocity == "paper",
-            "front_bumper": sfm.influential_point == "front_bumper",
-            "max_speed_mps": inf if vmax is None else vmax,
-            "max_accel_mps2": inf if sfm.max_accel_mps2 is None else sfm.max_accel_mps2,
-            "ego_mode": EGO_MODE_CODES[case.ego_mode],
-            "cruise_speed_mps": vd,
-            "initial_speed_mps": v_init,
-            "ego_start_s_m": 0.0 if case.ego_mode == "replay-speed" else -run_up_m,
-            "kp": ego.kp,
-            "ki": ego.ki,
-            "kd": ego.kd,
-            "integral_limit": ego.integral_limit,
-            "integral_window_s": inf if ego.integral_window_s is None else ego.integral_window_s,
-            "max_accel_mps2_ego": ego.max_accel_mps2,
-            "max_decel_mps2_ego": ego.max_decel_mps2,
-            "actuator_lag_s": ego.actuator_lag_s,
-            "t_safe_s": cap.t_safe_s,
-            "d_buf_m": cap.d_buf_m,
-            "a_min_mps2": cap.a_min_mps2,
-            "corridor_half_width_m": cap.corridor_half_width_m,
-            "detection_range_m": cap.detection_range_m,
-            "release_margin_m": cap.release_margin_m,
-            "recover_tolerance_mps": cap.recover_tolerance_mps,
-            "paper_per_step": cap.braking_law == "paper_per_step",
-            "perception_delay_s": cap.perception_delay_s,
-            "labels": case.name,
-        }
-        unknown = set(overrides) - set(base)
-        if unknown:
-            raise ConfigError(f"unknown VariantParams field(s): {', '.join(sorted(unknown))}")
-        base.update(overrides)
-        return cls._broadcast(base, batch_size)
-
-    @classmethod
-    def _broadcast(cls, values: dict[str, Any], batch_size: int) -> VariantParams:
-        out: dict[str, Any] = {}
-        for f in dataclasses.fields(cls):
-            v = values[f.name]
-            if f.name == "labels":
-                arr = np.empty(batch_size, dtype=object)
-                arr[:] = v if np.ndim(v) == 0 else list(v)
-            elif f.name in _BOOL_FIELDS:
-                arr = np.broadcast_to(np.asarray(v, dtype=bool), (batch_size,)).copy()
-            elif f.name in _INT_FIELDS:
-                arr = np.broadcast_to(np.asarray(v, dtype=np.int8), (batch_size,)).copy()
-            else:
-                arr = np.broadcast_to(np.asarray(v, dtype=np.float64), (batch_size,)).copy()
-            out[f.name] = arr
-        return cls(**out)
-
-    @classmethod
-    def concat(cls, parts: Sequence[VariantParams]) -> VariantParams:
-        """Stack several VariantParams along the batch axis (in order)."""
-        if not parts:
-            raise ConfigError("concat needs at least one VariantParams")
-        return cls(
-            **{
-                f.name: np.concatenate([getattr(p, f.name) for p in parts])
-                for f in dataclasses.fields(cls)
-            }
-        )
-
-    def take(self, index: npt.ArrayLike) -> VariantParams:
-        """The variants at ``index`` (int array, slice or bool mask) as a new VariantParams."""
-        if isinstance(index, slice):
-            return VariantParams(
-                **{f.name: getattr(self, f.name)[index].copy() for f in dataclasses.fields(self)}
-            )
-        idx = np.atleast_1d(np.asarray(index))
-        return VariantParams(
-            **{f.name: getattr(self, f.name)[idx] for f in dataclasses.fields(self)}
-        )
-
-    def with_values(self, **values: npt.ArrayLike) -> VariantParams:
-        """A copy with some fields replaced (scalars or [B] arrays, broadcast)."""
-        current = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
-        unknown = set(values) - set(current)
-        if unknown:
-            raise ConfigError(f"unknown VariantParams field(s): {', '.join(sorted(unknown))}")
-        current.update(values)
-        return VariantParams._broadcast(current, self.batch_size)
-
-    def delay_steps(self, dt_s: float) -> npt.NDArray[np.intp]:
-        """Perception delay in whole engine steps [B] (rounded to nearest)."""
-        return np.rint(self.perception_delay_s / dt_s).astype(np.intp)
-
-
-# --------------------------------------------------------------------------------------
 # State
 # --------------------------------------------------------------------------------------
 class SimState(NamedTuple):
@@ -684,3 +309,16 @@ class SimState(NamedTuple):
     collided: BoolArray
     hit_other: BoolArray
     hist: FloatArray
+
+
+__all__ = [
+    "EGO_CAP",
+    "EGO_MODE_CODES",
+    "EGO_PID",
+    "EGO_REPLAY_SPEED",
+    "ScenarioArrays",
+    "SimState",
+    "TimeTable",
+    "VariantParams",
+    "prepare_scenario",
+]
