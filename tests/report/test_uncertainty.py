@@ -47,3 +47,15 @@ def test_uncertainty_figure_has_labelled_band_and_paths(tmp_path):
     from vei.report.birdseye import save_figure
 
     assert save_figure(fig, tmp_path / "u.png").stat().st_size > 10_000
+
+
+def test_zoom_inset_magnifies_the_chosen_point():
+    t = np.linspace(0, 5, 51)
+    mean = np.column_stack([10 * t, np.zeros_like(t)])
+    fig = plot_uncertainty(
+        agent_id="r", t_s=t, mean_xy_m=mean, std_m=np.full(51, 0.2), zoom_xy_m=[25.0, 0.0]
+    )
+    ax = fig.axes[0]
+    zoom = [c for c in ax.child_axes if c.get_gid() == "zoom"]
+    assert len(zoom) == 1
+    assert zoom[0].get_xlim() == pytest.approx((21.0, 29.0))

@@ -158,13 +158,18 @@ def _uncertainty_figure(scenario, interaction):
             gx, gy = frame.to_xy(rows["lat_deg"].to_numpy(float), rows["lon_deg"].to_numpy(float))
             gt_xy = np.column_stack([gx, gy])
     ego = scenario.track("ego")
+    ego_xy = ego[["x_m", "y_m"]].to_numpy(float)
+    # Zoom where the rider's mean path comes closest to the ego's path.
+    d = np.hypot(*(band.xy_m[:, None, :] - ego_xy[None, ::5, :]).transpose(2, 0, 1))
+    zoom = band.xy_m[int(np.argmin(d.min(axis=1)))]
     return plot_uncertainty(
         agent_id=band.agent_id,
         t_s=band.t_s,
         mean_xy_m=band.xy_m,
         std_m=band.std_m,
-        ego_xy_m=ego[["x_m", "y_m"]].to_numpy(float),
+        ego_xy_m=ego_xy,
         samples_xy_m=draws.xy_m,
+        zoom_xy_m=zoom,
         keyframes_xy_m=kf[["x_m", "y_m"]].to_numpy(float),
         ground_truth_xy_m=gt_xy,
     )

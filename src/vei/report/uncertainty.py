@@ -59,6 +59,8 @@ def plot_uncertainty(
     ground_truth_xy_m: FloatArray | None = None,
     title: str = "",
     margin_m: float = 10.0,
+    zoom_xy_m: FloatArray | None = None,
+    zoom_half_m: float = 4.0,
     ax=None,
 ):
     """Draw the rider's mean path, its 95 % band, sample paths, keyframes and ground truth.
@@ -71,6 +73,8 @@ def plot_uncertainty(
         keyframes_xy_m: [K, 2] keyframes [m]; ground_truth_xy_m: [G, 2] ground truth [m].
         title: axes title. margin_m: view margin around the rider [m] (the ego path is
             clipped to that view).
+        zoom_xy_m: [2] centre of an inset that magnifies +- zoom_half_m [m] around it (e.g.
+            where the rider comes closest to the ego path), or None.
         ax: Axes to draw into (a new Figure if None).
     Returns:
         The matplotlib Figure.
@@ -142,9 +146,83 @@ def plot_uncertainty(
         or f"{agent_id}: posterior mean and 95 % band "
         f"(std {np.mean(std_m):.2f} m mean, {np.max(std_m):.2f} m max; {span})"
     )
-    ax.legend(loc="best", fontsize=8)
     ax.grid(True, lw=0.3)
+    pts = np.vstack([mean_xy_m] + ([ego_xy_m] if ego_xy_m is not None else []))
+    corners = _corners_by_emptiness(ax, pts)
+    if zoom_xy_m is None:
+        ax.legend(loc="best", fontsize=8)
+    else:
+        ax.legend(loc=_CORNERS[corners[1]], fontsize=8)
+        _inset(
+            ax,
+            agent_id,
+            mean_xy_m,
+            std_m,
+            ego_xy_m,
+            samples_xy_m,
+            keyframes_xy_m,
+            ground_truth_xy_m,
+            np.asarray(zoom_xy_m, float),
+            zoom_half_m,
+            corners[0],
+        )
     return fig
+
+
+#: Corners of the axes (lower-left of a 0.38 x 0.38 box, axes fraction) and legend places.
+_CORNERS: dict[tuple[float, float], str] = {
+    (0.02, 0.02): "lower left",
+    (0.60, 0.02): "lower right",
+    (0.02, 0.60): "upper left",
+    (0.60, 0.60): "upper right",
+}
+
+
+def _corners_by_emptiness(ax, pts: FloatArray) -> list[tuple[float, float]]:
+    """The corners of the view, those that the given points cross least first."""
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    u = (pts[:, 0] - x0) / (x1 - x0)
+    v = (pts[:, 1] - y0) / (y1 - y0)
+
+    def busy(c: tuple[float, float]) -> int:
+        return int(np.sum((u >= c[0]) & (u <= c[0] + 0.38) & (v >= c[1]) & (v <= c[1] + 0.38)))
+
+    return sorted(_CORNERS, key=busy)
+
+
+def _inset(ax, agent_id, mean, std, ego, samples, keyframes, gt, centre, half, corner) -> None:
+    """Magnified view (gid 'zoom') of the band around ``centre``."""
+    from matplotlib.patches import Polygon
+
+    cx, cy = corner
+    ins = ax.inset_axes([cx, cy, 0.38, 0.38])
+    ins.set_gid("zoom")
+    if mean.shape[0] >= 2:
+        ins.add_patch(
+            Polygon(
+                band_polygon(mean, std),
+                closed=True,
+                facecolor="tab:red",
+                alpha=0.25,
+                edgecolor="none",
+            )
+        )
+    if samples is not None:
+        for smp in samples[:50]:
+            ins.plot(smp[:, 0], smp[:, 1], color="tab:red", lw=0.4, alpha=0.35)
+    ins.plot(mean[:, 0], mean[:, 1], color="tab:red", lw=1.5)
+    if keyframes is not None:
+        ins.plot(keyframes[:, 0], keyframes[:, 1], "o", color="black", ms=3)
+    if gt is not None:
+        ins.plot(gt[:, 0], gt[:, 1], ".", color="tab:gray", ms=1.5)
+    if ego is not None:
+        ins.plot(ego[:, 0], ego[:, 1], color="tab:blue", lw=1.5)
+    ins.set_xlim(centre[0] - half, centre[0] + half)
+    ins.set_ylim(centre[1] - half, centre[1] + half)
+    ins.set_aspect("equal")
+    ins.tick_params(labelsize=6)
+    ins.set_title(f"zoom +-{half:g} m", fontsize=7)
 
 
 def sample_dependence(
