@@ -15,7 +15,9 @@ def test_checker_reports_no_issue_on_an_export(tmp_path, run_df, straight_xodr, 
     path = export_openscenario(run_df, AGENTS, tmp_path, xodr=straight_xodr, osc_version=version)
     report = run_qc_openscenario(path, qc_bin=qc_bin)
     assert report.ok, report.summary()
-    assert report.result_file == tmp_path / "vei_scenario.xosc.xqar"
+    assert report.result_file.name == "vei_scenario.xosc.xqar"
+    assert report.result_file.parent != tmp_path  # never beside the input
+    assert not list(tmp_path.glob("*.xqar"))
     ids = {c.checker_id for c in report.checkers}
     assert "check_asam_xosc_xml_valid_schema" in ids
     statuses = {c.checker_id: c.status for c in report.checkers}

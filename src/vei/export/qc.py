@@ -189,7 +189,8 @@ def run_qc_openscenario(
 
     Args:
         xosc: the .xosc to check (its LogicFile, if any, is read relative to it).
-        result_file: where to keep the .xqar (default: ``<xosc>.xqar`` next to it).
+        result_file: where to keep the .xqar (default: ``<xosc name>.xqar`` in a new
+            temporary folder, never beside the input).
         qc_bin: the executable or its folder (default: see :func:`find_qc_openscenario`).
         timeout_s: wall-clock limit [s].
 
@@ -201,7 +202,10 @@ def run_qc_openscenario(
     if not xosc.is_file():
         raise InputError("file not found", path=xosc)
     exe = find_qc_openscenario(qc_bin)
-    result = Path(result_file).resolve() if result_file else xosc.with_suffix(xosc.suffix + ".xqar")
+    if result_file:
+        result = Path(result_file).resolve()
+    else:
+        result = Path(tempfile.mkdtemp(prefix="vei-qc-result-")) / f"{xosc.name}.xqar"
     result.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="vei-qc-") as tmp:
         tmp_result = Path(tmp) / "result.xqar"
