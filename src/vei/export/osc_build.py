@@ -23,12 +23,13 @@ added at T = t0 is recorded from t0 + dt on, at its trajectory's position of tha
 and one deleted at T = t1 is recorded last at t1: never outside [t0, t1].
 
 AddEntityAction / DeleteEntityAction are GlobalActions (``EntityAction``) in every
-version 1.0-1.3, so 1.0 expresses the same presence. What 1.0 lacks and the file
-replaces: ``Priority.parallel`` exists in 1.0 (used throughout); the rule
-``greaterOrEqual`` (1.2+) for the act's start (1.0/1.1: time > -1 ms); ``mass`` and
-``model3d`` on vehicles (1.1+). Without ``model3d=""`` esmini looks for a default 3D model
-per category and warns that it found none (a headless install has no models): 1.0 files
-cannot avoid that message.
+version 1.0-1.3, and priority ``parallel`` and edge ``none`` exist in 1.0 too, so a 1.0
+file expresses the same presence and motion. What 1.0 lacks: the rule
+``greaterOrEqual`` (1.2+; the act starts on time > -1 ms instead), ``mass`` and
+``model3d`` on vehicles (1.1+; without ``model3d=""`` esmini looks for a default 3D model
+per category and, in a headless install without models, warns that it found none), and
+vertices without time (a simulator ego's path keeps its sample times, ignored under
+``TimeReference/None``).
 
 ``ego_controller='simulator'``: the ego gets its Init pose and speed and, from the first
 step after the start, its path as a trajectory *without timing* (``TimeReference/None``,
@@ -38,8 +39,11 @@ sets its target speed to the run's cruise speed (median speed while moving) with
 ``linear`` rate of ``SIMULATOR_ACCEL_MPS2``; when the path ends (the follow action's
 ``endTransition``) a step to 0 m/s stops it there instead of letting it drive on along the
 road network. So the ego drives the recorded route and reaches the conflict area about
-when the recording did (esmini 3.6: path deviation <= 0.1 m on stadtmitte_12, where the
-ego waits 50 s at a light and then drives 60 m).
+when the recording did (esmini 3.6 on stadtmitte_12, where the ego waits 50 s at a light
+and then drives 60 m: within 0.1 mm of its path, moving from 50.45 s).
+
+Every entity carries the properties ``vei:agent_id``, ``vei:category``, ``vei:span_s``
+("t0 t1", its first and last sample time) and, where known, ``vei:source_track_id``.
 
 Reference point and box: the reference point of every entity is its box centre (vei's
 trajectories are box centres), the ``BoundingBox`` ``Center`` is (0, 0, height / 2) and
