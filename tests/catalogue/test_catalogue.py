@@ -235,3 +235,24 @@ def test_folder_of_interaction_folders(tmp_path):
     # a single interaction folder is a dataset of one recording
     one = run_catalogue(data / "rec_a", tmp_path / "one", small_config(sweep=None), progress=False)
     assert [d["recording"] for d in one.recordings] == ["rec_a"] and one.complete
+
+
+def test_map_from_a_local_source(tmp_path, trafficmonitoring_root, data_dir):
+    """--map: every recording gets its OpenDRIVE map (SUMO net of the area, netconvert);
+    the ego drives on it, and the report draws its lanes."""
+    from vei.catalogue.report_data import collect
+
+    net = data_dir / "maps" / "ingolstadt_research_intersection.net.xml.gz"
+    out = tmp_path / "cat"
+    result = run_catalogue(trafficmonitoring_root, out, small_config(sweep=None, map_source=str(net)),
+                           recordings=["klinikum_01_marktkauf_geradeaus"], progress=False)  # fmt: skip
+    assert result.complete
+    eid = "klinikum_01_marktkauf_geradeaus__escooter_9"
+    scen = encounter_dir(out, eid) / "scenario"
+    assert (scen / "map.xodr").is_file()
+    import json
+
+    share = json.loads((scen / "scenario.json").read_text())["map"]["ego_on_drivable_share"]
+    assert share > 0.95  # measured 0.994
+    roads = collect(out)["encounters"][0]["roads"]
+    assert roads is not None and len(roads["x"]) > 100

@@ -58,6 +58,26 @@ def _tracks(scenario_dir: Path) -> dict[str, Any]:
     return out
 
 
+def _roads(scenario_dir: Path) -> dict[str, Any] | None:
+    """Outlines of the drivable lanes of the scenario's OpenDRIVE map (x, y [m] with None
+    between lanes, each ring thinned to <= 80 points), or None without a map."""
+    doc = read_json(scenario_dir / "scenario.json")
+    name = (doc.get("maps") or {}).get("opendrive")
+    if not name or not (scenario_dir / name).is_file():
+        return None
+    from vei.maps import load_roads
+
+    xs: list[float | None] = []
+    ys: list[float | None] = []
+    for lane in load_roads(scenario_dir / name).drivable_lanes:
+        ring = lane.outline
+        ring = ring[:: max(1, len(ring) // 80)]
+        ring = np.vstack([ring, ring[:1]])
+        xs += [*ring[:, 0].tolist(), None]
+        ys += [*ring[:, 1].tolist(), None]
+    return {"x": xs, "y": ys} if xs else None
+
+
 def _replay(
     edir: Path, rider_id: str, agents: dict[str, tuple[float, float]], safe: float, alert: float
 ) -> dict[str, Any]:
@@ -192,6 +212,7 @@ def collect(catalogue_dir: str | Path) -> dict[str, Any]:
                 "rider_id": rec["rider_id"],
                 "recording": rec["recording"],
                 "tracks": _tracks(edir / "scenario"),
+                "roads": _roads(edir / "scenario"),
                 "replay": _replay(
                     edir,
                     rec["rider_id"],

@@ -58,8 +58,13 @@
   function lay(extra) { return Object.assign({}, LAYOUT, extra); }
   var CONF = { responsive: true, displaylogo: false };
 
+  function roadTrace(e) {
+    return { x: e.roads.x, y: e.roads.y, mode: "lines", fill: "toself", name: "drivable lanes (map)",
+             fillcolor: "rgba(150,150,150,0.25)", line: { color: "rgba(120,120,120,0.6)", width: 0.5 }, hoverinfo: "skip" };
+  }
+
   function drawMap(e) {
-    var traces = [];
+    var traces = e.roads ? [roadTrace(e)] : [];
     Object.keys(e.tracks).forEach(function (aid, i) {
       var tr = e.tracks[aid], ego = aid === "ego", main = aid === e.rider_id;
       traces.push({ x: tr.x, y: tr.y, mode: "lines", name: aid + (main ? " (encounter)" : ""),
@@ -67,7 +72,13 @@
                 dash: tr.category === "cyclist" && !main ? "dot" : "solid" },
         text: tr.t.map(function (t) { return "t = " + t.toFixed(1) + " s"; }), hoverinfo: "name+text" });
     });
-    Plotly.newPlot("map-plot", traces, lay({ xaxis: { title: { text: "x east [m]" }, scaleanchor: "y" }, yaxis: { title: { text: "y north [m]" } } }), CONF);
+    var xs = [], ys = [];
+    Object.keys(e.tracks).forEach(function (aid) { xs = xs.concat(clean(e.tracks[aid].x)); ys = ys.concat(clean(e.tracks[aid].y)); });
+    xs = xs.filter(isFinite); ys = ys.filter(isFinite);
+    var pad = 15, rx = [Math.min.apply(null, xs) - pad, Math.max.apply(null, xs) + pad];
+    var ry = [Math.min.apply(null, ys) - pad, Math.max.apply(null, ys) + pad];
+    Plotly.newPlot("map-plot", traces, lay({ xaxis: { title: { text: "x east [m]" }, range: rx, scaleanchor: "y" },
+      yaxis: { title: { text: "y north [m]" }, range: ry } }), CONF);
   }
 
   function replayTraces(e, c, k) {
@@ -92,6 +103,7 @@
       { x: c.ego.x, y: c.ego.y, mode: "lines", name: "ego path", line: { color: "#000", width: 1, dash: "dot" }, hoverinfo: "skip" },
       { x: c.rider.x, y: c.rider.y, mode: "lines", name: "rider path", line: { color: "#d62728", width: 1, dash: "dot" }, hoverinfo: "skip" }
     ];
+    if (e.roads) { traces.push(roadTrace(e)); }  /* after the moving traces: indices 0-2 stay theirs */
     Plotly.newPlot("replay-plot", traces, lay({ xaxis: { title: { text: "x east [m]" }, range: rx, scaleanchor: "y" },
       yaxis: { title: { text: "y north [m]" }, range: ry }, showlegend: true }), CONF);
     updateLabels();
