@@ -159,6 +159,24 @@ def test_slider_moves_the_ego(loaded):
     assert label.startswith("t = ")
 
 
+def test_play_and_pause(loaded):
+    import time
+
+    loaded.execute_script(
+        "var s = document.getElementById('time-slider'); s.value = '0'; s.dispatchEvent(new Event('input'));"
+    )
+    button = loaded.find_element("id", "play-button")
+    button.click()
+    assert button.text == "pause"
+    time.sleep(0.8)  # 10 frames per second
+    button.click()
+    assert button.text == "play"
+    k = loaded.execute_script("return Number(document.getElementById('time-slider').value)")
+    assert k >= 2
+    time.sleep(0.3)  # paused: it stays
+    assert loaded.execute_script("return Number(document.getElementById('time-slider').value)") == k
+
+
 def test_screenshot_not_blank(loaded, small_catalogue):
     from PIL import Image
 
