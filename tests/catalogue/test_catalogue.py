@@ -256,3 +256,25 @@ def test_map_from_a_local_source(tmp_path, trafficmonitoring_root, data_dir):
     assert share > 0.95  # measured 0.994
     roads = collect(out)["encounters"][0]["roads"]
     assert roads is not None and len(roads["x"]) > 100
+
+
+def test_settings_file(tmp_path):
+    from vei.catalogue import load_catalogue_config
+
+    p = tmp_path / "s.yaml"
+    p.write_text("rule: {gap_max_m: 3.5, categories: [escooter]}\nsweep: null\ncases: [replay]\n")
+    cfg = load_catalogue_config(p)
+    assert cfg.rule == EncounterRule(gap_max_m=3.5, categories=("escooter",))
+    assert cfg.sweep is None and cfg.cases == ("replay",)
+    assert cfg.digest() != load_catalogue_config(None).digest()
+    p.write_text("rules: {}\n")
+    with pytest.raises(ConfigError, match="unknown catalogue setting 'rules'"):
+        load_catalogue_config(p)
+    p.write_text("rule: {gap_max: 3}\n")
+    with pytest.raises(ConfigError, match="unknown rule setting 'gap_max'"):
+        load_catalogue_config(p)
+    p.write_text(
+        "sweep: {design: lhs, n_samples: 0, parameters: {time_shift_s: {min: 0, max: 1}}}\n"
+    )
+    with pytest.raises(ConfigError):
+        load_catalogue_config(p)
