@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from vei.calibrate.validate import MODELS, ValidationTable, validate_loso
+from vei.errors import InputError
 
 
 @pytest.fixture(scope="session")
@@ -36,3 +37,19 @@ def test_calibrated_sfm_beats_cv_by_20_percent_and_the_paper(table) -> None:
     assert 0.2 < table.ade_m["SFM calibrated"][3.0] < 2.0
     text = table.format()
     assert "SFM calibrated" in text and "held-out scenarios: 4" in text
+
+
+def test_per_category_lines_and_json(table) -> None:
+    n = table.n_windows_by_category
+    assert n["escooter"][3.0] + n["cyclist"][3.0] == table.n_windows[3.0]
+    assert n["escooter"][3.0] > 0
+    assert "ADE escooter: 3 s" in table.format()
+    doc = table.to_dict()
+    assert doc["n_windows"]["3"] == table.n_windows[3.0]
+    assert doc["ade_m"]["SFM calibrated"]["5"] == table.ade_m["SFM calibrated"][5.0]
+
+
+def test_needs_two_scenarios_with_riders(tm_scenes) -> None:
+    one = [s for s in tm_scenes if s.scenario == "stadtmitte_12_audi_geradeaus_03"]
+    with pytest.raises(InputError, match=">= 2 scenarios"):
+        validate_loso(one)

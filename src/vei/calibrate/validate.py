@@ -52,6 +52,7 @@ from vei.calibrate.rollout import (
     rollout_sfm,
 )
 from vei.calibrate.tracks import RiderTrack, SceneTracks
+from vei.errors import InputError
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -86,6 +87,7 @@ class ValidationTable:
         ade_m, fde_m: {model: {horizon: mean over windows}} [m].
         n_windows: {horizon: number of held-out windows}. folds: held-out scenarios.
         per_category: {category: {model: {horizon: ADE}}}.
+        n_windows_by_category: {category: {horizon: windows}}.
     """
 
     horizons_s: tuple[float, ...]
@@ -95,6 +97,7 @@ class ValidationTable:
     n_windows: dict[float, int]
     folds: tuple[str, ...]
     per_category: dict[str, dict[str, dict[float, float]]]
+    n_windows_by_category: dict[str, dict[float, int]]
 
     def gain(self, model: str, baseline: str, horizon_s: float) -> float:
         """Relative ADE reduction of ``model`` against ``baseline`` at a horizon (0.2 = 20 %)."""
@@ -114,6 +117,15 @@ class ValidationTable:
             + ", ".join(f"{h:g} s: {self.n_windows[h]}" for h in self.horizons_s)
             + f"; held-out scenarios: {len(self.folds)}"
         )
+        for cat, per in self.per_category.items():
+            n = self.n_windows_by_category[cat]
+            cells = "; ".join(
+                f"{h:g} s ({n[h]} windows): "
+                + ", ".join(f"{m} {per[m][h]:.2f}" for m in ("CV", "SFM paper", "SFM calibrated"))
+                for h in self.horizons_s
+                if n[h]
+            )
+            lines.append(f"ADE {cat}: {cells or 'no window'}")
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, object]:
@@ -128,6 +140,7 @@ class ValidationTable:
             "fde_m": {m: key(v) for m, v in self.fde_m.items()},
             "n_windows": key(self.n_windows),
             "folds": list(self.folds),
+            "n_windows_by_category": {c: key(v) for c, v in self.n_windows_by_category.items()},
             "per_category": {
                 c: {m: key(v) for m, v in d.items()} for c, d in self.per_category.items()
             },
@@ -199,6 +212,10 @@ def validate_loso(
     by_name = {s.scenario: s for s in scenes}
     folds = [s.scenario for s in scenes if s.riders]
     hs = tuple(float(h) for h in horizons_s)
+    if len(folds) < 2:
+        raise InputError(
+            f"leave-one-scenario-out needs rider tracks in >= 2 scenarios, found {len(folds)}"
+        )
     errs: dict[str, dict[float, list[FloatArray]]] = {m: {h: [] for h in hs} for m in MODELS}
     fdes: dict[str, dict[float, list[FloatArray]]] = {m: {h: [] for h in hs} for m in MODELS}
     cats: dict[float, list[npt.NDArray[np.object_]]] = {h: [] for h in hs}
@@ -230,11 +247,20 @@ def validate_loso(
                 errs[m][h].append(a)
                 fdes[m][h].append(f)
             cats[h].append(np.array([test[j].category for j in win.track], dtype=object))
+    empty = [h for h in hs if not errs["CV"][h]]
+    if empty:
+        raise InputError(
+            f"no held-out window of {', '.join(f'{h:g} s' for h in empty)}: the tracks are "
+            "shorter than that horizon",
+            field="--horizons",
+        )
     ade = {m: {h: float(np.concatenate(errs[m][h]).mean()) for h in hs} for m in MODELS}
     fde = {m: {h: float(np.concatenate(fdes[m][h]).mean()) for h in hs} for m in MODELS}
     nwin = {h: int(sum(a.size for a in errs["CV"][h])) for h in hs}
     per_cat: dict[str, dict[str, dict[float, float]]] = {}
+    n_cat: dict[str, dict[float, int]] = {}
     for c in ("escooter", "cyclist"):
+        n_cat[c] = {h: int(np.sum(np.concatenate(cats[h]) == c)) if cats[h] else 0 for h in hs}
         per_cat[c] = {}
         for m in MODELS:
             per_cat[c][m] = {}
@@ -242,4 +268,4 @@ def validate_loso(
                 e = np.concatenate(errs[m][h])
                 sel = np.concatenate(cats[h]) == c
                 per_cat[c][m][h] = float(e[sel].mean()) if sel.any() else float("nan")
-    return ValidationTable(hs, MODELS, ade, fde, nwin, tuple(folds), per_cat)
+    return ValidationTable(hs, MODELS, ade, fde, nwin, tuple(folds), per_cat, n_cat)
