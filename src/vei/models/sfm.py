@@ -6,6 +6,9 @@
 - ``v_des = v0 (g - p) / sqrt(|g - p|^2 + sigma^2)`` ('normalised', default: speed ~v0 far
   from the goal g, decaying to 0 at it) or the paper's literal
   ``v_des = v0 (g - p) / (|g - p|^2 + sigma^2)`` ('paper');
+- ``f_rider = A_r exp(-b_r d) n`` from every other social-force rider and recorded
+  pedestrian when several riders are simulated (:func:`rider_force`; d = gap between
+  their discs);
 - ``f_veh = A exp(-b d) n``, d = distance from the vehicle's influential point q to the
   rider, n = unit vector from q to the rider. Where the rider is inside the vehicle's box
   (d = 0) n points from the box centre to the rider (or along the vehicle's heading if
@@ -24,6 +27,9 @@ from vei.models.geometry import closest_point_on_box
 
 FloatArray = npt.NDArray[np.float64]
 ArrayLike = npt.ArrayLike
+
+#: Gap [m] beyond which another rider / pedestrian exerts no repulsion (rider_force).
+RIDER_FORCE_CUTOFF_M = 10.0
 
 
 def desired_velocity(
@@ -236,6 +242,45 @@ def social_force(
     if use.ndim == 0:
         return fx + hx, fy + hy
     return fx + np.where(use, hx, 0.0), fy + np.where(use, hy, 0.0)
+
+
+def rider_force(
+    px_m: ArrayLike,
+    py_m: ArrayLike,
+    qx_m: ArrayLike,
+    qy_m: ArrayLike,
+    radii_m: ArrayLike,
+    a_rider_n: ArrayLike,
+    b_rider_per_m: ArrayLike,
+) -> tuple[FloatArray, FloatArray]:
+    """Repulsion ``A_r exp(-b_r d) n`` on a rider at p from another rider / pedestrian at q.
+
+    ``d = |p - q| - radii`` is the gap between the two agents' discs (negative where they
+    overlap: the force keeps growing, it is not clipped), ``n = (p - q) / |p - q|``. Where
+    the centres coincide (|p - q| < 1e-9 m) the direction is undefined and the force is 0.
+    Agents farther apart than ``RIDER_FORCE_CUTOFF_M`` (gap) exert no force (less than
+    A_r exp(-10 b_r): 2e-6 N at the defaults).
+
+    Args:
+        px_m, py_m: position of the rider the force acts on [...] (m).
+        qx_m, qy_m: position of the other agent [...] (m).
+        radii_m: sum of the two radii [...] (m).
+        a_rider_n: amplitude A_r [...] (N). b_rider_per_m: decay b_r [...] (1/m).
+    Returns:
+        (fx_n, fy_n) [...] force [N].
+    """
+    dx = np.subtract(px_m, qx_m, dtype=np.float64)
+    dy = np.subtract(py_m, qy_m, dtype=np.float64)
+    dc = np.sqrt(dx * dx + dy * dy)
+    gap = dc - np.asarray(radii_m, dtype=np.float64)
+    ok = (dc >= 1e-9) & (gap <= RIDER_FORCE_CUTOFF_M)
+    mag = np.where(
+        ok,
+        np.asarray(a_rider_n, dtype=np.float64) * np.exp(-np.asarray(b_rider_per_m) * gap),
+        0.0,
+    )
+    inv = mag / np.where(ok, dc, 1.0)
+    return inv * dx, inv * dy
 
 
 def speed_from_recording(

@@ -54,12 +54,13 @@ import numpy.typing as npt
 from vei.config import CASE_PRESETS, CaseConfig, SimConfig, case_preset
 from vei.errors import ConfigError
 from vei.sim.batch import BatchFlags, Block, batch_flags, group_keys
-from vei.sim.result import _RECORDED, SimResult
+from vei.sim.result import _RECORDED, _RECORDED_EXTRA, SimResult
 from vei.sim.state import ScenarioArrays, SimState, VariantParams, prepare_scenario
 from vei.sim.step import initial_state, step
 from vei.types import Scenario
 
 FloatArray = npt.NDArray[np.float64]
+_XNAMES = tuple(name for name, _, _ in _RECORDED_EXTRA)
 Record = Literal["full", "none"]
 Kernel = Literal["numpy", "numba", "auto"]
 
@@ -107,11 +108,15 @@ def simulate(
     no = len(arrays.other_ids)
     state = initial_state(arrays, run_params, fl)
     bufs: dict[str, np.ndarray] = {}
+    xbufs: dict[str, np.ndarray] = {}  # extra riders [T, B, R]
+    n_x = arrays.riders.n
     hit_buf = None
     if record == "full":
         for name, _, dtype in _RECORDED:
             bufs[name] = np.empty((t_n, b), dtype=dtype)
         hit_buf = np.empty((t_n, b, no), dtype=bool)
+        for name, _, dtype in _RECORDED_EXTRA:
+            xbufs[name] = np.empty((t_n, b, n_x), dtype=dtype)
     coll_t = np.full(b, np.nan)
     min_d = np.full(b, np.inf)
 
@@ -121,6 +126,8 @@ def simulate(
             for name, attr, _ in _RECORDED:
                 bufs[name][k] = getattr(st, attr)
             hit_buf[k] = st.hit_other
+            for name, attr, _ in _RECORDED_EXTRA:
+                xbufs[name][k] = getattr(st, attr)
         newly = st.collided & np.isnan(coll_t)
         if newly.any():
             coll_t[newly] = arrays.t_s[k]
@@ -136,6 +143,7 @@ def simulate(
         if out["series"] is not None:
             bufs = {name: arr.T for name, arr in out["series"].items()}
             hit_buf = out["hit"].transpose(1, 0, 2)
+            xbufs = {name: arr.transpose(1, 0, 2) for name, arr in out["extra"].items()}
         coll_t, min_d = out["collision_time_s"], out["min_center_distance_m"]
         state = SimState(**out["final"])
     else:
@@ -167,6 +175,8 @@ def simulate(
             bufs[name] = bufs[name][:, inv]
         if hit_buf is not None:
             hit_buf = hit_buf[:, inv]
+        for name in xbufs:
+            xbufs[name] = xbufs[name][:, inv]
         coll_t, min_d = coll_t[inv], min_d[inv]
         state = SimState(
             **{
@@ -201,6 +211,11 @@ def simulate(
         other_speed_mps=arrays.other_speed_mps,
         other_active=arrays.other_active,
         final_state=state,
+        extra_ids=arrays.riders.ids,
+        extra_categories=arrays.riders.categories,
+        extra_length_m=arrays.riders.length_m,
+        extra_width_m=arrays.riders.width_m,
+        **{name: (xbufs[name].transpose(1, 0, 2) if xbufs else None) for name in _XNAMES},
         **series,
     )
 

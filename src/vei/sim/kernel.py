@@ -19,14 +19,16 @@ from typing import Any
 import numpy as np
 
 from vei.errors import DependencyError
+from vei.sim.riders import EXTRA_BOOL_FIELDS, EXTRA_FLOAT_FIELDS, RIDER_COLUMNS
 
 # Rows of the packed parameter matrix P [N_PARAMS, B].
 (
     P_SHIFT, P_SFM, P_KDES, P_AVEH, P_BVEH, P_V0, P_MASS, P_SIGMA, P_LOOK, P_ARRIVE, P_USEVF, P_PAPERV,
     P_FRONTB, P_VMAX, P_AMAX_R, P_MODE, P_VD, P_KP, P_KI, P_KD, P_ILIM, P_IWIN, P_AMAX, P_DMAX, P_LAG,
     P_TSAFE, P_DBUF, P_AMIN, P_HALFW, P_RANGE, P_RELEASE, P_RECTOL, P_PAPERLAW, P_DELAY,
-) = range(34)  # fmt: skip
-N_PARAMS = 34
+    P_SFR, P_ARR, P_BRR, P_USERF,
+) = range(38)  # fmt: skip
+N_PARAMS = 38
 
 # Rows of the float output O [N_OUT, T, B] (same order as vei.sim.result._RECORDED floats).
 O_S, O_X, O_Y, O_YAW, O_V, O_A, O_U, O_RX, O_RY, O_RYAW, O_RSP, O_RVX, O_RVY, O_RA = range(14)
@@ -72,7 +74,8 @@ PARAM_FIELDS = (
     "max_accel_mps2", "ego_mode", "cruise_speed_mps", "kp", "ki", "kd", "integral_limit", "integral_window_s",
     "max_accel_mps2_ego", "max_decel_mps2_ego", "actuator_lag_s", "t_safe_s", "d_buf_m", "a_min_mps2",
     "corridor_half_width_m", "detection_range_m", "release_margin_m", "recover_tolerance_mps",
-    "paper_per_step", "perception_delay_s",
+    "paper_per_step", "perception_delay_s", "speed_from_recording", "a_rider_n", "b_rider_per_m",
+    "use_rider_force",
 )  # fmt: skip
 
 
@@ -87,6 +90,37 @@ def _table_rows(table: Any, names: tuple[str, ...]) -> np.ndarray:
     cols = table._cols  # type: ignore[attr-defined]
     slopes = table._slopes  # type: ignore[attr-defined]
     return np.ascontiguousarray(np.stack([cols[n] for n in names] + [slopes[n] for n in names]))
+
+
+def _extra_args(arrays: Any) -> tuple[Any, ...]:
+    """The kernel's extra-rider arguments (R, padded tables, radii, pedestrians, mode)."""
+    xr = arrays.riders
+    n_x = xr.n
+    m_max = max([t.data.shape[0] for t in xr.tracks], default=1)
+    n_max = max([p.x_m.shape[0] for p in xr.paths], default=1)
+    xtab = np.zeros((n_x, 14, m_max))
+    xpath = np.zeros((n_x, 10, n_max))
+    for j in range(n_x):
+        rows = _table_rows(xr.tracks[j], RIDER_COLUMNS)
+        xtab[j, :, : rows.shape[1]] = rows
+        prow = _path_rows(xr.paths[j])
+        xpath[j, :, : prow.shape[1]] = prow
+    f = np.float64
+    return (
+        n_x, xtab,
+        np.array([t.t0_s for t in xr.tracks], f), np.array([t.dt_s for t in xr.tracks], f),
+        np.array([t.t_end_s for t in xr.tracks], f),
+        np.array([t.data.shape[0] for t in xr.tracks], np.int64),
+        xpath,
+        np.array([p.s_start_m for p in xr.paths], f), np.array([p.ds_m for p in xr.paths], f),
+        np.array([p.x_m.shape[0] for p in xr.paths], np.int64),
+        np.array([p.length_m for p in xr.paths], f),
+        np.array([p.end_x_m for p in xr.paths], f), np.array([p.end_y_m for p in xr.paths], f),
+        np.ascontiguousarray(xr.length_m, f), np.ascontiguousarray(xr.width_m, f),
+        np.ascontiguousarray(xr.radius_m, f), np.ascontiguousarray(xr.median_speed_mps, f),
+        np.ascontiguousarray(xr.p99_speed_mps, f), float(xr.primary_radius_m), bool(xr.enabled),
+        np.ascontiguousarray(xr.ped_idx, np.int64), np.ascontiguousarray(xr.ped_radius_m, f),
+    )  # fmt: skip
 
 
 def run(arrays: Any, params: Any, state0: Any, hist_len: int, record: bool) -> dict[str, Any]:
@@ -139,6 +173,27 @@ def run(arrays: Any, params: Any, state0: Any, hist_len: int, record: bool) -> d
     coll_t = np.empty(b)
     min_d = np.empty(b)
     tr, rp, et = arrays.rider_track, arrays.rider_path, arrays.ego_track
+    # Extra riders (vei.sim.riders): tables padded to the longest, state [F, B, R].
+    xr = arrays.riders
+    n_x = xr.n
+    xa = _extra_args(arrays)
+    xs0 = np.ascontiguousarray(
+        np.stack([getattr(state0, f) for f in EXTRA_FLOAT_FIELDS]).astype(np.float64)
+    ).reshape(8, b, n_x)
+    xb0 = np.ascontiguousarray(
+        np.stack([getattr(state0, f) for f in EXTRA_BOOL_FIELDS]).astype(np.uint8)
+    ).reshape(4, b, n_x)
+    outx = np.zeros((b, 5, tt, n_x))
+    outxb = np.zeros((b, 2, tt, n_x), dtype=np.uint8)
+    if record and n_x:
+        for j, f in enumerate(
+            ("extra_x_m", "extra_y_m", "extra_yaw_rad", "extra_speed_mps", "extra_a_mps2")
+        ):
+            outx[:, j, 0, :] = getattr(state0, f)
+        outxb[:, 0, 0, :] = state0.extra_active
+        outxb[:, 1, 0, :] = state0.extra_hit
+    xfs = np.empty((8, b, n_x))
+    xfb = np.empty((4, b, n_x), dtype=np.uint8)
     kernel(
         t_n, float(arrays.dt_s), int(hist_len), bool(record),
         _path_rows(arrays.ego_path), float(arrays.ego_path.s_start_m), float(arrays.ego_path.ds_m),
@@ -152,6 +207,7 @@ def run(arrays: Any, params: Any, state0: Any, hist_len: int, record: bool) -> d
         np.ascontiguousarray(arrays.other_length_m, dtype=np.float64),
         np.ascontiguousarray(arrays.other_width_m, dtype=np.float64),
         p_mat, s0, b0, out, outb, outh, h0, fs, fb, fh, coll_t, min_d,
+        *xa, xs0, xb0, outx, outxb, xfs, xfb,
     )  # fmt: skip
     final = {f: fs[j].copy() for j, f in enumerate(FLOAT_FIELDS)}
     final["cap_state"] = fs[FLOAT_FIELDS.index("cap_state")].astype(np.int8)
@@ -160,6 +216,11 @@ def run(arrays: Any, params: Any, state0: Any, hist_len: int, record: bool) -> d
     final["hit_other"] = h0.astype(bool)
     final["hist"] = fh
     final["k"] = t_n - 1
+    for j, f in enumerate(EXTRA_FLOAT_FIELDS):
+        final[f] = xfs[j].copy()
+    for j, f in enumerate(EXTRA_BOOL_FIELDS):
+        final[f] = xfb[j].astype(bool)
+    extra = None
     series = None
     hit = None
     if record:
@@ -173,9 +234,15 @@ def run(arrays: Any, params: Any, state0: Any, hist_len: int, record: bool) -> d
         series["rider_active"] = outb[:, 1, :].astype(bool)
         series["collided"] = outb[:, 2, :].astype(bool)
         hit = outh.astype(bool)
+        extra = {
+            "extra_x_m": outx[:, 0], "extra_y_m": outx[:, 1], "extra_yaw_rad": outx[:, 2],
+            "extra_speed_mps": outx[:, 3], "extra_accel_mps2": outx[:, 4],
+            "extra_active": outxb[:, 0].astype(bool), "extra_hit": outxb[:, 1].astype(bool),
+        }  # fmt: skip
     return {
         "series": series,
         "hit": hit,
+        "extra": extra,
         "final": final,
         "collision_time_s": coll_t,
         "min_center_distance_m": min_d,

@@ -28,7 +28,15 @@ EGO_MODE_CODES: dict[str, int] = {"replay-speed": EGO_REPLAY_SPEED, "pid": EGO_P
 # --------------------------------------------------------------------------------------
 # Per-variant parameters
 # --------------------------------------------------------------------------------------
-_BOOL_FIELDS = ("rider_sfm", "use_vehicle_force", "paper_vdes", "front_bumper", "paper_per_step")
+_BOOL_FIELDS = (
+    "rider_sfm",
+    "use_vehicle_force",
+    "paper_vdes",
+    "front_bumper",
+    "paper_per_step",
+    "speed_from_recording",
+    "use_rider_force",
+)
 _INT_FIELDS = ("ego_mode",)
 
 
@@ -61,6 +69,11 @@ class VariantParams:
             release_margin_m, recover_tolerance_mps: CAP (CAPConfig).
         paper_per_step: bool, CAP braking law 'paper_per_step'.
         perception_delay_s: CAP perception delay [s] (rounded to whole steps).
+        speed_from_recording: bool; the extra SFM riders (vei.sim.riders) take v0 and
+            their speed limit from their own recordings (the primary's are resolved into
+            v0_mps / max_speed_mps by :meth:`from_case`).
+        a_rider_n, b_rider_per_m, use_rider_force: rider-rider / rider-pedestrian
+            repulsion (SFMConfig; acts only in the several-rider mode).
         labels: [B] object array of configuration names (for outputs).
     """
 
@@ -100,6 +113,10 @@ class VariantParams:
     recover_tolerance_mps: FloatArray
     paper_per_step: BoolArray
     perception_delay_s: FloatArray
+    speed_from_recording: BoolArray
+    a_rider_n: FloatArray
+    b_rider_per_m: FloatArray
+    use_rider_force: BoolArray
     labels: npt.NDArray[np.object_]
 
     def __post_init__(self) -> None:
@@ -148,6 +165,8 @@ class VariantParams:
             "release_margin_m",
             "perception_delay_s",
             "integral_limit",
+            "a_rider_n",
+            "b_rider_per_m",
         ):
             if np.any(getattr(self, name) < 0):
                 raise ConfigError(f"VariantParams.{name} must be >= 0")
@@ -258,6 +277,10 @@ class VariantParams:
             "recover_tolerance_mps": cap.recover_tolerance_mps,
             "paper_per_step": cap.braking_law == "paper_per_step",
             "perception_delay_s": cap.perception_delay_s,
+            "speed_from_recording": sfm.speed_from_recording,
+            "a_rider_n": sfm.a_rider_n,
+            "b_rider_per_m": sfm.b_rider_per_m,
+            "use_rider_force": sfm.use_rider_force,
             "labels": case.name,
         }
         unknown = set(overrides) - set(base)

@@ -49,6 +49,12 @@ class SimResult:
         other_x_m, other_y_m, other_yaw_rad, other_speed_mps, other_active: [T, n_o]
             (the same for every variant).
         final_state: the SimState at the last step.
+        extra_ids, extra_categories, extra_length_m, extra_width_m: the extra
+            social-force riders (vei.sim.riders; R = 0 unless sim.sfm_riders selects them).
+        extra_x_m, extra_y_m, extra_yaw_rad, extra_speed_mps, extra_accel_mps2:
+            [B, T, R] their simulated poses (replayed in replay variants); extra_active
+            [B, T, R] presence; extra_hit [B, T, R] the ego-contact latch. None without
+            time series.
     """
 
     t_s: FloatArray
@@ -91,6 +97,17 @@ class SimResult:
     other_speed_mps: FloatArray
     other_active: npt.NDArray[np.bool_]
     final_state: SimState
+    extra_ids: tuple[str, ...] = ()
+    extra_categories: tuple[str, ...] = ()
+    extra_length_m: FloatArray | None = None
+    extra_width_m: FloatArray | None = None
+    extra_x_m: FloatArray | None = None
+    extra_y_m: FloatArray | None = None
+    extra_yaw_rad: FloatArray | None = None
+    extra_speed_mps: FloatArray | None = None
+    extra_accel_mps2: FloatArray | None = None
+    extra_active: npt.NDArray[np.bool_] | None = None
+    extra_hit: npt.NDArray[np.bool_] | None = None
 
     @property
     def batch_size(self) -> int:
@@ -154,7 +171,8 @@ class SimResult:
         """Long-format time series with columns ``vei.types.TIMESERIES_COLUMNS``.
 
         One row per agent per step per variant: the ego, the primary rider (all steps,
-        ``active`` telling presence) and, if ``include_others``, each replayed road user
+        ``active`` telling presence), each extra social-force rider over the steps where it
+        is present (its simulated pose, ``collided`` its ego-contact latch) and, if ``include_others``, each replayed road user
         over the steps where it is present. ``collided`` is the ego/rider latch for both
         of them and the ego-contact latch for the others. ``accel_mps2`` of the others is
         the finite difference of their speed. ``cap_state`` is set on ego rows of CAP
@@ -209,6 +227,21 @@ class SimResult:
         frames = []
         for order, part in enumerate(parts):
             frames.append(_flatten(part, nb, t, order))
+        n_x = len(self.extra_ids)
+        if n_x and self.extra_x_m is not None:
+            for j, xid in enumerate(self.extra_ids):
+                act = self.extra_active[idx, :, j]
+                part = {
+                    "config": cfg, "variant": var, "t_s": tt, "agent_id": xid,
+                    "category": self.extra_categories[j],
+                    "x_m": self.extra_x_m[idx, :, j], "y_m": self.extra_y_m[idx, :, j],
+                    "yaw_rad": self.extra_yaw_rad[idx, :, j],
+                    "speed_mps": self.extra_speed_mps[idx, :, j],
+                    "accel_mps2": self.extra_accel_mps2[idx, :, j], "active": act,
+                    "collided": self.extra_hit[idx, :, j], "cap_state": "",
+                }  # fmt: skip
+                df = _flatten(part, nb, t, 2 + n_x + j)
+                frames.append(df[act.ravel()])
         if include_others:
             for j, oid in enumerate(self.other_ids):
                 act = self.other_active[:, j]
@@ -269,4 +302,15 @@ _RECORDED = (
     ("rider_accel_mps2", "rider_a_mps2", np.float64),
     ("rider_active", "rider_active", np.bool_),
     ("collided", "collided", np.bool_),
+)
+
+#: (SimResult field, SimState field, dtype) of the extra riders' [B, T, R] series.
+_RECORDED_EXTRA = (
+    ("extra_x_m", "extra_x_m", np.float64),
+    ("extra_y_m", "extra_y_m", np.float64),
+    ("extra_yaw_rad", "extra_yaw_rad", np.float64),
+    ("extra_speed_mps", "extra_speed_mps", np.float64),
+    ("extra_accel_mps2", "extra_a_mps2", np.float64),
+    ("extra_active", "extra_active", np.bool_),
+    ("extra_hit", "extra_hit", np.bool_),
 )

@@ -11,7 +11,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -25,13 +25,19 @@ from vei.models.drivable_path import (
     build_ego_path,
     recorded_arc_length,
 )
-from vei.models.ego import PathTable, build_path, median_moving_speed_mps
+from vei.models.ego import PathTable, median_moving_speed_mps
 from vei.sim.params import (
     EGO_CAP,
     EGO_MODE_CODES,
     EGO_PID,
     EGO_REPLAY_SPEED,
     VariantParams,
+)
+from vei.sim.riders import (
+    ExtraRiders,
+    prepare_extra_riders,
+    rider_track,
+    select_extra_riders,
 )
 from vei.sim.tables import TimeTable, _uniform_track
 from vei.types import EGO_ID, Scenario
@@ -73,6 +79,8 @@ class ScenarioArrays:
         other_x_m, other_y_m, other_yaw_rad, other_speed_mps: [T, n_o] at the engine steps
             (last known values where inactive), other_active: [T, n_o] bool.
         ego_path_info: how ego_path was built (curvature bound, deviation, headings).
+        riders: the extra social-force riders (vei.sim.riders; none unless
+            ``sim.sfm_riders`` is not 'primary'); they are not among the replayed others.
     """
 
     scenario_id: str
@@ -101,6 +109,7 @@ class ScenarioArrays:
     other_speed_mps: FloatArray
     other_active: BoolArray
     ego_path_info: EgoPathInfo | None = None
+    riders: ExtraRiders = field(default_factory=ExtraRiders)
 
     @property
     def n_steps(self) -> int:
@@ -180,28 +189,16 @@ def prepare_scenario(
     ego_info = scenario.agent(EGO_ID)
 
     # Rider.
-    rider = scenario.track(rid)
     rinfo = scenario.agent(rid)
+    rider = scenario.track(rid)
     rx = rider["x_m"].to_numpy(dtype=np.float64)
     ry = rider["y_m"].to_numpy(dtype=np.float64)
-    ryaw = np.unwrap(rider["yaw_rad"].to_numpy(dtype=np.float64))
-    rt = rider["t_s"].to_numpy(dtype=np.float64)
-    if rt.size > 1:
-        vx, vy = np.gradient(rx, rt), np.gradient(ry, rt)
-    else:
-        vx = vy = np.zeros_like(rx)
-    rspeed = rider["speed_mps"].to_numpy(dtype=np.float64)
-    rspeed = np.where(np.isfinite(rspeed), rspeed, np.hypot(vx, vy))
-    arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(rx), np.diff(ry)))])
-    rdf = rider.assign(yaw_rad=ryaw, speed_mps=rspeed, vx_mps=vx, vy_mps=vy, arc_m=arc)
-    cols = ("x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps", "arc_m")
-    r0, drt, rdata = _uniform_track(rdf, cols, f"{where}: {rid}")
-    rider_path = build_path(
-        rx, ry, yaw_hint_rad=float(ryaw[0]), extend_m=50.0, where=f"{where}: {rid}"
-    )
+    r_track, rider_path = rider_track(scenario, rid, where)
+    extra_ids = select_extra_riders(scenario, rid, sim.sfm_riders, where)
 
     # Others, replayed on the engine grid.
-    others = [a for a in scenario.agents if a.agent_id not in (EGO_ID, rid) and a.agent_id in ids]
+    skip = {EGO_ID, rid, *extra_ids}
+    others = [a for a in scenario.agents if a.agent_id not in skip and a.agent_id in ids]
     no = len(others)
     ox = np.zeros((n, no))
     oy = np.zeros((n, no))
@@ -218,6 +215,8 @@ def prepare_scenario(
         sp = tr["speed_mps"].to_numpy(dtype=np.float64)
         osp[:, j] = np.where(oact[:, j], np.interp(t_s, tt, np.nan_to_num(sp)), 0.0)
 
+    rider_len = float(sim.rider_length_m or rinfo.length_m)
+    rider_wid = float(sim.rider_width_m or rinfo.width_m)
     return ScenarioArrays(
         scenario_id=scenario.id,
         dt_s=float(sim.dt_s),
@@ -231,10 +230,10 @@ def prepare_scenario(
         conflict_s_m=_conflict_arc_m(ex, ey, s_rec, rx, ry),
         rider_id=rid,
         rider_category=rinfo.category,
-        rider_track=TimeTable(r0, drt, rdata, cols),
+        rider_track=r_track,
         rider_path=rider_path,
-        rider_length_m=float(sim.rider_length_m or rinfo.length_m),
-        rider_width_m=float(sim.rider_width_m or rinfo.width_m),
+        rider_length_m=rider_len,
+        rider_width_m=rider_wid,
         other_ids=tuple(a.agent_id for a in others),
         other_categories=tuple(a.category for a in others),
         other_length_m=np.array([a.length_m for a in others], dtype=np.float64),
@@ -245,6 +244,15 @@ def prepare_scenario(
         other_speed_mps=osp,
         other_active=oact,
         ego_path_info=ego_path_info,
+        riders=prepare_extra_riders(
+            scenario,
+            extra_ids,
+            enabled=sim.sfm_riders != "primary",
+            primary_length_m=rider_len,
+            primary_width_m=rider_wid,
+            others=others,
+            where=where,
+        ),
     )
 
 
@@ -281,6 +289,11 @@ class SimState(NamedTuple):
         hit_other: [B, n_o] bool latch, ego has touched replayed other j.
         hist: perception ring buffer [4, H, B] (x, y, yaw, active) of the rider's poses;
             H = max delay steps + 1 (H = 1: no delay in the batch).
+        extra_x_m, extra_y_m, extra_yaw_rad, extra_vx_mps, extra_vy_mps,
+            extra_speed_mps, extra_a_mps2, extra_prog_m: [B, R] the extra riders
+            (vei.sim.riders; R = 0 in the one-rider engine), like the rider_* fields.
+        extra_active, extra_started, extra_done: [B, R] bool, like the rider's.
+        extra_hit: [B, R] bool latch, the ego touched extra rider j (nothing stops).
     """
 
     k: int
@@ -309,6 +322,18 @@ class SimState(NamedTuple):
     collided: BoolArray
     hit_other: BoolArray
     hist: FloatArray
+    extra_x_m: FloatArray
+    extra_y_m: FloatArray
+    extra_yaw_rad: FloatArray
+    extra_vx_mps: FloatArray
+    extra_vy_mps: FloatArray
+    extra_speed_mps: FloatArray
+    extra_a_mps2: FloatArray
+    extra_prog_m: FloatArray
+    extra_active: BoolArray
+    extra_started: BoolArray
+    extra_done: BoolArray
+    extra_hit: BoolArray
 
 
 __all__ = [

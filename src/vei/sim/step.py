@@ -12,6 +12,7 @@ from vei.models import ego as ego_model
 from vei.models import sfm as sfm_model
 from vei.models.geometry import boxes_overlap
 from vei.sim.batch import BatchFlags, Block, batch_flags
+from vei.sim.riders import initial_extra_state, pedestrian_sources, repulsion, step_extras
 from vei.sim.state import (
     EGO_CAP,
     EGO_REPLAY_SPEED,
@@ -21,6 +22,10 @@ from vei.sim.state import (
 )
 
 FloatArray = npt.NDArray[np.float64]
+_EXTRA_FIELDS = (
+    "extra_x_m", "extra_y_m", "extra_yaw_rad", "extra_vx_mps", "extra_vy_mps", "extra_speed_mps",
+    "extra_a_mps2", "extra_prog_m", "extra_active", "extra_started", "extra_done", "extra_hit",
+)  # fmt: skip
 
 # --------------------------------------------------------------------------------------
 # Initial state and step
@@ -150,6 +155,7 @@ def initial_state(
         collided=collided,
         hit_other=hit,
         hist=hist,
+        **initial_extra_state(arrays.riders, b),
     )
 
 
@@ -379,6 +385,9 @@ def _step_block(
                 arr[hits] = 0.0
     hit_other = _collide_others(arrays, k + 1, ex, ey, eyaw, st.hit_other)
 
+    extras = {}
+    if arrays.riders.n:
+        extras = step_extras(st, arrays, p, blk.rider_sfm, t_new, (ex, ey, eyaw))
     hist = st.hist
     if hist_len > 1:
         hist = hist.copy()
@@ -413,6 +422,7 @@ def _step_block(
         "collided": collided_new,
         "hit_other": hit_other,
         "hist": hist,
+        **(extras or {f: getattr(st, f) for f in _EXTRA_FIELDS}),
     }
 
 
@@ -467,6 +477,22 @@ def _social_force_update(
         else:
             use = _sub(vf, sel)
             fx, fy = fx + np.where(use, hx, 0.0), fy + np.where(use, hy, 0.0)
+    rr = arrays.riders
+    if rr.enabled:  # several riders: repulsion from the extra riders and pedestrians
+        sources = [
+            (
+                st.extra_x_m[:, m] if sel is None else st.extra_x_m[sel, m],
+                st.extra_y_m[:, m] if sel is None else st.extra_y_m[sel, m],
+                st.extra_active[:, m] if sel is None else st.extra_active[sel, m],
+                float(rr.radius_m[m]),
+            )
+            for m in range(rr.n)
+        ]
+        ps = p if sel is None else p.take(sel)
+        hx, hy = repulsion(
+            x0, y0, rr.primary_radius_m, ps, sources + pedestrian_sources(arrays, st.k)
+        )
+        fx, fy = fx + hx, fy + hy
     mass = g(p.mass_kg, sel)
     if blk.rider_limits:
         fmag = np.sqrt(fx * fx + fy * fy)
