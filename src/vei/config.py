@@ -175,15 +175,15 @@ PAPER_SFM = SFMConfig()
 #: The calibrated rider: medians of the 'all riders' population of the profile shipped with
 #: vei (src/vei/riders_trafficmonitoring.json, `vei calibrate riders` on the nine shared
 #: TrafficMonitoring scenarios: 15 rider tracks; docs/riders.md), rounded: relaxation time
-#: tau = m / k_des = 0.53 s (k_des 180 N s/m at 95 kg), look-ahead 1.31 m, acceleration
+#: tau = m / k_des = 0.53 s (k_des 180 N s/m at 95 kg), look-ahead 1.35 m, acceleration
 #: limit 5.9 m/s^2; speeds from the simulated rider's own recording (fallbacks: the
-#: population's v0 4.21 m/s and speed limit 4.72 m/s). A and b stay the paper's: the data
+#: population's v0 3.71 m/s and speed limit 4.72 m/s). A and b stay the paper's: the data
 #: hold too few close encounters to identify them (25 windows, no error reduction). The
 #: 'all riders' population is used because the e-scooter one has two tracks only.
 CALIBRATED_SFM = SFMConfig(
     k_des_nspm=180.0,
-    v0_mps=4.21,
-    lookahead_m=1.31,
+    v0_mps=3.71,
+    lookahead_m=1.35,
     max_speed_mps=4.72,
     max_accel_mps2=5.9,
     speed_from_recording=True,
