@@ -270,3 +270,28 @@ def test_everyone_present_throughout_and_a_standing_simulator_ego(tmp_path):
         assert not list(root.iter("Event"))
         init = {p.get("entityRef") for p in root.find("Storyboard/Init").iter("Private")}
         assert init == {"ego", "c1"}
+
+
+def test_entity_names_are_the_carla_backends_blueprints():
+    from vei.export.openscenario import ENTITY_NAMES
+    from vei.sim.backends.carla_frame import DEFAULT_BLUEPRINTS
+
+    assert ENTITY_NAMES == DEFAULT_BLUEPRINTS
+
+
+def test_export_does_not_import_the_simulation_layer():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, tempfile, pandas as pd\n"
+        "from vei.export.openscenario import export_openscenario\n"
+        "from vei.export.playback import play_xosc\n"
+        "from vei.types import AgentInfo\n"
+        "df = pd.DataFrame({'t_s': [0.0, 1.0], 'agent_id': 'ego', 'category': 'ego',\n"
+        "                   'x_m': [0.0, 5.0], 'y_m': 0.0, 'yaw_rad': 0.0})\n"
+        "export_openscenario(df, [AgentInfo('ego', 'ego', 4.7, 1.85)], tempfile.mkdtemp())\n"
+        "print(sorted(m for m in sys.modules if m.startswith('vei.sim')))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

@@ -54,6 +54,7 @@ import pandas as pd
 from vei.errors import ConfigError, DependencyError, InputError
 from vei.export.osc_build import (
     ENTITY_MODELS,
+    ENTITY_NAMES,
     PROP_AGENT_ID,
     PROP_CATEGORY,
     PROP_SOURCE_TRACK,
@@ -81,6 +82,7 @@ REQUIRED_COLUMNS: tuple[str, ...] = ("t_s", "agent_id", "category", "x_m", "y_m"
 __all__ = [
     "DEFAULT_OSC_VERSION",
     "ENTITY_MODELS",
+    "ENTITY_NAMES",
     "OSC_VERSIONS",
     "PROP_AGENT_ID",
     "PROP_CATEGORY",
@@ -257,13 +259,11 @@ def export_openscenario(
         creation_date: FileHeader date; None: 1970-01-01T00:00:00 (deterministic files).
         vertex_rate_hz, max_position_error_m, max_yaw_error_rad: decimation (module doc).
         blueprints: CARLA blueprint per category, written as the entity's name
-            (defaults: vei.sim.backends.carla_frame.DEFAULT_BLUEPRINTS).
+            (defaults: ``ENTITY_NAMES``, the blueprints vei's CARLA backend spawns).
 
     Returns:
         Path of the written .xosc.
     """
-    from vei.sim.backends.carla_frame import DEFAULT_BLUEPRINTS
-
     xosc = _xosc()
     minor = _minor(osc_version)
     if ego_controller not in ("trajectory", "simulator"):
@@ -273,7 +273,7 @@ def export_openscenario(
     if not name or any(c in name for c in "/\\"):
         raise ConfigError(f"name must be a plain file stem; got {name!r}")
     df = _validate(trajectories, agents)
-    bps = dict(DEFAULT_BLUEPRINTS)
+    bps = dict(ENTITY_NAMES)
     bps.update(blueprints or {})
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

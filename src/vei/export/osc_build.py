@@ -114,6 +114,18 @@ ENTITY_MODELS: dict[str, EntityModel] = {
 }
 
 
+#: Entity name per category: the CARLA blueprint ScenarioRunner spawns. The same table as
+#: ``vei.sim.backends.carla_frame.DEFAULT_BLUEPRINTS`` (a test keeps them equal), kept here
+#: so that the export does not import the simulation layer.
+ENTITY_NAMES: dict[str, str] = {
+    "ego": "vehicle.lincoln.mkz_2020",
+    "vehicle": "vehicle.tesla.model3",
+    "escooter": "vehicle.diamondback.century",
+    "cyclist": "vehicle.bh.crossbike",
+    "pedestrian": "walker.pedestrian.0001",
+}
+
+
 @dataclass(frozen=True)
 class BuildOptions:
     """What the storyboard builder needs besides the trajectories.
