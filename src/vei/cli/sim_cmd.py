@@ -27,6 +27,29 @@ _THREAT_HELP = (
     "The rider to simulate (agent id such as escooter_78, or the recording's track id 78) "
     "instead of the scenario's primary threat."
 )
+_SFM_RIDERS_HELP = (
+    "Which riders are social-force driven in the SFM configurations: 'primary' (the primary "
+    "threat only; default), 'all' (every e-scooter and cyclist of the scenario) or ID,ID "
+    "(agent ids besides the primary). The SFM riders repel each other and recorded "
+    "pedestrians; the built-in engine only (other backends drive the primary rider only)."
+)
+
+
+def _with_sfm_riders(sim, value: str | None):  # type: ignore[no-untyped-def]
+    """``sim`` (or SimConfig()) with ``sfm_riders`` from --sfm-riders (None: unchanged)."""
+    import dataclasses
+
+    from vei.config import SimConfig
+
+    if value is None:
+        return sim
+    v = value.strip()
+    riders: str | tuple[str, ...] = (
+        v if v in ("primary", "all") else tuple(r.strip() for r in v.split(",") if r.strip())
+    )
+    return dataclasses.replace(sim or SimConfig(), sfm_riders=riders)
+
+
 _CRITICAL_HELP = (
     "How to make the recording critical: 'timing' (the paper: time shift only) or "
     "'timing+path' (the smallest offset/rotation of the rider's path that lets a time "
@@ -229,6 +252,9 @@ def register(app: typer.Typer) -> None:
         make_critical: Annotated[
             str, typer.Option("--make-critical", help=_CRITICAL_HELP)
         ] = "timing",
+        sfm_riders: Annotated[
+            str | None, typer.Option("--sfm-riders", help=_SFM_RIDERS_HELP)
+        ] = None,
         backend: Annotated[str, typer.Option("--backend", help=_BACKEND_HELP)] = "builtin",
         host: Annotated[str | None, typer.Option("--host", help=_HOST_HELP)] = None,
         port: Annotated[int | None, typer.Option("--port", help=_PORT_HELP)] = None,
@@ -250,7 +276,7 @@ def register(app: typer.Typer) -> None:
             if time_shift is not None
             else (run_cfg.time_shift if run_cfg is not None else "auto")
         )
-        sim = run_cfg.sim if run_cfg is not None else None
+        sim = _with_sfm_riders(run_cfg.sim if run_cfg is not None else None, sfm_riders)
         scen = _read_scenario(scenario)
         result = run_casestudy(
             scen,
@@ -298,6 +324,9 @@ def register(app: typer.Typer) -> None:
         make_critical: Annotated[
             str, typer.Option("--make-critical", help=_CRITICAL_HELP)
         ] = "timing",
+        sfm_riders: Annotated[
+            str | None, typer.Option("--sfm-riders", help=_SFM_RIDERS_HELP)
+        ] = None,
         backend: Annotated[str, typer.Option("--backend", help=_BACKEND_HELP)] = "builtin",
         host: Annotated[str | None, typer.Option("--host", help=_HOST_HELP)] = None,
         port: Annotated[int | None, typer.Option("--port", help=_PORT_HELP)] = None,
@@ -316,6 +345,10 @@ def register(app: typer.Typer) -> None:
         scen = _read_scenario(scenario)
         runner = _backend(backend, host, port, esmini, carla_timeout)
         if compare:
+            if sfm_riders not in (None, "primary"):
+                from vei.errors import ConfigError
+
+                raise ConfigError("--compare runs the primary rider only: drop --sfm-riders")
             _casestudy_compared(
                 scen, runner, out, time_shift=time_shift, threat=threat,
                 make_critical=make_critical, figures=figures,
@@ -325,6 +358,7 @@ def register(app: typer.Typer) -> None:
             scen,
             time_shift=time_shift,
             backend=runner,
+            sim=_with_sfm_riders(None, sfm_riders),
             threat=threat,
             make_critical=make_critical,
         )

@@ -57,6 +57,10 @@ class CaseStudyResult:
         summary: one row per configuration: 'name' + every scalar metric.
         t_s: [T] step times [s]; ttc_s: [B, T] the paper's TTC per configuration.
         metrics_config: thresholds used.
+        sfm_riders: the riders the SFM configurations drive when ``sim.sfm_riders``
+            selects several (primary first; empty for the one-rider case study);
+            riders: then one row per configuration and rider
+            (vei.experiments.multi_rider.rider_table), written to riders.csv.
     """
 
     scenario: Scenario
@@ -70,6 +74,8 @@ class CaseStudyResult:
     ttc_s: np.ndarray
     metrics_config: MetricsConfig = field(default_factory=MetricsConfig)
     criticality: dict[str, Any] = field(default_factory=dict)
+    sfm_riders: tuple[str, ...] = ()
+    riders: pd.DataFrame | None = None
 
     @property
     def other_id(self) -> str:
@@ -232,6 +238,13 @@ def run_casestudy(
     if names != order:
         raise BackendError(f"backend {backend_name!r} returned runs {names}, expected {order}")
     summary = summarize(trace, mcfg, labels=names)
+    sfm_ids: tuple[str, ...] = ()
+    rider_rows = None
+    if sim.sfm_riders != "primary":
+        from vei.experiments.multi_rider import rider_table, sfm_rider_ids
+
+        sfm_ids = sfm_rider_ids(scenario, sim)
+        rider_rows = rider_table(frame, scenario, sfm_ids, shift_s)
     return CaseStudyResult(
         scenario=scenario,
         backend=str(backend_name),
@@ -244,6 +257,8 @@ def run_casestudy(
         ttc_s=paper_ttc(trace, mcfg),
         metrics_config=mcfg,
         criticality=criticality,
+        sfm_riders=sfm_ids,
+        riders=rider_rows,
     )
 
 
@@ -268,6 +283,14 @@ def summary_document(result: CaseStudyResult) -> dict[str, Any]:
         "criticality": _json_safe(result.criticality),
         "configs": configs,
         "case_configs": {c.name: config_to_dict(c) for c in result.cases},
+        **(
+            {
+                "sfm_riders": list(result.sfm_riders),
+                "riders": _json_safe(result.riders.to_dict(orient="records")),
+            }
+            if result.riders is not None
+            else {}
+        ),
     }
 
 
@@ -307,6 +330,8 @@ def write_casestudy(
         "summary_csv": write_text(out / "summary.csv", result.summary.to_csv(index=False)),
         "summary_json": write_json(out / "summary.json", summary_document(result)),
     }
+    if result.riders is not None:
+        paths["riders_csv"] = write_text(out / "riders.csv", result.riders.to_csv(index=False))
     if figures:
         from vei.report.casestudy_figures import write_casestudy_figures
 

@@ -24,6 +24,7 @@ import numpy.typing as npt
 
 from vei.errors import InputError
 from vei.models import sfm as sfm_model
+from vei.models.drivable_path import decimate_standstill, recorded_arc_length
 from vei.models.ego import PathTable, build_path
 from vei.models.geometry import boxes_overlap
 from vei.sim.tables import TimeTable, _uniform_track
@@ -41,13 +42,26 @@ EXTRA_FLOAT_FIELDS = (
 )  # fmt: skip
 EXTRA_BOOL_FIELDS = ("extra_active", "extra_started", "extra_done", "extra_hit")
 _SPAN_EPS = 1e-9
+#: Spacing [m] of the points of the SFM riders' paths in the several-rider mode
+#: (rider_track's min_step_m): more than the jitter of a waiting rider in the shared
+#: recordings (up to ~1.4 m on stadtmitte_12_audi_geradeaus_03), less than the radius of
+#: its turns.
+RIDER_PATH_STEP_M = 1.5
 
 
-def rider_track(scenario: Scenario, agent_id: str, where: str) -> tuple[TimeTable, PathTable]:
+def rider_track(
+    scenario: Scenario, agent_id: str, where: str, min_step_m: float | None = None
+) -> tuple[TimeTable, PathTable]:
     """A rider's recording as a uniform time table (RIDER_COLUMNS) and its path table.
 
     Args:
         scenario: the scenario. agent_id: the rider. where: prefix of error messages.
+        min_step_m: None = the path through every recorded position (the one-rider
+            engine); else the path through positions at least this far apart
+            (vei.models.drivable_path.decimate_standstill: a rider waiting in the
+            recording jitters by up to a metre, and a path through that jitter has loops
+            in which a social-force rider, whose progress never goes back, gets stuck),
+            and ``arc_m`` the recorded positions' monotone arc length along it.
     Returns:
         (track, path): velocities are finite differences of the positions; ``arc_m`` the
         arc length along the path; the path extends 50 m beyond both ends.
@@ -63,12 +77,23 @@ def rider_track(scenario: Scenario, agent_id: str, where: str) -> tuple[TimeTabl
         vx = vy = np.zeros_like(rx)
     sp = tr["speed_mps"].to_numpy(dtype=np.float64)
     sp = np.where(np.isfinite(sp), sp, np.hypot(vx, vy))
-    arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(rx), np.diff(ry)))])
+    if min_step_m is None:
+        arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(rx), np.diff(ry)))])
+        path = build_path(
+            rx, ry, yaw_hint_rad=float(ryaw[0]), extend_m=50.0, where=f"{where}: {agent_id}"
+        )
+    else:
+        keep = decimate_standstill(rx, ry, min_step_m)
+        path = build_path(
+            rx[keep],
+            ry[keep],
+            yaw_hint_rad=float(ryaw[0]),
+            extend_m=50.0,
+            where=f"{where}: {agent_id}",
+        )
+        arc = np.maximum(recorded_arc_length(path, rx, ry), 0.0)
     df = tr.assign(yaw_rad=ryaw, speed_mps=sp, vx_mps=vx, vy_mps=vy, arc_m=arc)
     t0, dt, data = _uniform_track(df, RIDER_COLUMNS, f"{where}: {agent_id}")
-    path = build_path(
-        rx, ry, yaw_hint_rad=float(ryaw[0]), extend_m=50.0, where=f"{where}: {agent_id}"
-    )
     return TimeTable(t0, dt, data, RIDER_COLUMNS), path
 
 
@@ -169,7 +194,7 @@ def prepare_extra_riders(
     info = {a.agent_id: a for a in scenario.agents}
     tracks, paths, med, p99 = [], [], [], []
     for rid in extra_ids:
-        tr, path = rider_track(scenario, rid, where)
+        tr, path = rider_track(scenario, rid, where, RIDER_PATH_STEP_M)
         tracks.append(tr)
         paths.append(path)
         sp = tr.data[:, tr.col("speed_mps")]

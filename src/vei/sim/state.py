@@ -34,6 +34,7 @@ from vei.sim.params import (
     VariantParams,
 )
 from vei.sim.riders import (
+    RIDER_PATH_STEP_M,
     ExtraRiders,
     prepare_extra_riders,
     rider_track,
@@ -193,7 +194,8 @@ def prepare_scenario(
     rider = scenario.track(rid)
     rx = rider["x_m"].to_numpy(dtype=np.float64)
     ry = rider["y_m"].to_numpy(dtype=np.float64)
-    r_track, rider_path = rider_track(scenario, rid, where)
+    several = sim.sfm_riders != "primary"
+    r_track, rider_path = rider_track(scenario, rid, where, RIDER_PATH_STEP_M if several else None)
     extra_ids = select_extra_riders(scenario, rid, sim.sfm_riders, where)
 
     # Others, replayed on the engine grid.
@@ -247,7 +249,7 @@ def prepare_scenario(
         riders=prepare_extra_riders(
             scenario,
             extra_ids,
-            enabled=sim.sfm_riders != "primary",
+            enabled=several,
             primary_length_m=rider_len,
             primary_width_m=rider_wid,
             others=others,

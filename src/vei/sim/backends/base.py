@@ -200,6 +200,12 @@ class ClosedLoop:
         self.sim = sim or SimConfig()
         self.time_shift_s = float(time_shift_s)
         self.arrays = prepare_scenario(scenario, self.sim)
+        if self.arrays.riders.n:
+            raise ConfigError(
+                f"this backend drives only the primary rider ({self.arrays.rider_id}) as a "
+                f"social-force rider; sfm_riders selects {', '.join(self.arrays.riders.ids)} "
+                "too: use the built-in engine (--backend builtin) or --sfm-riders primary"
+            )
         self.params = VariantParams.from_case(case, self.arrays, 1, time_shift_s=time_shift_s)
         self.flags = engine.batch_flags(self.params, self.arrays.dt_s)
         self.state = engine.initial_state(self.arrays, self.params, self.flags)
