@@ -58,7 +58,7 @@ TIME_TOL_S = 1e-6
 _LINE = re.compile(r"^\[(?P<t>[0-9.]*)\]\s*\[(?P<level>[a-z]+)\]\s*(?P<msg>.*)$")
 _COLLISION = re.compile(r"^Collision between (?P<a>.+?) and (?P<b>.+?)( dissolved)?$")
 #: Messages that come from the installation / the absence of a map, not from the file.
-_ASSET = re.compile(r"^(3D model|Traffic sign mapping file) .* not located")
+_ASSET = re.compile(r"^(3D model|scene graph file|Traffic sign mapping file) .* not located")
 _NO_MAP = re.compile(r"^No OpenDRIVE file specified")
 
 
@@ -140,15 +140,23 @@ def _cond_time(event) -> float:
 def read_file_entities(xosc: str | Path) -> dict[str, FileEntity]:
     """The entities of an OpenSCENARIO file with their trajectories and presence windows.
 
-    Positions must be WorldPositions (what vei writes). Raises InputError if unreadable.
+    Trajectory vertices are read where every position is a WorldPosition (what vei
+    writes); in other files the entities get no vertices (nothing to compare, presence
+    and log are still checked). Raises InputError if the file is not readable XML.
     """
     from defusedxml import ElementTree as SafeET
 
     from vei.export.openscenario import read_openscenario_trajectories
 
     xosc = Path(xosc)
-    back = read_openscenario_trajectories(xosc)
-    root = SafeET.parse(xosc).getroot()
+    try:
+        back = read_openscenario_trajectories(xosc)
+    except InputError:  # positions other than WorldPosition (not a vei file): no vertices
+        back = pd.DataFrame(columns=["agent_id", "kind", "t_s", "x_m", "y_m", "yaw_rad"])
+    try:
+        root = SafeET.parse(xosc).getroot()
+    except Exception as exc:  # ParseError, DefusedXmlException, OSError
+        raise InputError(f"not a readable OpenSCENARIO file: {exc}", path=xosc) from exc
     names = [o.get("name", "") for o in root.iter("ScenarioObject")]
     in_init = set()
     init = root.find("Storyboard/Init")
