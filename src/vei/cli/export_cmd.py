@@ -207,8 +207,8 @@ def register(app: typer.Typer) -> None:
             typer.Option(
                 "--esmini",
                 help="esmini folder (holding bin/esmini); default: $VEI_ESMINI, else "
-                "../shared/tools/esmini. Given and not found: exit 2; not given and not found: "
-                "the playback is skipped.",
+                "../shared/tools/esmini. Given (option or $VEI_ESMINI) and not found: exit 2; "
+                "else, not found: the playback is skipped.",
             ),
         ] = None,
         report_dir: Annotated[
@@ -254,6 +254,7 @@ def _check(
     report_dir: Path | None,
     dt_s: float = 0.05,
 ) -> int:
+    import os
     import tempfile
 
     from vei.errors import ConfigError, DependencyError, InputError
@@ -276,8 +277,6 @@ def _check(
         out.print(f"  ... and {len(errors) - 10} more", highlight=False)
     ok = not errors
     if run_qc:
-        import os
-
         from vei.export.qc import find_qc_openscenario, run_qc_openscenario
 
         try:
@@ -302,8 +301,8 @@ def _check(
             tool.require_player()
             tool.require_dat2csv()
         except DependencyError as exc:
-            if esmini is not None:
-                raise
+            if esmini is not None or os.environ.get("VEI_ESMINI"):
+                raise  # asked for explicitly: missing is an error (exit 2)
             tool = None
             out.print(f"esmini playback: skipped ({exc})", highlight=False, soft_wrap=True)
         if tool is not None:
