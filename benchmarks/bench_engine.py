@@ -26,6 +26,16 @@ Columns (one row per batch size B):
   ``sweep mem/variant`` (printed below the table): the same for one sweep chunk of 1000
   variants with full recording and all metrics (what ``vei sweep`` holds per variant).
 Targets on 2 cores: >= 1e7 agent-steps/s at B = 1e4; >= 1000x PySocialForce per agent-step.
+
+Second table, several riders (``SimConfig.sfm_riders``, vei.sim.riders): the 25 s
+synthetic crossing scene (vei.sim.testing.crossing_scenario, 500 steps) with three more
+e-scooters (two crossing the ego's lane at x = 45 and 75 m, one riding towards the first
+along y = 8); ``normal-cap``, B = ``RIDER_BATCH`` variants over time shifts. R = 1: the
+one-rider engine (``sfm_riders='primary'``, the three others replayed); R = 2: one of them
+social-force driven too; R = 4: all. Agents per variant = ego + R riders; agent-steps/s =
+B (1 + R) 500 / wall time (best of ``REPEATS``, compiled kernel, record="none"; also the
+NumPy reference at a smaller batch). Target: per agent-step, R = 4 within 2x of R = 1.
+``python -m benchmarks.bench_engine --riders`` prints only this table.
 """
 
 from __future__ import annotations
@@ -46,6 +56,9 @@ PSF_MAX_AGENTS = 2000
 TARGET_RATE = 1e7
 TARGET_RATIO = 1000.0
 AGENTS_PER_VARIANT = 2
+RIDER_BATCH = 10_000
+RIDER_BATCH_NUMPY = 1_000
+RIDER_COUNTS = (1, 2, 4)
 
 
 def _scene():
@@ -232,5 +245,87 @@ def main() -> None:
     )
 
 
+def _rider_scene():
+    """The crossing scene with three more e-scooters (see the module docstring)."""
+    from vei.sim.testing import TrackSpec, crossing_scenario
+
+    def crossing(x: float, t0: float, speed: float) -> TrackSpec:
+        t = np.arange(round(t0 * 20), round((t0 + 30.0 / speed) * 20) + 1) / 20.0
+        y = -15.0 + speed * (t - t0)
+        return TrackSpec("escooter", t, np.full_like(t, x), y, np.full_like(t, np.pi / 2),
+                         np.full_like(t, speed))  # fmt: skip
+
+    t = np.arange(40, 301) / 20.0
+    along = TrackSpec("escooter", t, 75.0 - 1.8 * (t - 2.0), np.full_like(t, 8.0),
+                      np.full_like(t, np.pi), np.full_like(t, 1.8))  # fmt: skip
+    others = [("e2", crossing(45.0, 1.0, 3.0)), ("e3", crossing(75.0, 4.0, 4.0)), ("e4", along)]
+    return crossing_scenario(others=others)
+
+
+def riders_rows(batch: int = RIDER_BATCH, batch_numpy: int = RIDER_BATCH_NUMPY) -> list[tuple]:
+    """(R, agents/variant, B, wall s, agent-steps/s, numpy agent-steps/s) for R in RIDER_COUNTS."""
+    from vei.config import SimConfig, case_preset
+    from vei.sim.engine import simulate
+    from vei.sim.state import VariantParams, prepare_scenario
+
+    scenario = _rider_scene()
+    select = {1: "primary", 2: ("e2",), 4: "all"}
+    rows = []
+    for r in RIDER_COUNTS:
+        arrays = prepare_scenario(scenario, SimConfig(sfm_riders=select[r]))
+        assert arrays.riders.n == r - 1
+        steps = arrays.n_steps - 1
+        agents = 1 + r
+
+        def params(b: int, arrays=arrays) -> VariantParams:
+            shifts = 4.9 + np.linspace(-3.0, 3.0, b)
+            return VariantParams.from_case(
+                case_preset("normal-cap"), arrays, b, time_shift_s=shifts
+            )
+
+        simulate(arrays, params(10), record="none", kernel="auto")  # compile / load
+        p = params(batch)
+        t = _best(lambda p=p, a=arrays: simulate(a, p, record="none", kernel="auto"), REPEATS)
+        pn = params(batch_numpy)
+        t_np = _best(lambda p=pn, a=arrays: simulate(a, p, record="none", kernel="numpy"), 1)
+        rows.append(
+            (r, agents, batch, t, batch * agents * steps / t, batch_numpy * agents * steps / t_np)
+        )
+    return rows
+
+
+def main_riders() -> None:
+    """Print the several-rider table with its target."""
+    from vei.sim import kernel as compiled
+
+    rows = riders_rows()
+    kernel = "numba" if compiled.available() else "numpy"
+    print(
+        f"several riders: crossing scene + 3 e-scooters, 500 steps, normal-cap, "
+        f"{os.cpu_count()} CPU(s); engine kernel 'auto' = {kernel}"
+    )
+    hdr = (
+        f"{'R':>3} {'agents':>7} {'B':>7} {'wall s':>8} {'engine ag-st/s':>15} "
+        f"{'per ag-st vs R=1':>17} {'numpy ag-st/s':>14}"
+    )
+    print(hdr)
+    print("-" * len(hdr))
+    base = rows[0][4]
+    for r, agents, b, t, rate, rate_np in rows:
+        print(
+            f"{r:>3} {agents:>7} {b:>7} {t:8.3f} {rate:15.3g} {rate / base:17.2f} "
+            f"{rate_np:14.3g} (B={RIDER_BATCH_NUMPY})"
+        )
+    worst = min(row[4] for row in rows) / base
+    print(
+        f"target: per agent-step throughput with R = 4 within 2x of R = 1 (ratio >= 0.5): "
+        f"{rows[-1][4] / base:.2f} {'MET' if worst >= 0.5 else 'MISSED'}"
+    )
+
+
 if __name__ == "__main__":
-    main()
+    import sys
+
+    if "--riders" not in sys.argv[1:]:
+        main()
+    main_riders()

@@ -487,12 +487,192 @@ def kernel(  # type: ignore[no-untyped-def]
                 r_acc = 0.0
             # ---------------- extra riders (state at step k; ego contact at k + 1)
             if R > 0:
-                xstep(
-                    k, t_new, dt, sfm, R, xs, xb, nxs, nxb, xv0, xvmax,
-                    xtab, xt0, xdt, xtend, xnr, xpath, xps0, xpds, xpn, xplen, xpex, xpey,
-                    xL, xW, xrad, prad, use_rf, a_rr, b_rr, ped_idx, ped_rad, oX, oY, oACT,
-                    rx, ry, r_act, ex, ey, eyaw, ex_n, ey_n, eyaw_n, Le, We, P, b,
-                )  # fmt: skip
+                # (inlined: a call of a separate compiled function with ~40
+                # arguments per variant and step cost 4x the one-rider step)
+                for j in range(R):
+                    for f in range(8):
+                        nxs[f, j] = xs[f, j]
+                    for f in range(4):
+                        nxb[f, j] = xb[f, j]
+                    n_j = xnr[j]
+                    in_span = t_new >= xt0[j] - 1e-9 and t_new <= xtend[j] + 1e-9
+                    if not sfm:
+                        if in_span:
+                            i, w = idx(xt0[j], xdt[j], n_j, t_new)
+                            nxs[0, j] = xtab[j, 0, i] + w * xtab[j, 7, i]
+                            nxs[1, j] = xtab[j, 1, i] + w * xtab[j, 8, i]
+                            nxs[2, j] = xtab[j, 2, i] + w * xtab[j, 9, i]
+                            nxs[5, j] = xtab[j, 3, i] + w * xtab[j, 10, i]
+                            nxs[3, j] = xtab[j, 4, i] + w * xtab[j, 11, i]
+                            nxs[4, j] = xtab[j, 5, i] + w * xtab[j, 12, i]
+                        else:
+                            j0 = 0 if t_new < xt0[j] else n_j - 1
+                            nxs[0, j] = xtab[j, 0, j0]
+                            nxs[1, j] = xtab[j, 1, j0]
+                            nxs[2, j] = xtab[j, 2, j0]
+                            nxs[3, j] = 0.0
+                            nxs[4, j] = 0.0
+                            nxs[5, j] = 0.0
+                        nxb[0, j] = in_span
+                        if xb[1, j] and not in_span:
+                            nxb[2, j] = True
+                        nxb[1, j] = xb[1, j] or in_span
+                    else:
+                        if xb[0, j]:
+                            x0, y0, vx0, vy0, prog0 = (
+                                xs[0, j],
+                                xs[1, j],
+                                xs[3, j],
+                                xs[4, j],
+                                xs[7, j],
+                            )
+                            xn_p = xpn[j]
+                            i, w = idx(xps0[j], xpds[j], xn_p, prog0)
+                            qx = xpath[j, 0, i] + w * xpath[j, 5, i]
+                            qy = xpath[j, 1, i] + w * xpath[j, 6, i]
+                            qc = xpath[j, 3, i] + w * xpath[j, 8, i]
+                            qs = xpath[j, 4, i] + w * xpath[j, 9, i]
+                            pr = max(prog0 + (x0 - qx) * qc + (y0 - qy) * qs, prog0)
+                            i, w = idx(xps0[j], xpds[j], xn_p, min(pr + P[P_LOOK, b], xplen[j]))
+                            gx = xpath[j, 0, i] + w * xpath[j, 5, i]
+                            gy = xpath[j, 1, i] + w * xpath[j, 6, i]
+                            dx, dy = gx - x0, gy - y0
+                            q = dx * dx + dy * dy + P[P_SIGMA, b] ** 2
+                            den = q if P[P_PAPERV, b] > 0.5 else math.sqrt(q)
+                            f = xv0[j] / den
+                            kd_ = P[P_KDES, b]
+                            fx = kd_ * (f * dx - vx0)
+                            fy = kd_ * (f * dy - vy0)
+                            if P[P_USEVF, b] > 0.5:
+                                c, sn = math.cos(eyaw), math.sin(eyaw)
+                                hl, hw = 0.5 * Le, 0.5 * We
+                                if P[P_FRONTB, b] > 0.5:
+                                    bx = ex + hl * c
+                                    by = ey + hl * sn
+                                else:
+                                    ddx, ddy = x0 - ex, y0 - ey
+                                    lx = min(max(ddx * c + ddy * sn, -hl), hl)
+                                    ly = min(max(-ddx * sn + ddy * c, -hw), hw)
+                                    bx = ex + lx * c - ly * sn
+                                    by = ey + lx * sn + ly * c
+                                dx2, dy2 = x0 - bx, y0 - by
+                                d = math.sqrt(dx2 * dx2 + dy2 * dy2)
+                                mag = P[P_AVEH, b] * math.exp(-P[P_BVEH, b] * d)
+                                if d < 1e-9:
+                                    e2x, e2y = x0 - ex, y0 - ey
+                                    de = math.sqrt(e2x * e2x + e2y * e2y)
+                                    if de > 1e-9:
+                                        nx_, ny_ = e2x / de, e2y / de
+                                    else:
+                                        nx_, ny_ = c, sn
+                                else:
+                                    nx_, ny_ = dx2 / d, dy2 / d
+                                fx = fx + mag * nx_
+                                fy = fy + mag * ny_
+                            if use_rf:
+                                sx = 0.0
+                                sy = 0.0
+                                if r_act:
+                                    hx_, hy_ = rforce(x0, y0, rx, ry, xrad[j] + prad, a_rr, b_rr)
+                                    sx += hx_
+                                    sy += hy_
+                                for mm in range(R):
+                                    if mm != j and xb[0, mm]:
+                                        hx_, hy_ = rforce(
+                                            x0,
+                                            y0,
+                                            xs[0, mm],
+                                            xs[1, mm],
+                                            xrad[j] + xrad[mm],
+                                            a_rr,
+                                            b_rr,
+                                        )
+                                        sx += hx_
+                                        sy += hy_
+                                for qq in range(ped_idx.shape[0]):
+                                    jj = ped_idx[qq]
+                                    if oACT[k, jj]:
+                                        hx_, hy_ = rforce(
+                                            x0,
+                                            y0,
+                                            oX[k, jj],
+                                            oY[k, jj],
+                                            xrad[j] + ped_rad[qq],
+                                            a_rr,
+                                            b_rr,
+                                        )
+                                        sx += hx_
+                                        sy += hy_
+                                fx = fx + sx
+                                fy = fy + sy
+                            m = P[P_MASS, b]
+                            fmag = math.sqrt(fx * fx + fy * fy)
+                            fmax = P[P_AMAX_R, b] * m
+                            if fmag > fmax:
+                                sc = fmax / fmag if fmag > 0 else 1.0
+                                fx, fy = fx * sc, fy * sc
+                            inv_m = 1.0 / m
+                            vx2 = vx0 + fx * inv_m * dt
+                            vy2 = vy0 + fy * inv_m * dt
+                            x2 = x0 + vx2 * dt
+                            y2 = y0 + vy2 * dt
+                            sp2 = math.sqrt(vx2 * vx2 + vy2 * vy2)
+                            vmax = xvmax[j]
+                            if sp2 > vmax:
+                                sc = vmax / sp2 if sp2 > 0 else 1.0
+                                vx2, vy2, sp2 = vx2 * sc, vy2 * sc, sp2 * sc
+                                x2, y2 = x0 + vx2 * dt, y0 + vy2 * dt
+                            yaw2 = math.atan2(vy2, vx2) if sp2 > 0.05 else xs[2, j]
+                            arrived = (x2 - xpex[j]) ** 2 + (y2 - xpey[j]) ** 2 <= P[
+                                P_ARRIVE, b
+                            ] ** 2
+                            leaving = arrived and t_new > xtend[j] + 1e-9
+                            nxs[0, j] = x2
+                            nxs[1, j] = y2
+                            nxs[2, j] = yaw2
+                            if leaving:
+                                nxs[3, j] = 0.0
+                                nxs[4, j] = 0.0
+                                nxs[5, j] = 0.0
+                                nxb[2, j] = True
+                            else:
+                                nxs[3, j] = vx2
+                                nxs[4, j] = vy2
+                                nxs[5, j] = sp2
+                            nxs[7, j] = pr
+                            nxb[0, j] = not leaving
+                        if in_span and not xb[1, j]:
+                            i, w = idx(xt0[j], xdt[j], n_j, t_new)
+                            nxs[0, j] = xtab[j, 0, i] + w * xtab[j, 7, i]
+                            nxs[1, j] = xtab[j, 1, i] + w * xtab[j, 8, i]
+                            nxs[2, j] = xtab[j, 2, i] + w * xtab[j, 9, i]
+                            nxs[5, j] = xtab[j, 3, i] + w * xtab[j, 10, i]
+                            nxs[3, j] = xtab[j, 4, i] + w * xtab[j, 11, i]
+                            nxs[4, j] = xtab[j, 5, i] + w * xtab[j, 12, i]
+                            nxs[7, j] = xtab[j, 6, i] + w * xtab[j, 13, i]
+                            nxb[0, j] = True
+                            nxb[1, j] = True
+                    if nxb[0, j] and xb[0, j]:
+                        nxs[6, j] = (nxs[5, j] - xs[5, j]) / dt
+                    else:
+                        nxs[6, j] = 0.0
+                    if nxb[0, j] and not xb[3, j]:
+                        ddx, ddy = nxs[0, j] - ex_n, nxs[1, j] - ey_n
+                        rr = 0.5 * (math.hypot(Le, We) + math.hypot(xL[j], xW[j]))
+                        if ddx * ddx + ddy * ddy <= rr * rr:
+                            if sat(
+                                ex_n,
+                                ey_n,
+                                eyaw_n,
+                                Le,
+                                We,
+                                nxs[0, j],
+                                nxs[1, j],
+                                nxs[2, j],
+                                xL[j],
+                                xW[j],
+                            ):
+                                nxb[3, j] = True
                 for j in range(R):
                     for f in range(8):
                         xs[f, j] = nxs[f, j]
@@ -614,167 +794,3 @@ def kernel(  # type: ignore[no-untyped-def]
                 XFS[f, b, j] = xs[f, j]
             for f in range(4):
                 XFB[f, b, j] = 1 if xb[f, j] else 0
-
-
-@numba.njit(cache=True)
-def xstep(  # type: ignore[no-untyped-def]
-    k, t_new, dt, sfm, R, xs, xb, nxs, nxb, xv0, xvmax,
-    xtab, xt0, xdt, xtend, xnr, xpath, xps0, xpds, xpn, xplen, xpex, xpey,
-    xL, xW, xrad, prad, use_rf, a_rr, b_rr, ped_idx, ped_rad, oX, oY, oACT,
-    rx, ry, r_act, ex, ey, eyaw, ex_n, ey_n, eyaw_n, Le, We, P, b,
-):  # fmt: skip
-    """One step of the extra riders of variant b (vei.sim.riders.step_extras): xs / xb
-    (rows x y yaw vx vy speed accel prog / active started done hit) at step k -> nxs / nxb."""
-    for j in range(R):
-        for f in range(8):
-            nxs[f, j] = xs[f, j]
-        for f in range(4):
-            nxb[f, j] = xb[f, j]
-        n_j = xnr[j]
-        in_span = t_new >= xt0[j] - 1e-9 and t_new <= xtend[j] + 1e-9
-        if not sfm:
-            if in_span:
-                i, w = idx(xt0[j], xdt[j], n_j, t_new)
-                nxs[0, j] = xtab[j, 0, i] + w * xtab[j, 7, i]
-                nxs[1, j] = xtab[j, 1, i] + w * xtab[j, 8, i]
-                nxs[2, j] = xtab[j, 2, i] + w * xtab[j, 9, i]
-                nxs[5, j] = xtab[j, 3, i] + w * xtab[j, 10, i]
-                nxs[3, j] = xtab[j, 4, i] + w * xtab[j, 11, i]
-                nxs[4, j] = xtab[j, 5, i] + w * xtab[j, 12, i]
-            else:
-                j0 = 0 if t_new < xt0[j] else n_j - 1
-                nxs[0, j] = xtab[j, 0, j0]
-                nxs[1, j] = xtab[j, 1, j0]
-                nxs[2, j] = xtab[j, 2, j0]
-                nxs[3, j] = 0.0
-                nxs[4, j] = 0.0
-                nxs[5, j] = 0.0
-            nxb[0, j] = in_span
-            if xb[1, j] and not in_span:
-                nxb[2, j] = True
-            nxb[1, j] = xb[1, j] or in_span
-        else:
-            if xb[0, j]:
-                x0, y0, vx0, vy0, prog0 = xs[0, j], xs[1, j], xs[3, j], xs[4, j], xs[7, j]
-                n_p = xpn[j]
-                i, w = idx(xps0[j], xpds[j], n_p, prog0)
-                qx = xpath[j, 0, i] + w * xpath[j, 5, i]
-                qy = xpath[j, 1, i] + w * xpath[j, 6, i]
-                qc = xpath[j, 3, i] + w * xpath[j, 8, i]
-                qs = xpath[j, 4, i] + w * xpath[j, 9, i]
-                pr = max(prog0 + (x0 - qx) * qc + (y0 - qy) * qs, prog0)
-                i, w = idx(xps0[j], xpds[j], n_p, min(pr + P[P_LOOK, b], xplen[j]))
-                gx = xpath[j, 0, i] + w * xpath[j, 5, i]
-                gy = xpath[j, 1, i] + w * xpath[j, 6, i]
-                dx, dy = gx - x0, gy - y0
-                q = dx * dx + dy * dy + P[P_SIGMA, b] ** 2
-                den = q if P[P_PAPERV, b] > 0.5 else math.sqrt(q)
-                f = xv0[j] / den
-                kd_ = P[P_KDES, b]
-                fx = kd_ * (f * dx - vx0)
-                fy = kd_ * (f * dy - vy0)
-                if P[P_USEVF, b] > 0.5:
-                    c, sn = math.cos(eyaw), math.sin(eyaw)
-                    hl, hw = 0.5 * Le, 0.5 * We
-                    if P[P_FRONTB, b] > 0.5:
-                        bx = ex + hl * c
-                        by = ey + hl * sn
-                    else:
-                        ddx, ddy = x0 - ex, y0 - ey
-                        lx = min(max(ddx * c + ddy * sn, -hl), hl)
-                        ly = min(max(-ddx * sn + ddy * c, -hw), hw)
-                        bx = ex + lx * c - ly * sn
-                        by = ey + lx * sn + ly * c
-                    dx2, dy2 = x0 - bx, y0 - by
-                    d = math.sqrt(dx2 * dx2 + dy2 * dy2)
-                    mag = P[P_AVEH, b] * math.exp(-P[P_BVEH, b] * d)
-                    if d < 1e-9:
-                        e2x, e2y = x0 - ex, y0 - ey
-                        de = math.sqrt(e2x * e2x + e2y * e2y)
-                        if de > 1e-9:
-                            nx_, ny_ = e2x / de, e2y / de
-                        else:
-                            nx_, ny_ = c, sn
-                    else:
-                        nx_, ny_ = dx2 / d, dy2 / d
-                    fx = fx + mag * nx_
-                    fy = fy + mag * ny_
-                if use_rf:
-                    sx = 0.0
-                    sy = 0.0
-                    if r_act:
-                        hx_, hy_ = rforce(x0, y0, rx, ry, xrad[j] + prad, a_rr, b_rr)
-                        sx += hx_
-                        sy += hy_
-                    for mm in range(R):
-                        if mm != j and xb[0, mm]:
-                            hx_, hy_ = rforce(
-                                x0, y0, xs[0, mm], xs[1, mm], xrad[j] + xrad[mm], a_rr, b_rr
-                            )
-                            sx += hx_
-                            sy += hy_
-                    for qq in range(ped_idx.shape[0]):
-                        jj = ped_idx[qq]
-                        if oACT[k, jj]:
-                            hx_, hy_ = rforce(
-                                x0, y0, oX[k, jj], oY[k, jj], xrad[j] + ped_rad[qq], a_rr, b_rr
-                            )
-                            sx += hx_
-                            sy += hy_
-                    fx = fx + sx
-                    fy = fy + sy
-                m = P[P_MASS, b]
-                fmag = math.sqrt(fx * fx + fy * fy)
-                fmax = P[P_AMAX_R, b] * m
-                if fmag > fmax:
-                    sc = fmax / fmag if fmag > 0 else 1.0
-                    fx, fy = fx * sc, fy * sc
-                inv_m = 1.0 / m
-                vx2 = vx0 + fx * inv_m * dt
-                vy2 = vy0 + fy * inv_m * dt
-                x2 = x0 + vx2 * dt
-                y2 = y0 + vy2 * dt
-                sp2 = math.sqrt(vx2 * vx2 + vy2 * vy2)
-                vmax = xvmax[j]
-                if sp2 > vmax:
-                    sc = vmax / sp2 if sp2 > 0 else 1.0
-                    vx2, vy2, sp2 = vx2 * sc, vy2 * sc, sp2 * sc
-                    x2, y2 = x0 + vx2 * dt, y0 + vy2 * dt
-                yaw2 = math.atan2(vy2, vx2) if sp2 > 0.05 else xs[2, j]
-                arrived = (x2 - xpex[j]) ** 2 + (y2 - xpey[j]) ** 2 <= P[P_ARRIVE, b] ** 2
-                leaving = arrived and t_new > xtend[j] + 1e-9
-                nxs[0, j] = x2
-                nxs[1, j] = y2
-                nxs[2, j] = yaw2
-                if leaving:
-                    nxs[3, j] = 0.0
-                    nxs[4, j] = 0.0
-                    nxs[5, j] = 0.0
-                    nxb[2, j] = True
-                else:
-                    nxs[3, j] = vx2
-                    nxs[4, j] = vy2
-                    nxs[5, j] = sp2
-                nxs[7, j] = pr
-                nxb[0, j] = not leaving
-            if in_span and not xb[1, j]:
-                i, w = idx(xt0[j], xdt[j], n_j, t_new)
-                nxs[0, j] = xtab[j, 0, i] + w * xtab[j, 7, i]
-                nxs[1, j] = xtab[j, 1, i] + w * xtab[j, 8, i]
-                nxs[2, j] = xtab[j, 2, i] + w * xtab[j, 9, i]
-                nxs[5, j] = xtab[j, 3, i] + w * xtab[j, 10, i]
-                nxs[3, j] = xtab[j, 4, i] + w * xtab[j, 11, i]
-                nxs[4, j] = xtab[j, 5, i] + w * xtab[j, 12, i]
-                nxs[7, j] = xtab[j, 6, i] + w * xtab[j, 13, i]
-                nxb[0, j] = True
-                nxb[1, j] = True
-        if nxb[0, j] and xb[0, j]:
-            nxs[6, j] = (nxs[5, j] - xs[5, j]) / dt
-        else:
-            nxs[6, j] = 0.0
-        if nxb[0, j] and not xb[3, j]:
-            ddx, ddy = nxs[0, j] - ex_n, nxs[1, j] - ey_n
-            rr = 0.5 * (math.hypot(Le, We) + math.hypot(xL[j], xW[j]))
-            if ddx * ddx + ddy * ddy <= rr * rr:
-                if sat(ex_n, ey_n, eyaw_n, Le, We, nxs[0, j], nxs[1, j], nxs[2, j], xL[j], xW[j]):
-                    nxb[3, j] = True
