@@ -278,3 +278,37 @@ def test_settings_file(tmp_path):
     )
     with pytest.raises(ConfigError):
         load_catalogue_config(p)
+
+
+def test_a_failing_encounter_is_reported_and_retried(tmp_path, trafficmonitoring_root, monkeypatch):
+    import vei.experiments.casestudy as casestudy
+
+    real = casestudy.run_casestudy
+
+    def flaky(scenario, **kw):
+        if scenario.primary_threat == "cyclist_12":
+            raise RuntimeError("\x1b[1minjected\x1b[0m\nmore")
+        return real(scenario, **kw)
+
+    monkeypatch.setattr(casestudy, "run_casestudy", flaky)
+    out = tmp_path / "cat"
+    args = dict(recordings=["stadtmitte_12_audi_geradeaus_03"], progress=False)
+    first = run_catalogue(trafficmonitoring_root, out, small_config(sweep=None), **args)
+    assert not first.complete
+    assert first.failed_encounters == [
+        {
+            "encounter_id": "stadtmitte_12_audi_geradeaus_03__cyclist_12",
+            "reason": first.failed_encounters[0]["reason"],
+        }
+    ]
+    assert first.failed_encounters[0]["reason"].startswith(
+        "internal error RuntimeError: injected at "
+    )
+    assert set(first.rows["rider_id"]) == {"cyclist_60"}  # the other encounter is in
+    monkeypatch.setattr(casestudy, "run_casestudy", real)
+    second = run_catalogue(trafficmonitoring_root, out, small_config(sweep=None), **args)
+    assert second.complete and second.n_done_before == 1
+    assert set(second.rows["rider_id"]) == {"cyclist_60", "cyclist_12"}
+    assert not (
+        encounter_dir(out, "stadtmitte_12_audi_geradeaus_03__cyclist_12") / "failed.json"
+    ).exists()

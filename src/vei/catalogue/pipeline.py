@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import re
 import shutil
 import traceback
 from pathlib import Path
@@ -61,13 +62,18 @@ def list_recordings(dataset: str | Path) -> tuple[str, list[str]]:
     return KIND_INTERACTIONS, subs
 
 
+_ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
+
+
 def _reason(exc: BaseException) -> str:
-    """One line saying why a job failed (a user error's own message; else the bug's type)."""
+    """Why a job failed: a user error's own message; else 'internal error' with the
+    exception's type, its message's first line and where it was raised."""
     if isinstance(exc, VeiError):
         return str(exc)
     last = traceback.extract_tb(exc.__traceback__)[-1:] if exc.__traceback__ else []
     where = f" at {Path(last[0].filename).name}:{last[0].lineno}" if last else ""
-    return f"internal error {type(exc).__name__}: {exc}{where}"
+    text = _ANSI.sub("", str(exc)).strip().splitlines()
+    return f"internal error {type(exc).__name__}: {text[0] if text else ''}{where}"
 
 
 def process_recording(
