@@ -34,6 +34,10 @@ Order of one step k -> k + 1 (t = k dt):
      projection of its position, never decreasing), the final point near the end; it
      leaves (inactive) once within ``arrive_radius_m`` of the final point and the
      recording's span is over.
+  3b. Extra riders (``SimConfig.sfm_riders``, vei.sim.riders): the same social force on
+     each from the state at step k, plus the repulsion between all SFM riders and from
+     recorded pedestrians (which acts on the primary too in this mode); replayed in replay
+     variants; ego contacts latched in ``extra_hit``.
   4. Collision of the new poses: ego box vs rider box (if active). On collision both stop
      (speed 0, frozen pose) and stay so to the end; recording continues. Ego vs replayed
      others: recorded (``hit_other``) but nothing stops.
