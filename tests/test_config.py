@@ -9,6 +9,7 @@ import pytest
 from vei.config import (
     CASE_PRESETS,
     PAPER_CASES,
+    SFM_PRESETS,
     CAPConfig,
     CaseConfig,
     EgoConfig,
@@ -37,8 +38,20 @@ def test_presets_of_the_five_configurations() -> None:
     assert CASE_PRESETS["replay"].rider == "replay" and CASE_PRESETS["replay"].ego_mode == "pid"
     agg = CASE_PRESETS["aggressive-cap"]
     assert agg.rider == "sfm" and agg.ego_mode == "cap"
-    assert agg.sfm.use_vehicle_force is False and agg.sfm.k_des_effective_nspm == 200.0
+    # The default rider is the calibrated one (issue 11): k_des 180 N s/m, x 2 aggressive.
+    assert agg.sfm.use_vehicle_force is False and agg.sfm.k_des_effective_nspm == 360.0
+    assert agg.sfm.speed_from_recording is True
+    assert CASE_PRESETS["normal"].sfm is SFM_PRESETS["calibrated"]
     assert CASE_PRESETS["normal"].sfm.use_vehicle_force is True
+    # The paper's rider stays available as presets.
+    for name in ("normal", "aggressive", "normal-cap", "aggressive-cap"):
+        paper = CASE_PRESETS[f"paper-{name}"]
+        cal = CASE_PRESETS[name]
+        assert (paper.name, paper.rider, paper.ego_mode) == (f"paper-{name}", "sfm", cal.ego_mode)
+        assert paper.sfm.v0_mps == 5.0 and paper.sfm.speed_from_recording is False
+        assert paper.sfm.use_vehicle_force is cal.sfm.use_vehicle_force
+    assert CASE_PRESETS["paper-aggressive-cap"].sfm.k_des_effective_nspm == 200.0
+    assert CASE_PRESETS["paper-normal"].sfm == SFMConfig()
     assert CASE_PRESETS["replay-speed"].ego_mode == "replay-speed"
     assert case_preset("normal-cap", name="x").name == "x"
     with pytest.raises(ConfigError):
@@ -103,3 +116,34 @@ def test_json_round_trip(tmp_path) -> None:
     assert load_config({"case": "normal"}, RunConfig).time_shift == "auto"
     with pytest.raises(ConfigError):
         RunConfig(case=case_preset("normal"), time_shift="later")
+
+
+def test_run_config_selects_the_papers_rider(tmp_path) -> None:
+    # The documented syntax (docs/riders.md): the default 'normal' rider is the calibrated
+    # one; `sfm: paper` (or `sfm: {preset: paper}`) in the case section gives the paper's.
+    f = tmp_path / "run.yaml"
+    f.write_text("case:\n  preset: normal-cap\n  sfm: paper\ntime_shift: auto\n")
+    run = load_config(f, RunConfig)
+    assert run.case.ego_mode == "cap" and run.case.sfm == SFMConfig()
+    run = load_config(
+        {"case": {"preset": "aggressive", "sfm": {"preset": "paper-aggressive"}}}, RunConfig
+    )
+    assert run.case.sfm.k_des_effective_nspm == 200.0 and not run.case.sfm.use_vehicle_force
+    default = load_config({"case": "normal"}, RunConfig)
+    assert default.case.sfm.speed_from_recording is True and default.case.sfm.k_des_nspm == 180.0
+
+
+def test_a_speed_over_the_recorded_speed_rider_is_refused_unless_said(tmp_path) -> None:
+    f = tmp_path / "run.yaml"
+    f.write_text("case:\n  preset: normal\n  sfm:\n    v0_mps: 4.0\n")
+    with pytest.raises(ConfigError, match=r"run\.yaml.*v0_mps would be ignored"):
+        load_config(f, RunConfig)
+    with pytest.raises(ConfigError, match="max_speed_mps would be ignored"):
+        load_config({"preset": "calibrated", "max_speed_mps": 3.0}, SFMConfig)
+    own = load_config(
+        {"case": {"preset": "normal", "sfm": {"v0_mps": 4.0, "speed_from_recording": False}}},
+        RunConfig,
+    )
+    assert own.case.sfm.v0_mps == 4.0 and own.case.sfm.speed_from_recording is False
+    paper = load_config({"preset": "paper", "v0_mps": 4.0}, SFMConfig)  # no recorded speeds
+    assert paper.v0_mps == 4.0 and paper.k_des_nspm == 100.0

@@ -189,9 +189,16 @@ CALIBRATED_SFM = SFMConfig(
     speed_from_recording=True,
 )
 
+#: Named riders. 'normal' / 'aggressive' are the riders of the case-study configurations
+#: (CASE_PRESETS normal, aggressive, normal-cap, aggressive-cap): the calibrated rider and
+#: its aggressive variant (f_veh off, k_des x 2), as issue 11 asks. The paper's riders stay
+#: as 'paper' / 'paper-aggressive' (case presets paper-normal, ..., paper-aggressive-cap;
+#: in a configuration file ``sfm: paper``). Note that SFMConfig() itself is the paper's rider.
 SFM_PRESETS: dict[str, SFMConfig] = {
-    "normal": SFMConfig(),
-    "aggressive": SFMConfig(use_vehicle_force=False, k_des_factor=AGGRESSIVE_K_DES_FACTOR),
+    "normal": CALIBRATED_SFM,
+    "aggressive": replace(
+        CALIBRATED_SFM, use_vehicle_force=False, k_des_factor=AGGRESSIVE_K_DES_FACTOR
+    ),
     "paper": PAPER_SFM,
     "paper-aggressive": replace(
         PAPER_SFM, use_vehicle_force=False, k_des_factor=AGGRESSIVE_K_DES_FACTOR
@@ -495,6 +502,22 @@ CASE_PRESETS: dict[str, CaseConfig] = {
     ),
     # Extra (not one of the paper's five): ego replays its recorded speed profile.
     "replay-speed": CaseConfig(name="replay-speed", rider="replay", ego_mode="replay-speed"),
+    # The four SFM configurations with the paper's rider (k_des 100 N s/m, v0 5 m/s, ...).
+    "paper-normal": CaseConfig(
+        name="paper-normal", rider="sfm", sfm=SFM_PRESETS["paper"], ego_mode="pid"
+    ),
+    "paper-aggressive": CaseConfig(
+        name="paper-aggressive", rider="sfm", sfm=SFM_PRESETS["paper-aggressive"], ego_mode="pid"
+    ),
+    "paper-normal-cap": CaseConfig(
+        name="paper-normal-cap", rider="sfm", sfm=SFM_PRESETS["paper"], ego_mode="cap"
+    ),
+    "paper-aggressive-cap": CaseConfig(
+        name="paper-aggressive-cap",
+        rider="sfm",
+        sfm=SFM_PRESETS["paper-aggressive"],
+        ego_mode="cap",
+    ),
 }
 
 
@@ -607,6 +630,7 @@ def _build(cls: type[T], raw: Any, where: str) -> T:
                 f"{where}: unknown preset {name!r} for {cls.__name__}; expected one of {', '.join(presets)}"
             )
         base = presets[name]
+        _check_speed_override(base, raw, where)
     known = {f.name: f for f in fields(cls)}  # type: ignore[arg-type]
     unknown = sorted(set(raw) - set(known))
     if unknown:
@@ -665,8 +689,24 @@ def _build(cls: type[T], raw: Any, where: str) -> T:
         raise ConfigError(f"{where}: {exc}") from None
 
 
+def _check_speed_override(base_obj: Any, overrides: Mapping[str, Any], where: str) -> None:
+    """A speed given over a rider that takes its speeds from the recording would be ignored
+    silently (the calibrated default rider): refuse it unless speed_from_recording is said."""
+    if not isinstance(base_obj, SFMConfig) or not base_obj.speed_from_recording:
+        return
+    given = sorted({"v0_mps", "max_speed_mps"} & set(overrides))
+    if given and "speed_from_recording" not in overrides:
+        raise ConfigError(
+            f"{where}: {', '.join(given)} would be ignored: this rider takes its speeds from "
+            "the recording (speed_from_recording: true, the calibrated default); add "
+            "'speed_from_recording: false' to use the given speed, 'true' to keep it as the "
+            "fallback of a rider that never moves, or start from 'preset: paper'"
+        )
+
+
 def _override(base_obj: Any, overrides: Mapping[str, Any], where: str) -> Any:
     cls = type(base_obj)
+    _check_speed_override(base_obj, overrides, where)
     known = {f.name for f in fields(cls)}
     unknown = sorted(set(overrides) - known)
     if unknown:
