@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from vei.config import CALIBRATED_SFM, SimConfig, case_preset
+from vei.config import CALIBRATED_SFM, PAPER_SFM, SimConfig, case_preset
 from vei.errors import ConfigError, InputError
 from vei.models.sfm import rider_force
 from vei.sim.engine import _RECORDED, simulate, step
@@ -19,6 +19,9 @@ from vei.sim.testing import TrackSpec, crossing_scenario, ego_straight, make_sce
 from vei.types import EGO_ID
 
 ALL = SimConfig(sfm_riders="all")
+#: The paper's Normal rider (k_des 100 N s/m, v0 5 m/s, no limits) with a PID ego, whatever
+#: the 'normal' preset's rider is.
+PAPER_NORMAL = dataclasses.replace(case_preset("normal"), sfm=PAPER_SFM)
 
 
 def _line(category: str, t0: float, t1: float, x0: float, x1: float, y: float) -> TrackSpec:
@@ -74,7 +77,7 @@ def test_one_step_acceleration_equals_hand_force() -> None:
     )
     arrays = prepare_scenario(sc, ALL)
     assert arrays.riders.ids == ("r2",)
-    p = VariantParams.from_case(case_preset("normal"), arrays, 1, v0_mps=0.0)
+    p = VariantParams.from_case(PAPER_NORMAL, arrays, 1, v0_mps=0.0)
     st1 = step(initial_state(arrays, p), p, arrays)
     dv = 1000.0 * math.exp(-2.0 * 0.8) / 95.0 * 0.05  # 0.10626 m/s
     assert st1.rider_vx_mps[0] == pytest.approx(-dv, rel=1e-9)
@@ -82,7 +85,7 @@ def test_one_step_acceleration_equals_hand_force() -> None:
     assert st1.rider_vy_mps[0] == pytest.approx(0.0, abs=1e-12)
     # 'primary' (the default): no repulsion, the riders stay at rest.
     arrays1 = prepare_scenario(sc)
-    p1 = VariantParams.from_case(case_preset("normal"), arrays1, 1, v0_mps=0.0)
+    p1 = VariantParams.from_case(PAPER_NORMAL, arrays1, 1, v0_mps=0.0)
     assert abs(step(initial_state(arrays1, p1), p1, arrays1).rider_vx_mps[0]) < 1e-90
 
 
@@ -91,7 +94,7 @@ def test_head_on_riders_repel_and_pass_through_without_force(kernel: str) -> Non
     if kernel == "numba":
         pytest.importorskip("numba")
     arrays = prepare_scenario(_head_on(), ALL)
-    on = VariantParams.from_case(case_preset("normal"), arrays, 1)
+    on = VariantParams.from_case(PAPER_NORMAL, arrays, 1)
     off = on.with_values(use_rider_force=False)
     r = simulate(arrays, VariantParams.concat([on, off]), kernel=kernel)
     gap = r.extra_x_m[:, :, 0] - r.rider_x_m  # r2 - r1 along the line
@@ -151,7 +154,7 @@ def test_pedestrian_repels_rider(speed_mps: float, calibrated: bool) -> None:
     arrays = prepare_scenario(sc, SimConfig(sfm_riders=["r1"]))
     assert arrays.riders.ids == () and arrays.riders.enabled
     assert list(arrays.riders.ped_idx) == [0] and arrays.other_ids == ("p1",)
-    case = case_preset("normal")
+    case = PAPER_NORMAL
     if calibrated:
         case = dataclasses.replace(case, sfm=CALIBRATED_SFM)
     on = VariantParams.from_case(case, arrays, 1)

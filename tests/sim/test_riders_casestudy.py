@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import json
 
@@ -11,7 +12,7 @@ import pandas as pd
 import pytest
 
 from vei.cli.main import main
-from vei.config import PAPER_CASES, SimConfig, case_preset
+from vei.config import PAPER_CASES, PAPER_SFM, SFM_PRESETS, SimConfig, case_preset
 from vei.errors import ConfigError
 from vei.experiments.casestudy import run_casestudy, write_casestudy
 from vei.sim.testing import TrackSpec, crossing_scenario
@@ -36,9 +37,23 @@ def _two_rider_scenario():
     return crossing_scenario(others=[("e2", e2)])
 
 
+def _paper_cases():
+    """The paper's five configurations with the paper's riders (whatever the presets' are)."""
+    out = []
+    for name in PAPER_CASES:
+        case = case_preset(name)
+        if case.rider == "sfm":
+            sfm = SFM_PRESETS["paper-aggressive"] if "aggressive" in name else PAPER_SFM
+            case = dataclasses.replace(case, sfm=sfm)
+        out.append(case)
+    return out
+
+
 @pytest.fixture(scope="module")
 def two_rider_result():
-    return run_casestudy(_two_rider_scenario(), sim=SimConfig(sfm_riders="all"))
+    return run_casestudy(
+        _two_rider_scenario(), cases=_paper_cases(), sim=SimConfig(sfm_riders="all")
+    )
 
 
 def test_two_sfm_riders_case_study(two_rider_result, tmp_path) -> None:
@@ -120,7 +135,9 @@ def test_real_recording_all_riders_social_force(real_scenario, tmp_path) -> None
     rep = others[others["config"] == "replay"]
     assert rep["max_deviation_m"].max() < 1e-6
     sfm = others[others["config"] != "replay"]
-    assert (sfm["max_deviation_m"] > 1.0).all()
+    # Social-force driven: not their recordings (the calibrated rider, at its own recorded
+    # speed, stays within centimetres to metres of it; the paper's rider runs ahead by tens).
+    assert (sfm["max_deviation_m"] > 0.01).all()
     # Every rider rides (none stuck in the jitter of a recorded wait) and none touches the ego.
     assert (sfm["mean_speed_mps"] > 0.3).all()
     assert not sfm["ego_contact"].any()
