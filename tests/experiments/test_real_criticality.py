@@ -157,39 +157,70 @@ def test_a_shift_that_keeps_the_rider_out_is_an_error_naming_its_span(shared_sce
     assert code == 2 and "is not a rider of this scenario" in text
 
 
-def test_cap_t_safe_changes_the_outcome_on_stadtmitte_12(shared_scenarios):
-    """t_safe 1, 2, 5 s give different CAP outcomes on the flagship recording.
+def _brake_episodes(frame, config: str) -> list[tuple[float, float]]:
+    """[(start, end)] [s] of the CAP's BRAKE state of one configuration's ego."""
+    e = frame[(frame["config"] == config) & (frame["agent_id"] == "ego")].sort_values("t_s")
+    t = e["t_s"].to_numpy()
+    on = (e["cap_state"] == "BRAKE").to_numpy()
+    edges = np.flatnonzero(np.diff(np.r_[False, on, False].astype(int)))
+    return [(float(t[a]), float(t[b - 1])) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
-    The default threat there, cyclist_60, crosses the car's path at 4 m/s: it enters the
-    CAP's corridor (3.5 m either side) 0.85 s before the meeting, when the gap (~7 m) is
-    already below d_safe for every t_safe, so the corridor CAP brakes at the same instant
-    whatever t_safe is. The recording's other rider coming close, cyclist_12 (7.2 m away),
-    made critical by timing+path (a rotation of 15 deg, within the plausible bounds),
-    rides into the corridor early, and t_safe then sets when the CAP brakes.
-    """
+
+def _t_safe_study(shared_scenarios, threat: str, t_safe_s: tuple[float, ...]):
     from vei.config import case_preset
     from vei.experiments.casestudy import run_casestudy
     from vei.io.scenario import read_scenario
 
-    base = case_preset("normal-cap")
+    base = case_preset("normal-cap")  # the default (calibrated) rider
+    assert base.sfm.speed_from_recording is True
     cases = [
         dataclasses.replace(base, name=f"cap-t{t:g}", cap=dataclasses.replace(base.cap, t_safe_s=t))
-        for t in (1.0, 2.0, 5.0)
+        for t in t_safe_s
     ]
     scen = read_scenario(shared_scenarios["stadtmitte_12_audi_geradeaus_03"])
-    res = run_casestudy(
-        scen, cases=["replay", *cases], threat="cyclist_12", make_critical="timing+path"
-    )
+    return run_casestudy(scen, cases=["replay", *cases], threat=threat, make_critical="timing+path")
+
+
+def test_cap_t_safe_changes_the_outcome_on_stadtmitte_12(shared_scenarios):
+    """t_safe 1, 2, 5 s give different CAP outcomes on the flagship recording.
+
+    The default threat there, cyclist_60, crosses the car's path from the side: the
+    calibrated rider (its own recorded 3.1 m/s) misses the car by 3.6 m and no CAP brakes.
+    The recording's other rider coming close, cyclist_12 (7.2 m away), made critical by
+    timing+path (a rotation of 15 deg, within the plausible bounds), rides into the CAP's
+    corridor (3.5 m either side of the car's path) at 2.0 s, 14 m ahead of the car at
+    8.3 m/s: below d_safe for 2 s (19.6 m) and 5 s (44.6 m), above it for 1 s (11.3 m).
+    So t_safe 1 s brakes later and harder and keeps a smaller gap; 2 s and 5 s both brake
+    the instant the rider is seen (as a CAP with t_safe 100 s, the corridor-entry witness)
+    with the same gap-law demand, and differ in how long they hold the brake: 5 s keeps
+    braking until 9.4 s (2 s: 7.35 s) and slows the car further.
+    """
+    res = _t_safe_study(shared_scenarios, "cyclist_12", (1.0, 2.0, 5.0, 100.0))
     pert = res.criticality["perturbation"]
     assert pert["kind"] == "rotation" and pert["plausible"] is True
     s = res.summary.set_index("name")
     assert bool(s.loc["replay", "collision"])
-    gaps = s.loc[["cap-t1", "cap-t2", "cap-t5"], "min_gap_m"].to_numpy()
-    decel = s.loc[["cap-t1", "cap-t2", "cap-t5"], "peak_decel_mps2"].to_numpy()
-    assert not s.loc[["cap-t1", "cap-t2", "cap-t5"], "collision"].any()
-    # A longer headway brakes earlier and gentler, and keeps a larger gap.
-    assert np.all(np.diff(gaps) > 1.0), gaps
-    assert np.all(np.diff(decel) < 0.0) and decel[0] > decel[-1] + 1.0, decel
+    names = ["cap-t1", "cap-t2", "cap-t5"]
+    assert not s.loc[names, "collision"].any()
+    gaps = s.loc[names, "min_gap_m"].to_numpy()
+    decel = s.loc[names, "peak_decel_mps2"].to_numpy()
+    v_min = s.loc[names, "ego_speed_min_mps"].to_numpy()
+    brake = {n: _brake_episodes(res.frame, n) for n in [*names, "cap-t100"]}
+    start = {n: b[0][0] for n, b in brake.items()}
+    end = {n: b[0][1] for n, b in brake.items()}
+    # 1 s vs 2 s: the shorter headway brakes later, harder, and keeps a smaller gap.
+    assert start["cap-t1"] > start["cap-t2"] + 0.3, start
+    assert decel[0] > decel[1] + 0.5 and gaps[1] > gaps[0] + 0.3, (decel, gaps)
+    # 2 s and 5 s: both brake at the corridor entry (the t_safe 100 s CAP's trigger) ...
+    assert start["cap-t2"] == start["cap-t5"] == start["cap-t100"], start
+    assert 1.5 <= start["cap-t2"] <= 2.5, start
+    # ... and 5 s holds the first brake episode longer and brings the car slower.
+    assert end["cap-t5"] > end["cap-t2"] + 1.0, end
+    assert v_min[2] < v_min[1] - 0.1, v_min
+    outcomes = {
+        (round(start[n], 2), round(end[n], 2), round(gaps[i], 2)) for i, n in enumerate(names)
+    }
+    assert len(outcomes) == 3, outcomes
     _assert_drivable(
         [
             {"name": n, **r}
@@ -197,6 +228,28 @@ def test_cap_t_safe_changes_the_outcome_on_stadtmitte_12(shared_scenarios):
         ],
         "stadtmitte_12",
     )
+
+
+def test_cap_t_safe_sets_the_gap_when_the_rider_is_seen_early_on_stadtmitte_12(shared_scenarios):
+    """With a rider in the corridor well before the car is close, t_safe sets when the CAP
+    brakes, and with it the whole outcome: escooter_78 of the same recording, made critical
+    by an offset of its path (4.3 m: beyond the plausible bound of 3.9 m, said so), is seen
+    from the start; 1, 2, 5 s brake at 4.0, 2.75, 0.25 s with peak decelerations 4.4,
+    2.1, 1.1 m/s^2 and keep 4.7, 7.3, 13.0 m."""
+    res = _t_safe_study(shared_scenarios, "escooter_78", (1.0, 2.0, 5.0))
+    pert = res.criticality["perturbation"]
+    assert pert["kind"] == "offset" and pert["plausible"] is False
+    s = res.summary.set_index("name")
+    assert bool(s.loc["replay", "collision"])
+    names = ["cap-t1", "cap-t2", "cap-t5"]
+    assert not s.loc[names, "collision"].any()
+    gaps = s.loc[names, "min_gap_m"].to_numpy()
+    decel = s.loc[names, "peak_decel_mps2"].to_numpy()
+    starts = np.array([_brake_episodes(res.frame, n)[0][0] for n in names])
+    # A longer headway brakes earlier and gentler, and keeps a larger gap.
+    assert np.all(np.diff(starts) < -0.5), starts
+    assert np.all(np.diff(gaps) > 1.0), gaps
+    assert np.all(np.diff(decel) < 0.0) and decel[0] > decel[-1] + 1.0, decel
 
 
 def test_plausible_bounds_are_the_measured_spread_of_real_rider_routes(trafficmonitoring_root):
