@@ -207,3 +207,16 @@ def test_shipped_example_spec_is_valid():
     assert len(table) == 2000
     assert table["cap.a_min_mps2"].between(-8.0, -4.0).all()
     assert (table["sfm.b"] == 3.5).all()
+
+
+def test_swept_v0_is_the_riders_own_speed_over_the_calibrated_default():
+    # The default rider takes its speeds from its recording; a swept v0 must not be ignored.
+    from vei.config import CASE_PRESETS
+    from vei.experiments.sweep_spec import variant_config
+
+    spec = spec_from_dict({"design": "grid", "parameters": {"sfm.v0": 4.0}})
+    assert CASE_PRESETS[spec.base].sfm.speed_from_recording is True
+    case = variant_config({"sfm.v0": 4.0}, spec, auto_shift_s=0.0).case
+    assert case.sfm.v0_mps == 4.0 and case.sfm.speed_from_recording is False
+    kept = variant_config({"sfm.k_des": 90.0}, spec, auto_shift_s=0.0).case
+    assert kept.sfm.k_des_nspm == 90.0 and kept.sfm.speed_from_recording is True

@@ -662,6 +662,8 @@ def variant_config(
         if key in params:
             v = params[key]
             sections[section][fname] = bool(v) if isinstance(v, bool | np.bool_) else float(v)
+    if "v0_mps" in sections["sfm"]:  # a swept v0 is the rider's: not its recorded speed
+        sections["sfm"]["speed_from_recording"] = False
     updates: dict[str, Any] = {
         sec: replace(getattr(case, sec), **vals) for sec, vals in sections.items() if vals
     }
