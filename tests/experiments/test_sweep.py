@@ -158,6 +158,29 @@ def test_variant_params_equal_each_rows_own_configuration(demo_scenario):
             )
 
 
+def test_swept_v0_over_the_calibrated_default_is_the_riders_speed(demo_scenario):
+    # The default rider takes v0 and its speed limit from its recording; a swept v0 replaces
+    # that rule, in the batch as in each row's own configuration (limit: the preset's 4.72).
+    from vei.sim.state import VariantParams
+
+    spec = spec_from_dict(
+        {"design": "grid", "parameters": {"sfm.v0": {"min": 2.0, "max": 6.0, "num": 3}}}
+    )
+    ev = EngineEvaluator(time_shift_reference="auto", base="normal-cap")
+    prep = ev.prepare(demo_scenario)
+    table = variants_table(spec, prep.scenario_id)
+    batch = variant_params(table, prep.arrays, auto_shift_s=prep.auto_shift_s)
+    np.testing.assert_array_equal(batch.v0_mps, [2.0, 4.0, 6.0])
+    np.testing.assert_array_equal(batch.max_speed_mps, [4.72] * 3)
+    assert not batch.speed_from_recording.any()
+    for i, row in table.iterrows():
+        cfg = variant_config(row_params(row, spec), spec, auto_shift_s=prep.auto_shift_s)
+        one = VariantParams.from_case(cfg.case, prep.arrays, 1, time_shift_s=cfg.time_shift)
+        for f in dataclasses.fields(one):
+            if f.name != "labels":
+                assert getattr(batch, f.name)[i] == pytest.approx(getattr(one, f.name)[0]), f.name
+
+
 def test_results_do_not_depend_on_chunking_or_workers(demo_scenario, tmp_path):
     spec = spec_from_dict(
         {

@@ -36,7 +36,7 @@ import re
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Protocol
@@ -822,6 +822,9 @@ def variant_params(
                 if col in _K_DES_COLUMNS:
                     v = v * case.sfm.k_des_factor
                 overrides[fname] = v
+        if "v0_mps" in overrides and case.sfm.speed_from_recording:
+            # A swept or sampled v0 is the rider's own (as in variant_config).
+            case = replace(case, sfm=replace(case.sfm, speed_from_recording=False))
         if case.ego_mode == "cap":
             a_min = overrides.get("a_min_mps2", np.array([case.cap.a_min_mps2]))
             if np.any(-a_min > case.ego.max_decel_mps2):
