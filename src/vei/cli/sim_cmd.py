@@ -173,6 +173,14 @@ def print_summary(result, out: Path | None = None, console=None) -> None:
             f"paper outcome (replay/normal/aggressive collide, the CAP runs keep safety index 1): {verdict}"
             + (f" (differs: {', '.join(bad)})" if bad else "")
         )
+    if any(c.rider == "sfm" and c.sfm.speed_from_recording for c in getattr(result, "cases", ())):
+        console.print(
+            escape(
+                f"SFM rider: speeds from {result.other_id}'s own recording (the calibrated "
+                "rider, the default; docs/riders.md); the paper's rider (v0 5 m/s): "
+                "--config paper-normal etc., or 'sfm: paper' in a configuration file"
+            )
+        )
     if out is not None:
         console.print(f"output folder: {out.resolve()}")
 
