@@ -55,7 +55,9 @@ def test_replay_data_matches_the_case_study(data, trafficmonitoring_root):
         assert ((zone == 3) == collided).all()  # the collision zone is exactly the collided steps
         assert set(np.unique(zone)) <= {0, 1, 2, 3}
     hit = {c["name"]: bool(np.asarray(c["zone"]).max() == 3) for c in rep["configs"]}
-    assert hit == {"replay": True, "normal": True, "aggressive": True,
+    # Only the replay collides: the default (calibrated) rider misses the car by 3.6 m
+    # (normal) / 4.0 m (aggressive) here (docs/riders.md).
+    assert hit == {"replay": True, "normal": False, "aggressive": False,
                    "normal-cap": False, "aggressive-cap": False}  # fmt: skip
 
 
