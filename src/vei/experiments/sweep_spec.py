@@ -29,7 +29,9 @@ A sweep spec is a YAML (or JSON) mapping loaded into frozen dataclasses at the e
 
 Unknown keys are errors that name the key and the file; ``0`` never means "default".
 Parameters that a spec does not name keep the values of the ``base`` configuration (one of
-``vei.config.CASE_PRESETS``, default ``normal-cap``; the paper's values).
+``vei.config.CASE_PRESETS``, default ``normal-cap``: the calibrated rider; ``paper-normal-cap``
+for the paper's). ``rider_model`` normal / aggressive picks the (calibrated) SFM_PRESETS of
+those names.
 
 :func:`variants_table` turns a spec into a pandas DataFrame, one row per variant, with a
 stable ``variant_id`` (hash of the scenario id and the parameter values) and a per-variant
