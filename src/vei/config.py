@@ -456,7 +456,9 @@ class CaseConfig:
     Attributes:
         name: label written into results ('replay', 'normal-cap', ...).
         rider: 'replay' (kinematic replay of the time-shifted recording) or 'sfm'.
-        sfm: the social-force parameters (used when rider == 'sfm').
+        sfm: the social-force parameters (used when rider == 'sfm'). The field's default,
+            SFMConfig(), is the paper's rider; the presets normal, aggressive, normal-cap,
+            aggressive-cap use the calibrated one (SFM_PRESETS), paper-* the paper's.
         ego_mode: 'replay-speed' (the recorded speed profile along the recorded path),
             'pid' (PID cruise at v_d, no avoidance), 'cap' (PID + CAP).
         ego: ego / PID / actuator parameters.
