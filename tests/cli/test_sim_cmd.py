@@ -122,6 +122,39 @@ def test_run_with_a_config_file(demo_run, tmp_path, capsys):
     assert doc["case_config"]["cap"]["t_safe_s"] == 3.0
 
 
+def test_run_config_samples_riders_from_a_profile(demo_run, tmp_path, capsys):
+    """``rider: {profile, sample}`` in a run config runs one SFM rider per sample (seeded)."""
+    _, _, out = demo_run
+    cfg = tmp_path / "population.yaml"
+    cfg.write_text(
+        "case:\n  preset: normal\nrider:\n  profile: calibrated\n  sample: 3\n  seed: 5\n"
+    )
+
+    def run(dest):
+        args = ["run", str(out / "scenario"), "--config", str(cfg), "--out", str(dest)]
+        code = main([*args, "--time-shift", "4.5", "--no-figures"])
+        assert code == 0, capsys.readouterr()
+        return json.loads((dest / "metrics.json").read_text())
+
+    doc = run(tmp_path / "a")
+    names = [m["name"] for m in doc["metrics"]]
+    assert names == ["normal#0", "normal#1", "normal#2"]
+    assert doc["rider_population"] == {
+        "profile": "calibrated",
+        "sample": 3,
+        "category": "escooter",
+        "seed": 5,
+    }
+    v0 = [doc["case_config"][n]["sfm"]["v0_mps"] for n in names]
+    assert len(set(v0)) == 3 and all(0.3 < v < 12.0 for v in v0)
+    assert not any(doc["case_config"][n]["sfm"]["speed_from_recording"] for n in names)
+    summary = pd.read_csv(tmp_path / "a" / "summary.csv")
+    assert list(summary["name"]) == names
+    # the same seed gives the same riders and the same metrics
+    again = run(tmp_path / "b")
+    assert again["metrics"] == doc["metrics"] and again["case_config"] == doc["case_config"]
+
+
 def test_bad_inputs_exit_2_with_a_message(demo_run, tmp_path, capsys):
     _, _, out = demo_run
     assert (

@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import sys
 from pathlib import Path
@@ -285,10 +286,16 @@ def register(app: typer.Typer) -> None:
             else (run_cfg.time_shift if run_cfg is not None else "auto")
         )
         sim = _with_sfm_riders(run_cfg.sim if run_cfg is not None else None, sfm_riders)
+        population = run_cfg.rider if run_cfg is not None else None
+        cases = [case]
+        if population is not None:
+            from vei.calibrate.population import population_cases
+
+            cases = population_cases(case, population)
         scen = _read_scenario(scenario)
         result = run_casestudy(
             scen,
-            cases=[case],
+            cases=cases,
             time_shift=shift,
             backend=_backend(backend, host, port, esmini, carla_timeout),
             sim=sim,
@@ -306,12 +313,19 @@ def register(app: typer.Typer) -> None:
             "backend": doc["backend"],
             "metrics_config": doc["metrics_config"],
             "criticality": doc["criticality"],
-            "metrics": doc["configs"][0],
-            "case_config": doc["case_configs"][case.name],
         }
+        if population is None:
+            metrics_doc["metrics"] = doc["configs"][0]
+            metrics_doc["case_config"] = doc["case_configs"][case.name]
+        else:
+            # One run per sampled rider (<config>#i); summary.csv / .json keep the table.
+            metrics_doc["rider_population"] = dataclasses.asdict(population)
+            metrics_doc["metrics"] = doc["configs"]
+            metrics_doc["case_config"] = doc["case_configs"]
         write_json(out / "metrics.json", metrics_doc)
-        for key in ("summary_json", "summary_csv"):
-            paths.pop(key).unlink(missing_ok=True)
+        if population is None:
+            for key in ("summary_json", "summary_csv"):
+                paths.pop(key).unlink(missing_ok=True)
         print_summary(result, out)
 
     @app.command("casestudy")
