@@ -42,9 +42,9 @@ from vei.datasets.trafficmonitoring import (
     TRAJECTORIES_SUFFIX,
     list_scenarios,
     majority_categories,
+    read_camera_utm,
     read_matching,
 )
-from vei.errors import InputError
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -71,7 +71,6 @@ VEHICLE_DIMENSIONS_M: dict[str, tuple[float, float]] = {
     "truck": (8.0, 2.5),
     "motorcycle": (2.2, 0.8),
 }
-_COLUMNS = ("frame_id", "class_id", "track_id", "coordinate_world_x_opt", "coordinate_world_y_opt")
 
 
 @dataclass(frozen=True)
@@ -197,36 +196,6 @@ def smooth_segment(
     return t, xs, ys, vxs, vys, axs, ays
 
 
-def _read_trajectories(path: Path) -> pd.DataFrame:
-    if not path.is_file():
-        raise InputError("trajectory file not found", path=path)
-    try:
-        df = pd.read_csv(path)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise InputError(f"not a readable CSV file: {exc}", path=path) from None
-    for col in _COLUMNS:
-        if col not in df.columns:
-            raise InputError("missing column", path=path, field=col)
-    num = df[["frame_id", "coordinate_world_x_opt", "coordinate_world_y_opt"]].apply(
-        pd.to_numeric, errors="coerce"
-    )
-    bad = num.isna().any(axis=1).to_numpy()
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise InputError(
-            "missing or non-numeric value", path=path, row=i + 1, field="frame_id/coordinate"
-        )
-    return pd.DataFrame(
-        {
-            "frame_id": num["frame_id"].to_numpy(dtype=np.int64),
-            "track_id": df["track_id"].astype(str).str.strip().str.replace(r"\.0$", "", regex=True),
-            "class_id": df["class_id"].astype(str).str.strip(),
-            "x": num["coordinate_world_x_opt"].to_numpy(dtype=np.float64),
-            "y": num["coordinate_world_y_opt"].to_numpy(dtype=np.float64),
-        }
-    ).sort_values(["track_id", "frame_id"], kind="stable")
-
-
 def _keep_reason(
     t: FloatArray, x: FloatArray, y: FloatArray, sp: FloatArray, dt: float
 ) -> str | None:
@@ -308,7 +277,7 @@ def load_scene(root: str | Path, scenario: str, *, dt_s: float = 0.05) -> SceneT
     """
     matching = read_matching(root, scenario)
     path = Path(root) / TRAJECTORIES_DIR / f"{scenario}{TRAJECTORIES_SUFFIX}"
-    df = _read_trajectories(path)
+    df = read_camera_utm(path).rename(columns={"x_m": "x", "y_m": "y"})
     cats = majority_categories(df)
     n_steps = int(np.floor(df["frame_id"].max() / CAMERA_FPS / dt_s)) + 1
     riders: list[RiderTrack] = []

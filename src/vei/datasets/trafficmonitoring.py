@@ -326,19 +326,18 @@ def read_ins(path: Path) -> InsRecord:
     )
 
 
-def read_camera(path: Path, start_s: float) -> pd.DataFrame:
-    """Read ``<scenario>_trajectories.csv``.
+def read_camera_utm(path: Path) -> pd.DataFrame:
+    """Read and validate ``<scenario>_trajectories.csv`` in the camera's own plane.
+
+    Every row is checked (numbers, plausible UTM 32N ranges, one row per track and frame);
+    a bad one is an InputError naming file, row and column.
 
     Args:
         path: the trajectories file.
-        start_s: time of frame 0 relative to the chosen time origin [s].
     Returns:
-        DataFrame [N rows]: t_s [s] (= start_s + frame_id / 30), frame_id (int), track_id
-        (str), class_id (raw label), lat_deg, lon_deg (WGS84, from UTM 32N); sorted by
-        (track_id, frame_id).
+        DataFrame [N rows]: frame_id (int), track_id (str), class_id (raw label), x_m, y_m
+        (UTM 32N easting / northing [m], EPSG:32632); sorted by (track_id, frame_id).
     """
-    from pyproj import Transformer
-
     df = _read_table(path, _CAMERA_COLUMNS)
     num = df[["frame_id", "coordinate_world_x_opt", "coordinate_world_y_opt"]].apply(
         pd.to_numeric, errors="coerce"
@@ -366,20 +365,13 @@ def read_camera(path: Path, start_s: float) -> pd.DataFrame:
                 row=i + 1,
                 field=col,
             )
-    to_wgs84 = Transformer.from_crs(CAMERA_CRS, "EPSG:4326", always_xy=True)
-    lon, lat = to_wgs84.transform(
-        num["coordinate_world_x_opt"].to_numpy(dtype=np.float64),
-        num["coordinate_world_y_opt"].to_numpy(dtype=np.float64),
-    )
-    frame = num["frame_id"].to_numpy(dtype=np.int64)
     out = pd.DataFrame(
         {
-            "t_s": np.round(start_s + frame / CAMERA_FPS, 9),
-            "frame_id": frame,
+            "frame_id": num["frame_id"].to_numpy(dtype=np.int64),
             "track_id": df["track_id"].astype(str).str.strip().str.replace(r"\.0$", "", regex=True),
             "class_id": df["class_id"].astype(str).str.strip(),
-            "lat_deg": np.asarray(lat),
-            "lon_deg": np.asarray(lon),
+            "x_m": num["coordinate_world_x_opt"].to_numpy(dtype=np.float64),
+            "y_m": num["coordinate_world_y_opt"].to_numpy(dtype=np.float64),
         }
     )
     dup = out.duplicated(["track_id", "frame_id"]).to_numpy()
@@ -392,6 +384,35 @@ def read_camera(path: Path, start_s: float) -> pd.DataFrame:
             field="frame_id",
         )
     return out.sort_values(["track_id", "frame_id"], kind="stable").reset_index(drop=True)
+
+
+def read_camera(path: Path, start_s: float) -> pd.DataFrame:
+    """Read ``<scenario>_trajectories.csv`` (validated by :func:`read_camera_utm`).
+
+    Args:
+        path: the trajectories file.
+        start_s: time of frame 0 relative to the chosen time origin [s].
+    Returns:
+        DataFrame [N rows]: t_s [s] (= start_s + frame_id / 30), frame_id (int), track_id
+        (str), class_id (raw label), lat_deg, lon_deg (WGS84, from UTM 32N); sorted by
+        (track_id, frame_id).
+    """
+    from pyproj import Transformer
+
+    cam = read_camera_utm(path)
+    to_wgs84 = Transformer.from_crs(CAMERA_CRS, "EPSG:4326", always_xy=True)
+    lon, lat = to_wgs84.transform(cam["x_m"].to_numpy(), cam["y_m"].to_numpy())
+    frame = cam["frame_id"].to_numpy()
+    return pd.DataFrame(
+        {
+            "t_s": np.round(start_s + frame / CAMERA_FPS, 9),
+            "frame_id": frame,
+            "track_id": cam["track_id"],
+            "class_id": cam["class_id"],
+            "lat_deg": np.asarray(lat),
+            "lon_deg": np.asarray(lon),
+        }
+    )
 
 
 def majority_category(labels: pd.Series) -> str | None:
