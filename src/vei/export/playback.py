@@ -420,10 +420,13 @@ def _play(xosc, player, dat2csv, entities, dt_s, work: Path, timeout_s) -> Playb
             log_path=log, log_bytes=log_bytes, log=summary, entities=(),
             frames=pd.DataFrame(columns=["time", "id", "name", "x", "y", "h", "speed"]),
         )  # fmt: skip
-    conv = subprocess.run(
-        [str(dat2csv), "--file", str(dat), "--csv", str(csv), "--precision", "6"],
-        cwd=work, capture_output=True, text=True, timeout=timeout_s, check=False,
-    )  # fmt: skip
+    try:
+        conv = subprocess.run(
+            [str(dat2csv), "--file", str(dat), "--csv", str(csv), "--precision", "6"],
+            cwd=work, capture_output=True, text=True, timeout=timeout_s, check=False,
+        )  # fmt: skip
+    except subprocess.TimeoutExpired as exc:
+        raise DependencyError(f"dat2csv did not finish {dat} within {timeout_s:g} s") from exc
     if conv.returncode != 0 or not csv.is_file():
         raise DependencyError(f"dat2csv failed on {dat} (exit status {conv.returncode})")
     frames = pd.read_csv(csv, skipinitialspace=True)

@@ -80,6 +80,18 @@ def _fake_carla(conn: socket.socket) -> None:
     conn.sendall(b"\x94\x01\x00\xc0\xa60.9.16")
 
 
+def _deeply_nested(conn: socket.socket) -> None:
+    """Arrays of one array nested 5,000 deep: decoding must stop, not recurse to the end."""
+    conn.recv(100)
+    conn.sendall(b"\x91" * 5000 + b"\xc0")
+
+
+def test_nesting_is_bounded():
+    assert unpack_one(b"\x91" * 32 + b"\xc0")[0] is not None
+    with pytest.raises(ValueError, match="nested deeper"):
+        unpack_one(b"\x91" * 5000 + b"\xc0")
+
+
 def test_the_request_is_msgpack_rpc_for_version():
     assert unpack_one(VERSION_REQUEST) == ([0, 0, "version", []], len(VERSION_REQUEST))
     assert unpack_one(b"\x94\x01\x00\xc0\xa60.9.16")[0] == [1, 0, None, "0.9.16"]
@@ -97,6 +109,7 @@ def test_a_msgpack_rpc_answer_with_a_version_is_accepted():
         (_http, "not a CARLA server"),
         (_close_at_once, "closed the connection without answering"),
         (_msgpack_error, "not a CARLA server"),
+        (_deeply_nested, "does not speak CARLA's msgpack-rpc"),
     ],
 )
 def test_a_port_that_is_not_carla_is_a_clear_error(handler, message):

@@ -22,6 +22,8 @@ from vei.errors import BackendError
 #: The probe's request: msgpack of [0, 0, "version", []].
 VERSION_REQUEST = b"\x94\x00\x00\xa7version\x90"
 _MAX_REPLY_BYTES = 1 << 16
+#: Deepest nesting of arrays / maps accepted in a reply (a version reply nests 2 deep).
+_MAX_DEPTH = 32
 
 
 class _Incomplete(Exception):
@@ -33,13 +35,16 @@ def _need(buf: bytes, pos: int, n: int) -> None:
         raise _Incomplete
 
 
-def unpack_one(buf: bytes, pos: int = 0) -> tuple[Any, int]:
+def unpack_one(buf: bytes, pos: int = 0, depth: int = 0) -> tuple[Any, int]:
     """Decode one msgpack object from ``buf`` at ``pos``; (object, next position).
 
     Supports nil, booleans, integers, floats, str, bin, arrays and maps (the types of
-    msgpack-rpc messages). Raises ValueError on bytes that are not such msgpack, and the
-    private _Incomplete when ``buf`` ends inside the object.
+    msgpack-rpc messages), nested at most ``_MAX_DEPTH`` deep. Raises ValueError on bytes
+    that are not such msgpack (or nest deeper), and the private _Incomplete when ``buf``
+    ends inside the object.
     """
+    if depth > _MAX_DEPTH:
+        raise ValueError(f"msgpack nested deeper than {_MAX_DEPTH} levels")
     _need(buf, pos, 1)
     b = buf[pos]
     pos += 1
@@ -50,9 +55,9 @@ def unpack_one(buf: bytes, pos: int = 0) -> tuple[Any, int]:
     if 0xA0 <= b <= 0xBF:
         return _str(buf, pos, b & 0x1F)
     if 0x90 <= b <= 0x9F:
-        return _array(buf, pos, b & 0x0F)
+        return _array(buf, pos, b & 0x0F, depth)
     if 0x80 <= b <= 0x8F:
-        return _map(buf, pos, b & 0x0F)
+        return _map(buf, pos, b & 0x0F, depth)
     if b == 0xC0:
         return None, pos
     if b in (0xC2, 0xC3):
@@ -79,8 +84,8 @@ def unpack_one(buf: bytes, pos: int = 0) -> tuple[Any, int]:
             _need(buf, pos, n)
             return bytes(buf[pos : pos + n]), pos + n
         if b in (0xDC, 0xDD):
-            return _array(buf, pos, n)
-        return _map(buf, pos, n)
+            return _array(buf, pos, n, depth)
+        return _map(buf, pos, n, depth)
     raise ValueError(f"byte 0x{b:02x} starts no msgpack-rpc value")
 
 
@@ -92,23 +97,23 @@ def _str(buf: bytes, pos: int, n: int) -> tuple[str, int]:
         raise ValueError("invalid UTF-8 in a msgpack string") from exc
 
 
-def _array(buf: bytes, pos: int, n: int) -> tuple[list, int]:
+def _array(buf: bytes, pos: int, n: int, depth: int) -> tuple[list, int]:
     if n > _MAX_REPLY_BYTES:
         raise ValueError("implausibly long msgpack array")
     out = []
     for _ in range(n):
-        item, pos = unpack_one(buf, pos)
+        item, pos = unpack_one(buf, pos, depth + 1)
         out.append(item)
     return out, pos
 
 
-def _map(buf: bytes, pos: int, n: int) -> tuple[dict, int]:
+def _map(buf: bytes, pos: int, n: int, depth: int) -> tuple[dict, int]:
     if n > _MAX_REPLY_BYTES:
         raise ValueError("implausibly long msgpack map")
     out = {}
     for _ in range(n):
-        key, pos = unpack_one(buf, pos)
-        val, pos = unpack_one(buf, pos)
+        key, pos = unpack_one(buf, pos, depth + 1)
+        val, pos = unpack_one(buf, pos, depth + 1)
         out[repr(key)] = val
     return out, pos
 

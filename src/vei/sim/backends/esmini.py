@@ -34,7 +34,6 @@ folder (removed at the end) or ``EsminiSettings.work_dir`` (kept).
 
 from __future__ import annotations
 
-import inspect
 import math
 import shutil
 from dataclasses import dataclass
@@ -206,15 +205,11 @@ def write_run_xosc(loop: ClosedLoop, out_dir: Path, *, xodr: Path | None, osc_ve
     from vei.export.openscenario import export_openscenario
 
     traj, agents = run_trajectories(loop)
-    kwargs: dict[str, Any] = {}
-    params = inspect.signature(export_openscenario).parameters
-    if "ego_controller" in params:
-        kwargs["ego_controller"] = "simulator"
-    if "vertex_rate_hz" in params:
-        kwargs["vertex_rate_hz"] = None  # every step is a vertex: esmini plays the engine's samples
+    # every step is a vertex: esmini plays the engine's samples; the ego is vei's to place
     return export_openscenario(
         traj, agents, out_dir, xodr=xodr, osc_version=osc_version,
-        name=f"vei_{loop.case.name}".replace("/", "_"), **kwargs,
+        name=f"vei_{loop.case.name}".replace("/", "_"),
+        ego_controller="simulator", vertex_rate_hz=None,
     )  # fmt: skip
 
 
