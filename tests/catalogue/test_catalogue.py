@@ -316,3 +316,22 @@ def test_a_failing_encounter_is_reported_and_retried(tmp_path, trafficmonitoring
     assert not (
         encounter_dir(out, "stadtmitte_12_audi_geradeaus_03__cyclist_12") / "failed.json"
     ).exists()
+
+
+def test_encounters_belong_to_the_listed_folder_not_the_scenario_id(tmp_path):
+    """Two interaction folders sharing one id, named otherwise: each encounter is named and
+    read after its folder (before, the encounter read recordings/<id>/ and failed with
+    'no scenario.json here', and both folders collided on encounters/<id>__...)."""
+    from tests.helpers_interaction import make_interaction
+
+    data = tmp_path / "data"
+    make_interaction(data, name="renamed_folder", id="audi_08_klinikum_rechtsabbiegen")
+    make_interaction(data, name="second_copy", id="audi_08_klinikum_rechtsabbiegen")
+    cfg = small_config(sweep={**SMALL_SWEEP, "n_samples": 2})
+    result = run_catalogue(data, tmp_path / "cat", cfg, progress=False)
+    assert result.failed_encounters == [] and result.complete
+    ids = sorted(set(result.rows["encounter_id"]))
+    riders = ("cyclist_2", "escooter_1")  # both synthetic riders cross the ego's path
+    assert ids == [f"{f}__{r}" for f in ("renamed_folder", "second_copy") for r in riders]
+    assert set(result.rows["recording"]) == {"renamed_folder", "second_copy"}
+    assert len(result.rows) == 4 * (5 + 2)

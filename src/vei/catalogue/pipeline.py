@@ -142,6 +142,15 @@ def _recording(
             write_scenario(scenario, scen_dir)
         scenario = read_scenario(scen_dir)
     found, others = find_encounters(scenario, config.rule)
+    # Encounters belong to the recording as listed (its folder under recordings/), not to the
+    # scenario id: two folders may share an id, and a folder may be named otherwise.
+    found, others = (
+        [
+            dataclasses.replace(e, recording=recording, encounter_id=f"{recording}__{e.rider_id}")
+            for e in group
+        ]
+        for group in (found, others)
+    )
     if config.max_encounters_per_recording is not None:
         others = found[config.max_encounters_per_recording :] + others
         found = found[: config.max_encounters_per_recording]
