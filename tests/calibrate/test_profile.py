@@ -9,7 +9,7 @@ import pytest
 
 from vei.calibrate import profile as P
 from vei.calibrate.fit import TrackFit
-from vei.calibrate.population import population_cases, population_overrides, sample_riders
+from vei.calibrate.population import population_cases, sample_riders
 from vei.config import (
     CALIBRATED_SFM,
     PAPER_SFM,
@@ -160,8 +160,9 @@ def test_population_in_run_configs_and_cases(tmp_path, shipped) -> None:
     s = sample_riders(run.rider)
     assert [c.sfm.v0_mps for c in cases] == pytest.approx(list(s["v0_mps"]))
     assert all(not c.sfm.speed_from_recording and c.ego_mode == "cap" for c in cases)
-    agg = population_overrides(run.rider, case_preset("aggressive"))
-    np.testing.assert_allclose(agg["k_des_nspm"], 2.0 * s["k_des_nspm"])
+    agg = population_cases(case_preset("aggressive"), run.rider)
+    # the aggressive rider keeps its amplification over each sampled k_des
+    np.testing.assert_allclose([c.sfm.k_des_effective_nspm for c in agg], 2.0 * s["k_des_nspm"])
     with pytest.raises(ConfigError, match="rider 'sfm'"):
         population_cases(case_preset("replay"), run.rider)
     # A profile file works as well as the name.

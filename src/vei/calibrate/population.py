@@ -96,19 +96,6 @@ def sample_riders(pop: RiderPopulationConfig) -> dict[str, FloatArray]:
     return sample_population(profile, pop.sample, category=pop.category, seed=pop.seed)
 
 
-def population_overrides(pop: RiderPopulationConfig, case: CaseConfig) -> dict[str, Any]:
-    """VariantParams overrides [N] for :meth:`vei.sim.state.VariantParams.from_case`.
-
-    k_des is multiplied by the case's ``k_des_factor`` (the engine's effective gain).
-    """
-    if case.rider != "sfm":
-        raise ConfigError(f"configuration {case.name!r}: a rider population needs rider 'sfm'")
-    s = sample_riders(pop)
-    out = {k: s[k] for k in POPULATION_FIELDS}
-    out["k_des_nspm"] = s["k_des_nspm"] * case.sfm.k_des_factor
-    return out
-
-
 def population_cases(case: CaseConfig, pop: RiderPopulationConfig) -> list[CaseConfig]:
     """N copies of a social-force configuration, one per sampled rider.
 
