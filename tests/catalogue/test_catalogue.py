@@ -335,3 +335,46 @@ def test_encounters_belong_to_the_listed_folder_not_the_scenario_id(tmp_path):
     assert ids == [f"{f}__{r}" for f in ("renamed_folder", "second_copy") for r in riders]
     assert set(result.rows["recording"]) == {"renamed_folder", "second_copy"}
     assert len(result.rows) == 4 * (5 + 2)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("recon: [1, 2]\n", "recon must be a mapping"),
+        ("sweep: [1]\n", "sweep must be a mapping"),
+        ("rule: [1]\n", "rule must be a mapping"),
+        ("figures: 'no'\n", "figures must be true or false"),
+        ("cases: [1]\n", "cases must be a list"),
+        ("rule: {categories: 3}\n", "categories must be a list"),
+        ("map_source: 3\n", "map_source must be"),
+    ],
+)
+def test_settings_file_bad_values_are_config_errors(tmp_path, text, message):
+    """Bad values in a settings file are ConfigErrors naming the file and the key (before:
+    a raw TypeError for recon, silently accepted rule/figures)."""
+    from vei.catalogue import load_catalogue_config
+
+    p = tmp_path / "s.yaml"
+    p.write_text(text)
+    with pytest.raises(ConfigError, match=message) as info:
+        load_catalogue_config(p)
+    assert str(info.value).startswith(f"{p}: ")
+
+
+def test_settings_file_lone_names_are_one_element_lists(tmp_path):
+    """`cases: replay` / `categories: escooter` mean one name (before: its characters)."""
+    from vei.catalogue import CatalogueConfig, load_catalogue_config
+
+    p = tmp_path / "s.yaml"
+    p.write_text("cases: replay\nrule: {categories: escooter}\nsweep: null\nfigures: false\n")
+    cfg = load_catalogue_config(p)
+    assert cfg.cases == ("replay",)
+    assert cfg.rule == EncounterRule(categories=("escooter",))
+    assert cfg.figures is False
+    assert cfg.as_dict()["rule"]["categories"] == ["escooter"]
+    # the dataclass itself: a rule mapping becomes an EncounterRule, lists become tuples
+    direct = CatalogueConfig(rule={"gap_max_m": 2.0}, cases=["replay", "normal"], sweep=None)
+    assert direct.rule == EncounterRule(gap_max_m=2.0)
+    assert direct.cases == ("replay", "normal")
+    with pytest.raises(ConfigError, match="unknown rule setting 'gap'"):
+        CatalogueConfig(rule={"gap": 2.0}, sweep=None)

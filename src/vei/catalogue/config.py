@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -63,6 +64,33 @@ class CatalogueConfig:
     figures: bool = True
 
     def __post_init__(self) -> None:
+        rule = self.rule
+        if isinstance(rule, Mapping):
+            object.__setattr__(self, "rule", rule_from_mapping(rule))
+        elif not isinstance(rule, EncounterRule):
+            raise ConfigError(f"rule must be a mapping of rule settings, got {rule!r}")
+        if self.sweep is not None and not isinstance(self.sweep, Mapping):
+            raise ConfigError(f"sweep must be a mapping (a sweep spec) or null, got {self.sweep!r}")
+        if self.sweep is not None:
+            object.__setattr__(self, "sweep", dict(self.sweep))
+        if not isinstance(self.recon, Mapping):
+            raise ConfigError(
+                f"recon must be a mapping of reconstruction settings, got {self.recon!r}"
+            )
+        object.__setattr__(self, "recon", dict(self.recon))
+        if not isinstance(self.figures, bool):
+            raise ConfigError(f"figures must be true or false, got {self.figures!r}")
+        cases = self.cases
+        if isinstance(cases, str):  # a lone name is a one-element tuple, not its characters
+            cases = (cases,)
+        if not isinstance(cases, list | tuple) or not all(isinstance(c, str) for c in cases):
+            raise ConfigError(f"cases must be a list of configuration names, got {cases!r}")
+        object.__setattr__(self, "cases", tuple(cases))
+        ms = self.map_source
+        if ms is not None and not isinstance(ms, str | Path):
+            raise ConfigError(f"map_source must be a file path or null, got {ms!r}")
+        if isinstance(ms, Path):
+            object.__setattr__(self, "map_source", str(ms))
         r = self.annotation_rate_hz
         if isinstance(r, bool) or not isinstance(r, int | float) or not math.isfinite(r) or r <= 0:
             raise ConfigError(f"annotation_rate_hz must be a number > 0, got {r!r}")
@@ -142,19 +170,20 @@ def load_catalogue_config(path: str | Path | None, **overrides: Any) -> Catalogu
             f"{path}: unknown catalogue setting {unknown[0]!r}; known: {', '.join(sorted(known))}"
         )
     raw.update({k: v for k, v in overrides.items() if v is not None})
-    if "rule" in raw and isinstance(raw["rule"], dict):
-        rule_raw = dict(raw["rule"])
-        names = {"path_distance_max_m", "pet_max_s", "gap_max_m", "categories"}
-        bad = sorted(set(rule_raw) - names)
-        if bad:
-            raise ConfigError(
-                f"{path}: unknown rule setting {bad[0]!r}; known: {', '.join(sorted(names))}"
-            )
-        if "categories" in rule_raw:
-            rule_raw["categories"] = tuple(rule_raw["categories"])
-        raw["rule"] = EncounterRule(**rule_raw)
-    if "cases" in raw:
-        raw["cases"] = tuple(raw["cases"])
-    if raw.get("map_source") is not None:
-        raw["map_source"] = str(raw["map_source"])
-    return CatalogueConfig(**raw)
+    try:
+        return CatalogueConfig(**raw)
+    except ConfigError as exc:
+        if path is None:
+            raise
+        raise ConfigError(f"{path}: {exc}") from None
+
+
+def rule_from_mapping(raw: Mapping[str, Any]) -> EncounterRule:
+    """An EncounterRule from its settings mapping (keys: path_distance_max_m, pet_max_s,
+    gap_max_m, categories; a lone category name is a one-element list; unknown keys and bad
+    values are ConfigErrors)."""
+    names = {"path_distance_max_m", "pet_max_s", "gap_max_m", "categories"}
+    bad = sorted(set(raw) - names)
+    if bad:
+        raise ConfigError(f"unknown rule setting {bad[0]!r}; known: {', '.join(sorted(names))}")
+    return EncounterRule(**dict(raw))

@@ -53,6 +53,13 @@ class EncounterRule:
     categories: tuple[str, ...] = RIDER_CATEGORIES
 
     def __post_init__(self) -> None:
+        cats = self.categories
+        if isinstance(cats, str):  # a lone name is a one-element tuple, not its characters
+            object.__setattr__(self, "categories", (cats,))
+        elif isinstance(cats, list | tuple):
+            object.__setattr__(self, "categories", tuple(cats))
+        else:
+            raise ConfigError(f"encounter rule: categories must be a list of names, got {cats!r}")
         for name in ("path_distance_max_m", "pet_max_s", "gap_max_m"):
             v = getattr(self, name)
             if (
