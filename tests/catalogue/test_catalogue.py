@@ -378,3 +378,54 @@ def test_settings_file_lone_names_are_one_element_lists(tmp_path):
     assert direct.cases == ("replay", "normal")
     with pytest.raises(ConfigError, match="unknown rule setting 'gap'"):
         CatalogueConfig(rule={"gap": 2.0}, sweep=None)
+
+
+def _two_interactions(data: Path) -> None:
+    """rec_a, rec_b: synthetic interaction folders, two encounters each (helpers_interaction)."""
+    from tests.helpers_interaction import make_interaction
+
+    make_interaction(data, name="rec_a", id="rec_a")
+    make_interaction(data, name="rec_b", id="rec_b")
+
+
+def test_limited_runs_go_on_with_the_next_encounters(tmp_path):
+    """max_encounters counts encounters not done before: two runs with a limit of 1 finish two
+    different encounters (before, the second run sliced the same first one and stopped)."""
+    data = tmp_path / "data"
+    _two_interactions(data)
+    out = tmp_path / "cat"
+    cfg = small_config(sweep=None)
+    first = run_catalogue(data, out, cfg, recordings=["rec_a"], max_encounters=1, progress=False)
+    once = done_encounters(out)
+    assert len(once) == 1 and not first.complete
+    second = run_catalogue(data, out, cfg, recordings=["rec_a"], max_encounters=1, progress=False)
+    assert done_encounters(out) == ["rec_a__cyclist_2", "rec_a__escooter_1"]
+    assert second.complete and second.n_done_before == 1
+    assert sorted(set(second.rows["encounter_id"])) == done_encounters(out)
+    import json
+
+    assert json.loads((out / "catalogue.json").read_text())["status"] == "complete"
+    with pytest.raises(ConfigError, match="max_encounters"):
+        run_catalogue(data, out, cfg, recordings=["rec_a"], max_encounters=-1, progress=False)
+
+
+def test_a_run_over_other_recordings_adds_to_the_catalogue(tmp_path):
+    """A run with recordings=[rec_b] after one with [rec_a]: the table and the manifest hold
+    both (before, they were rewritten with rec_b only)."""
+    import json
+
+    data = tmp_path / "data"
+    _two_interactions(data)
+    out = tmp_path / "cat"
+    cfg = small_config(sweep=None)
+    run_catalogue(data, out, cfg, recordings=["rec_a"], progress=False)
+    second = run_catalogue(data, out, cfg, recordings=["rec_b"], progress=False)
+    assert second.complete and [d["recording"] for d in second.recordings] == ["rec_b"]
+    assert set(second.rows["recording"]) == {"rec_a", "rec_b"}
+    assert len(second.rows) == 4 * 5  # 4 encounters x the 5 case-study configurations
+    table = pd.read_parquet(out / "catalogue.parquet")
+    assert set(table["encounter_id"]) == set(done_encounters(out))
+    assert len(done_encounters(out)) == 4
+    manifest = json.loads((out / "catalogue.json").read_text())
+    assert sorted(manifest["recordings"]) == ["rec_a", "rec_b"]
+    assert manifest["n_encounters"] == 4 and manifest["status"] == "complete"

@@ -28,6 +28,7 @@ from vei.catalogue.store import (
     CATALOGUE_FORMAT,
     assemble,
     check_manifest,
+    is_done,
     write_manifest,
 )
 from vei.errors import ConfigError, InputError
@@ -45,7 +46,10 @@ class CatalogueResult:
         recordings: per recording {'recording', 'status', 'reason', 'encounters', ...}.
         failed_encounters: [{'encounter_id', 'reason'}]. n_done_before: encounters a
         previous (interrupted) run had finished. seconds: wall time of this call.
-        complete: every job finished (no encounter left undone by ``max_encounters``).
+        complete: every encounter of every recording this folder holds (this run's and
+        earlier runs') is done: none failed, none left undone by ``max_encounters``.
+        rows / encounters / the manifest cover every recording processed in this folder
+        so far, not only this run's ``recordings``.
     """
 
     out_dir: Path
@@ -177,8 +181,8 @@ def run_catalogue(
         recordings: only these recordings (names as listed; default all).
         engine, workers: where jobs run ('local' | 'ray'; >= 1 workers).
         progress: progress bars; default when stderr is a terminal.
-        max_encounters: stop after this many encounter jobs (tests, partial runs); the
-            catalogue stays resumable and is assembled from what is done.
+        max_encounters: run at most this many encounters not done before (>= 0; tests,
+            partial runs); the catalogue stays resumable and is assembled from what is done.
         on_event: callback(kind, doc) for each finished job ('recording' / 'encounter').
     Returns:
         CatalogueResult.
@@ -188,6 +192,12 @@ def run_catalogue(
     """
     t0 = time.perf_counter()
     config = config or CatalogueConfig()
+    if max_encounters is not None and (
+        isinstance(max_encounters, bool)
+        or not isinstance(max_encounters, int)
+        or max_encounters < 0
+    ):
+        raise ConfigError(f"max_encounters must be an integer >= 0, got {max_encounters!r}")
     dataset = Path(dataset).resolve()
     kind, names = list_recordings(dataset)
     if recordings is not None:
@@ -227,24 +237,32 @@ def run_catalogue(
             emit("recording", doc)
         rec_docs.sort(key=lambda d: d["recording"])
         encounters = [e for d in rec_docs for e in d.get("encounters", [])]
-        jobs = [(str(out), e, config) for e in encounters]
-        if max_encounters is not None:
-            jobs = jobs[:max_encounters]
+        # Done encounters are skipped before the limit applies, so a resumed partial run with
+        # the same limit goes on with the next ones.
+        done_before = [e for e in encounters if is_done(out, e["encounter_id"])]
+        pending = [(str(out), e, config) for e in encounters if not is_done(out, e["encounter_id"])]
+        jobs = pending if max_encounters is None else pending[:max_encounters]
         update("encounters", 0, len(jobs))
         for doc in ex.map(process_encounter, jobs):
             enc_docs.append(doc)
             update("encounters", len(enc_docs), len(jobs))
             emit("encounter", doc)
 
-    ids = [e["encounter_id"] for e in encounters]
-    rows, enc_table = assemble(out, ids)
     failed = [
         {"encounter_id": d["encounter_id"], "reason": d["reason"]}
         for d in enc_docs
         if d["status"] == "failed"
     ]
-    complete = len(jobs) == len(encounters) and not failed
-    manifest["recordings"] = {
+    # A run over some recordings adds to what earlier runs in this folder recorded: the
+    # manifest keeps their recordings and the table holds every done encounter.
+    earlier = {k: v for k, v in manifest["recordings"].items() if k not in set(names)}
+    failed += [
+        f
+        for f in (old or {}).get("failed_encounters", [])
+        if any(f["encounter_id"] in r.get("encounters", []) for r in earlier.values())
+        and not is_done(out, f["encounter_id"])
+    ]
+    manifest["recordings"] = earlier | {
         d["recording"]: {
             "status": d["status"],
             "reason": d.get("reason", ""),
@@ -253,8 +271,12 @@ def run_catalogue(
         }
         for d in rec_docs
     }
+    manifest["recordings"] = dict(sorted(manifest["recordings"].items()))
+    ids = [i for r in manifest["recordings"].values() for i in r.get("encounters", [])]
+    rows, enc_table = assemble(out, ids)
+    complete = not failed and all(is_done(out, i) for i in ids)
     manifest["failed_encounters"] = failed
-    manifest["n_encounters"] = len(encounters)
+    manifest["n_encounters"] = len(ids)
     manifest["n_rows"] = len(rows)
     manifest["status"] = "complete" if complete else "partial"
     manifest["updated_utc"] = datetime.now(UTC).isoformat(timespec="seconds")
@@ -266,7 +288,7 @@ def run_catalogue(
         encounters=enc_table,
         recordings=rec_docs,
         failed_encounters=failed,
-        n_done_before=sum(d["status"] == "done-before" for d in enc_docs),
+        n_done_before=len(done_before) + sum(d["status"] == "done-before" for d in enc_docs),
         seconds=time.perf_counter() - t0,
         complete=complete,
     )
