@@ -203,6 +203,23 @@ def _read_table(path: Path, columns: tuple[str, ...]) -> pd.DataFrame:
     return df
 
 
+def _check_ranges(
+    values: pd.DataFrame, ranges: tuple[tuple[str, float, float, str], ...], path: Path
+) -> None:
+    """InputError naming the first row whose value lies outside its column's range."""
+    for col, lo, hi, what in ranges:
+        v = values[col].to_numpy(dtype=np.float64)
+        bad = ~np.isfinite(v) | (v < lo) | (v > hi)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise InputError(
+                f"value {float(v[i])!r} outside [{lo:g}, {hi:g}] ({what})",
+                path=path,
+                row=i + 1,
+                field=col,
+            )
+
+
 def read_matching(root: str | Path, scenario: str) -> Matching:
     """Read ``<scenario>_matching.csv``; an unknown scenario lists the known ones."""
     meas = _measurements(root)
@@ -286,17 +303,7 @@ def read_ins(path: Path) -> InsRecord:
         i = int(np.flatnonzero(bad)[0])
         col = next(c for c in _INS_COLUMNS if pd.isna(values[c].iloc[i]))
         raise InputError("missing or non-numeric value", path=path, row=i + 1, field=col)
-    for col, lo, hi, what in _INS_RANGES:
-        v = values[col].to_numpy(dtype=np.float64)
-        bad = ~np.isfinite(v) | (v < lo) | (v > hi)
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise InputError(
-                f"value {float(v[i])!r} outside [{lo:g}, {hi:g}] ({what})",
-                path=path,
-                row=i + 1,
-                field=col,
-            )
+    _check_ranges(values, _INS_RANGES, path)
     week = values["week"].to_numpy(dtype=np.int64)
     tow = values["gps_tow"].to_numpy(dtype=np.float64)
     # GPS time of week has microsecond resolution: round away float noise of the difference
@@ -354,17 +361,7 @@ def read_camera_utm(path: Path) -> pd.DataFrame:
             "track_id",
         )
         raise InputError("missing or non-numeric value", path=path, row=i + 1, field=col)
-    for col, lo, hi, what in _CAMERA_RANGES:
-        v = num[col].to_numpy(dtype=np.float64)
-        bad = ~np.isfinite(v) | (v < lo) | (v > hi)
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise InputError(
-                f"value {float(v[i])!r} outside [{lo:g}, {hi:g}] ({what})",
-                path=path,
-                row=i + 1,
-                field=col,
-            )
+    _check_ranges(num, _CAMERA_RANGES, path)
     out = pd.DataFrame(
         {
             "frame_id": num["frame_id"].to_numpy(dtype=np.int64),
