@@ -1,0 +1,196 @@
+"""Worker processes that die with their parent: the process pool of sweeps and catalogues.
+
+:class:`WorkerPool` is a :class:`concurrent.futures.ProcessPoolExecutor` (``spawn`` start
+method, safe with numba and threads) whose workers never outlive the process that opened
+it, however that process ends:
+
+- **Linux**: each worker asks the kernel for ``SIGKILL`` when its parent dies
+  (``prctl(PR_SET_PDEATHSIG, SIGKILL)``, through ctypes), so ``kill -9`` of the parent ends
+  every worker at once, even one busy in compiled code that holds the GIL. The kernel
+  sends the signal when the *thread* that started the worker ends: open the pool in the
+  thread that uses it (all workers are started by :meth:`WorkerPool.start`, from the
+  caller's thread; the pool never starts replacements from its manager thread because
+  ``max_tasks_per_child`` is not used).
+- **Everywhere** (the portable path, and a second guard on Linux): a daemon watchdog thread
+  in each worker polls ``os.getppid()`` every ``poll_s`` seconds and ends the worker
+  (``os._exit``) when the parent has changed (the worker was re-parented: its parent died).
+  It needs the GIL, so a worker inside a long GIL-holding call notices at the call's end.
+- **Ctrl-C**: workers ignore ``SIGINT`` (a terminal sends it to the whole process group),
+  so only the parent handles it; leaving the ``with`` block with an exception
+  (``KeyboardInterrupt`` included) kills the workers at once instead of waiting for the
+  tasks in flight, which are lost (a resumable sweep reruns them).
+- **Process start paid once**: :meth:`WorkerPool.start` (called on entering the ``with``
+  block) starts every worker and runs the optional ``initializer`` (e.g. imports and JIT
+  compilation) in each before the first task; the same workers then serve every task.
+
+Use::
+
+    with WorkerPool(2, initializer=warm_up) as pool:   # workers started and warmed here
+        futures = [pool.submit(fn, arg) for arg in args]
+        print(pool.pids)                                # the worker process ids
+
+``worker_pool(n)`` is the same as a context-manager function. Only the standard library is
+used, so this module sits at the bottom of the ``experiments`` layer and imports no vei code.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing as mp
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+#: ``prctl`` option number of PR_SET_PDEATHSIG (linux/prctl.h).
+PR_SET_PDEATHSIG = 1
+
+#: Default period of the watchdog thread that checks the parent is alive [s].
+DEFAULT_POLL_S = 0.5
+
+
+def set_parent_death_signal(sig: int = signal.SIGKILL) -> bool:
+    """Ask the Linux kernel to send ``sig`` to this process when its parent thread ends.
+
+    Args:
+        sig: signal number (default SIGKILL).
+    Returns:
+        True when the request was accepted; False on systems without ``prctl`` (not Linux,
+        no libc) or when the call failed.
+    """
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(PR_SET_PDEATHSIG, int(sig), 0, 0, 0) == 0
+    except (OSError, AttributeError):  # pragma: no cover - libc without prctl
+        return False
+
+
+def _watch_parent(parent_pid: int, poll_s: float) -> None:
+    """Body of the watchdog thread: end this process once its parent is not ``parent_pid``."""
+    while True:
+        time.sleep(poll_s)
+        if os.getppid() != parent_pid:
+            os._exit(1)
+
+
+def _init_worker(
+    parent_pid: int,
+    poll_s: float,
+    pdeathsig: bool,
+    initializer: Callable[..., Any] | None,
+    initargs: tuple,
+) -> None:
+    """Initializer of every worker: ignore SIGINT, die with the parent, then the user's one."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if pdeathsig:
+        set_parent_death_signal(signal.SIGKILL)
+    # The parent may have died before prctl took effect: then nobody would signal us.
+    if os.getppid() != parent_pid:
+        os._exit(1)
+    threading.Thread(
+        target=_watch_parent, args=(parent_pid, poll_s), name="vei-parent-watchdog", daemon=True
+    ).start()
+    if initializer is not None:
+        initializer(*initargs)
+
+
+class WorkerPool(ProcessPoolExecutor):
+    """A spawn-based process pool whose workers end when this process ends (module docstring).
+
+    Args:
+        workers: number of worker processes (>= 1), all started by :meth:`start`.
+        initializer, initargs: run once in each worker after the parent-death guards
+            (picklable: a module-level function).
+        poll_s: period of each worker's parent watchdog [s] (> 0).
+        pdeathsig: use Linux's PR_SET_PDEATHSIG (default); False leaves only the portable
+            watchdog (what other systems get; tests use it to check that path).
+    Attributes:
+        pids: the worker process ids, in start order (empty before :meth:`start`).
+    """
+
+    def __init__(
+        self,
+        workers: int,
+        *,
+        initializer: Callable[..., Any] | None = None,
+        initargs: tuple = (),
+        poll_s: float = DEFAULT_POLL_S,
+        pdeathsig: bool = True,
+    ) -> None:
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+        if not poll_s > 0:
+            raise ValueError(f"poll_s must be > 0, got {poll_s!r}")
+        super().__init__(
+            max_workers=workers,
+            mp_context=mp.get_context("spawn"),
+            initializer=_init_worker,
+            initargs=(os.getpid(), float(poll_s), bool(pdeathsig), initializer, tuple(initargs)),
+        )
+        self.workers = workers
+        self.pids: tuple[int, ...] = ()
+
+    def start(self) -> WorkerPool:
+        """Start every worker now (and run the initializer in each); returns self.
+
+        Submits one trivial task per worker from the calling thread, which makes the
+        executor start all ``workers`` processes, and waits for them.
+        """
+        if not self.pids:
+            for f in [self.submit(os.getpid) for _ in range(self.workers)]:
+                f.result()
+            self.pids = tuple(p.pid for p in (self._processes or {}).values())
+        return self
+
+    def kill_workers(self, timeout_s: float = 5.0) -> None:
+        """Kill every worker now (SIGKILL), cancel pending tasks and shut the pool down.
+
+        Tasks in flight are lost. Waits up to ``timeout_s`` [s] for the workers to be reaped.
+        """
+        procs = list((self._processes or {}).values())
+        for p in procs:
+            with contextlib.suppress(OSError, ValueError, AttributeError):
+                p.kill()
+        self.shutdown(wait=False, cancel_futures=True)
+        deadline = time.monotonic() + timeout_s
+        for p in procs:
+            with contextlib.suppress(OSError, ValueError, AttributeError, AssertionError):
+                p.join(max(0.0, deadline - time.monotonic()))
+
+    def __enter__(self) -> WorkerPool:
+        return self.start()
+
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> bool:
+        if exc_type is None:
+            self.shutdown(wait=True)
+        else:
+            self.kill_workers()
+        return False
+
+
+@contextlib.contextmanager
+def worker_pool(
+    workers: int,
+    *,
+    initializer: Callable[..., Any] | None = None,
+    initargs: tuple = (),
+    poll_s: float = DEFAULT_POLL_S,
+    pdeathsig: bool = True,
+) -> Iterator[WorkerPool]:
+    """``with worker_pool(n) as pool``: a started :class:`WorkerPool` (same arguments).
+
+    On a normal exit waits for the submitted tasks; on an exception (KeyboardInterrupt
+    included) kills the workers at once and re-raises.
+    """
+    with WorkerPool(
+        workers, initializer=initializer, initargs=initargs, poll_s=poll_s, pdeathsig=pdeathsig
+    ) as pool:
+        yield pool
