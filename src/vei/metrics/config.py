@@ -29,15 +29,48 @@ class MetricsConfig:
             (the ego, driving forward, cannot run into a road user behind it; behind -> TTC
             = inf, safe); 'all': the literal formula at every step, whatever the bearing.
         min_speed_mps: ego speeds at or below this count as standing [m/s]: TTC = inf.
+        drac_ceiling_mps2: DRAC values above this are physically unreachable by braking and
+            are reported capped at it, flagged by ``drac_unavoidable`` (default 9.81 m/s^2 =
+            1 g, about the best a passenger car brakes on dry asphalt; see docs/metrics.md).
+        car_mass_kg: mass of the ego car for the impact's delta-v [kg]. Assumption: 1,500 kg,
+            a mid-size sedan's curb weight (~1,400-1,550 kg) plus a driver, matching the
+            default 4.7 x 1.85 m footprint.
+        rider_mass_kg: rider + e-scooter mass for the delta-v [kg]; default 95 kg = the SFM
+            rider's mass (vei.config.SFMConfig.mass_kg).
+        injury_intercept: b0 of the rider's injury risk P = 1 / (1 + exp(b0 - b1 v_kmh)).
+        injury_slope_per_kmh: b1 [1/(km/h)]. Defaults b0 = 6.9, b1 = 0.090: Rosen & Sander
+            (2009), "Pedestrian fatality risk as a function of car impact speed", Accid.
+            Anal. Prev. 41(3):536-542 (GIDAS, adults hit by a car front): P = probability of
+            a fatal injury. See vei.metrics.severity for why this curve.
+        injury_outcome: what the risk is the probability of (a label for tables and plots).
+        mitigation_share: a collision counts as 'mitigated' when its impact speed is at
+            least this share below the no-avoidance run's (default 0.2 = 20 %).
     """
 
     safe_ttc_s: float = 2.0
     alert_ttc_s: float = 1.0
     ttc_scope: TtcScope = "ahead"
     min_speed_mps: float = 1e-3
+    drac_ceiling_mps2: float = 9.81
+    car_mass_kg: float = 1500.0
+    rider_mass_kg: float = 95.0
+    injury_intercept: float = 6.9
+    injury_slope_per_kmh: float = 0.090
+    injury_outcome: str = "fatal injury (Rosen & Sander 2009, pedestrian)"
+    mitigation_share: float = 0.2
 
     def __post_init__(self) -> None:
-        for name in ("safe_ttc_s", "alert_ttc_s", "min_speed_mps"):
+        for name in (
+            "safe_ttc_s",
+            "alert_ttc_s",
+            "min_speed_mps",
+            "drac_ceiling_mps2",
+            "car_mass_kg",
+            "rider_mass_kg",
+            "injury_intercept",
+            "injury_slope_per_kmh",
+            "mitigation_share",
+        ):
             value = getattr(self, name)
             if (
                 isinstance(value, bool)
@@ -54,6 +87,15 @@ class MetricsConfig:
             )
         if self.min_speed_mps < 0:
             raise ConfigError(f"MetricsConfig.min_speed_mps must be >= 0, got {self.min_speed_mps}")
+        for name in ("drac_ceiling_mps2", "car_mass_kg", "rider_mass_kg", "injury_slope_per_kmh"):
+            if getattr(self, name) <= 0:
+                raise ConfigError(f"MetricsConfig.{name} must be > 0, got {getattr(self, name)}")
+        if not 0.0 < self.mitigation_share < 1.0:
+            raise ConfigError(
+                f"MetricsConfig.mitigation_share must lie in (0, 1), got {self.mitigation_share}"
+            )
+        if not isinstance(self.injury_outcome, str) or not self.injury_outcome:
+            raise ConfigError("MetricsConfig.injury_outcome must be a non-empty string")
         if self.ttc_scope not in ("ahead", "all"):
             raise ConfigError(
                 f"MetricsConfig.ttc_scope must be 'ahead' or 'all', got {self.ttc_scope!r}"

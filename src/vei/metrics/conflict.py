@@ -7,9 +7,21 @@ avoid a crash (DRAC).
   other's path). Each agent occupies the point while its centre is within half its
   length of it along its own path; PET = (time the second arrives) - (time the first
   leaves), 0 if the occupancies overlap or the run collides, NaN if the paths never cross.
-- DRAC: v_close^2 / (2 gap), with v_close = v_ego - (v_other . ego heading), the closing
-  speed along the ego's heading, while the other is ahead of the ego and closing; 0 when
-  not closing or behind; NaN where inactive or collided.
+- DRAC (deceleration rate to avoid a crash): v_close^2 / (2 gap), with v_close = v_ego -
+  (v_other . ego heading), the closing speed along the ego's heading. It is the constant
+  deceleration that brings the closing speed to 0 within the gap, so it is defined only
+  where that question has an answer: the other is active, ahead of the ego, the boxes
+  are apart (gap > 0), the ego is closing (v_close > 0), the boxes would meet if both kept
+  their velocities (finite TTC with relative velocity: a rider passing close *beside* the
+  car, not on a collision course, needs no braking -> 0), and the step lies strictly
+  before the first contact. Everywhere else in the interaction span it is 0 (nothing to
+  avoid) before contact and NaN from the contact step on (the crash was not avoided; a
+  deceleration to avoid it no longer exists), NaN where inactive.
+  A car cannot brake harder than about 1 g: a value above ``MetricsConfig.
+  drac_ceiling_mps2`` means "unavoidable by braking alone". Such values are reported
+  capped at the ceiling, and ``drac_unavoidable`` flags the run (the gap -> 0 on the
+  step before an impact otherwise gives 10^3 - 10^4 m/s^2). Capping instead of NaN
+  keeps the run in means and maps; the flag keeps the information.
 """
 
 from __future__ import annotations
@@ -38,25 +50,57 @@ def min_gap(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> Flo
     return out
 
 
-def drac_series(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
-    """[B, T] deceleration rate to avoid a crash (m/s^2, >= 0); NaN inactive or collided."""
-    a = arrays(trace)
+def _drac_raw(a: TraceArrays) -> FloatArray:
+    """[B, T] uncapped DRAC (m/s^2): see the module docstring; NaN inactive or from contact."""
+    if "drac_raw" in a.memo:
+        return a.memo["drac_raw"]
+    from vei.metrics.geometry import time_to_contact
+
     heading = np.stack([np.cos(a.ego_yaw), np.sin(a.ego_yaw)], axis=-1)
-    v_close = a.ego_speed - np.sum(a.other_vel * heading, axis=-1)
-    closing = a.ahead & (v_close > 0.0)
+    other_vel = np.nan_to_num(a.other_vel)
+    v_close = a.ego_speed - np.sum(other_vel * heading, axis=-1)
+    gap = np.nan_to_num(a.gap, nan=0.0)
+    candidate = a.ahead & (v_close > 0.0) & (gap > 0.0)
+    on_course = np.zeros_like(candidate)
+    if candidate.any():
+        ttc = time_to_contact(
+            a.ego_corners[candidate], a.other_corners[candidate], (other_vel - a.ego_vel)[candidate]
+        )
+        on_course[candidate] = np.isfinite(ttc)
+    closing = candidate & on_course
     with np.errstate(divide="ignore", invalid="ignore"):
-        drac = np.where(closing, v_close**2 / (2.0 * a.gap), 0.0)
-    drac = np.where(closing & (a.gap <= 0.0), np.inf, drac)
-    return np.where(a.active & ~a.collided, drac, np.nan)
+        drac = np.where(closing, v_close**2 / (2.0 * np.where(closing, gap, 1.0)), 0.0)
+    out = np.where(a.active & ~a.collided, drac, np.nan)
+    a.memo["drac_raw"] = out
+    return out
+
+
+def drac_series(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
+    """[B, T] deceleration rate to avoid a crash (m/s^2), in [0, cfg.drac_ceiling_mps2]
+    (values above the ceiling are capped at it); NaN inactive or from first contact on."""
+    cfg = MetricsConfig() if cfg is None else cfg
+    return np.minimum(_drac_raw(arrays(trace)), cfg.drac_ceiling_mps2)
 
 
 def max_drac(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
-    """[B] largest DRAC over the non-collided interaction span (m/s^2); NaN if none."""
+    """[B] largest DRAC before first contact (m/s^2), capped at cfg.drac_ceiling_mps2; NaN
+    if the road user is never active before contact."""
     d = drac_series(trace, cfg)
     out = np.full(d.shape[0], np.nan)
-    has = np.isfinite(d).any(axis=1) | np.isinf(d).any(axis=1)
+    has = np.isfinite(d).any(axis=1)
     out[has] = np.nanmax(d[has], axis=1)
     return out
+
+
+def drac_unavoidable(
+    trace: Trace | TraceArrays, cfg: MetricsConfig | None = None
+) -> npt.NDArray[np.bool_]:
+    """[B] the DRAC exceeded cfg.drac_ceiling_mps2 at some step before first contact: no
+    braking within the car's limit could have avoided the crash from that step."""
+    cfg = MetricsConfig() if cfg is None else cfg
+    raw = _drac_raw(arrays(trace))
+    with np.errstate(invalid="ignore"):
+        return (raw > cfg.drac_ceiling_mps2).any(axis=1)
 
 
 def _first_crossing(p: FloatArray, q: FloatArray) -> tuple[int, float, int, float] | None:

@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from vei.errors import ConfigError
-from vei.metrics import conflict, ego_dynamics, kinematics, ttc
+from vei.metrics import conflict, ego_dynamics, kinematics, severity, ttc
 from vei.metrics._trace import TraceArrays, arrays
 from vei.metrics.config import MetricsConfig
 from vei.types import Trace
@@ -30,7 +30,8 @@ class Metric:
     Attributes:
         name: registry key (also the summary column).
         kind: 'scalar' -> compute returns [B]; 'series' -> [B, T].
-        unit: unit of the values ('s', 'm', 'm/s^2', 'm/s', '1', 'bool', 'zone').
+        unit: unit of the values ('s', 'm', 'm/s^2', 'm/s', '1', 'bool', 'zone', 'label':
+            a string per run, '' where undefined).
         description: one line.
         fn: the implementation (trace arrays, config) -> array.
     """
@@ -140,6 +141,55 @@ _ALL: tuple[Metric, ...] = (
         "m/s^2",
         "largest deceleration rate to avoid a crash",
         lambda a, c: conflict.max_drac(a, c),
+    ),
+    Metric(
+        "drac_unavoidable",
+        "scalar",
+        "bool",
+        "DRAC exceeded the braking ceiling before contact (unavoidable by braking alone)",
+        lambda a, c: conflict.drac_unavoidable(a, c),
+    ),
+    Metric(
+        "impact_speed_mps",
+        "scalar",
+        "m/s",
+        "relative speed at first contact (velocities of the step before; NaN if none)",
+        lambda a, c: severity.impact_speed(a, c),
+    ),
+    Metric(
+        "delta_v_rider_mps",
+        "scalar",
+        "m/s",
+        "rider's velocity change in a plastic impact (momentum; NaN if no collision)",
+        lambda a, c: severity.delta_v(a, c)[0],
+    ),
+    Metric(
+        "delta_v_car_mps",
+        "scalar",
+        "m/s",
+        "car's velocity change in a plastic impact (momentum; NaN if no collision)",
+        lambda a, c: severity.delta_v(a, c)[1],
+    ),
+    Metric(
+        "impact_side",
+        "scalar",
+        "label",
+        "side of the car hit: front / rear / left / right ('' if no collision)",
+        lambda a, c: severity.impact_side(a, c),
+    ),
+    Metric(
+        "striking",
+        "scalar",
+        "label",
+        "car-hits-rider / rider-hits-car ('' if no collision)",
+        lambda a, c: severity.striking(a, c),
+    ),
+    Metric(
+        "injury_risk",
+        "scalar",
+        "1",
+        "rider's injury risk at the impact speed (MetricsConfig.injury_outcome; 0 if none)",
+        lambda a, c: severity.injury_risk(a, c),
     ),
     Metric(
         "peak_decel_mps2",

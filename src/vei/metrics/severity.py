@@ -1,0 +1,212 @@
+"""What a collision costs: impact speed, delta-v, impact configuration, injury risk, and
+the verdict of an avoidance policy against the no-avoidance run.
+
+Definitions (one value per run; NaN / '' when the run has no collision):
+
+- **Contact step**: the first step k at which the boxes overlap (``collided`` turns
+  True). The engine zeroes both speeds on the step that detects the overlap, so the
+  velocities *at* k are not the impact's. Every velocity below is the one of the last
+  step before contact, k - 1 (dt = 0.05 s at the default 20 Hz); when contact is on the
+  run's first step (or the road user was not active at k - 1), step k itself.
+- **Impact speed** ``|v_rel|``: norm of the relative velocity v_ego - v_rider [m/s],
+  v_ego = speed * (cos yaw, sin yaw).
+- **Delta-v** of a perfectly plastic impact (both end with the common velocity; momentum
+  conserved): dv_car = m_r / (m_c + m_r) |v_rel|, dv_rider = m_c / (m_c + m_r) |v_rel|.
+  Masses: ``MetricsConfig.car_mass_kg`` (1,500 kg) and ``rider_mass_kg`` (95 kg, the SFM
+  rider + e-scooter). A plastic impact is the upper bound of the velocity change for a
+  given closing speed when the bodies do not bounce; a rider who is thrown off the car
+  front reaches about the car's speed, which this is.
+- **Impact side**: the face of the ego box the rider's centre lies beyond, at contact, in
+  the ego frame (x forward, y left), scaled by the box: |x| / (L/2) >= |y| / (W/2) ->
+  'front' (x >= 0) or 'rear', else 'left' (y > 0) or 'right'.
+- **Who hit whom**: along the outward normal n of the hit face (front: ego heading,
+  left: ego left, ...), the car's contribution to the closing speed is v_ego . n and
+  the rider's -v_rider . n. 'car-hits-rider' when the car's contribution is at least the
+  rider's, 'rider-hits-car' otherwise (e.g. a rider riding into a standing car, or into
+  the side of a moving one, whose motion has no component along a side face's normal).
+  The face normal is used rather than the line of centres because the car is 4.7 m
+  long: a rider touching the left side near the front corner lies 30 degrees off the
+  car's axis, and the line of centres would credit the car's forward motion with a
+  closing speed it does not have against that face.
+- **Injury risk** of the rider: a logistic curve in the impact speed in km/h,
+  P = 1 / (1 + exp(b0 - b1 v)), coefficients in :class:`vei.metrics.config.MetricsConfig`.
+  Default: Rosen & Sander (2009), Accid. Anal. Prev. 41(3):536-542, b0 = 6.9,
+  b1 = 0.090 per km/h, the probability of a *fatal* injury of an adult hit by the front
+  of a passenger car (GIDAS). It is a pedestrian curve: cyclist curves from GIDAS exist
+  (Jeppsson & Lubbe 2020, Accid. Anal. Prev. 142:105538, MAIS2+/MAIS3+/fatal), but their
+  coefficients were not available to us to cite exactly, so we use the one we can quote
+  and label it. It is a plausible order of magnitude for a rider: 7.6 % at 49 km/h, where
+  the TARGET study (Traffic Safety Research; GIDAS-based VRU risk models) puts a
+  cyclist's 10 % MAIS3+ (serious, not fatal) risk. Set the coefficients and
+  ``injury_outcome`` to use another curve.
+
+The verdict (:func:`verdict`) compares a policy run with the no-avoidance ('none' / PID)
+run of the same variant: 'avoided' (no collision), 'mitigated' (impact speed at least
+``mitigation_share`` below the no-avoidance run's), 'not-mitigated' otherwise -- which
+includes a collision the no-avoidance run did not have.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from vei.metrics._trace import TraceArrays, arrays
+from vei.metrics.config import MetricsConfig
+from vei.types import Trace
+
+FloatArray = npt.NDArray[np.float64]
+ObjArray = npt.NDArray[np.object_]
+
+SIDES: tuple[str, ...] = ("front", "rear", "left", "right")
+STRIKING: tuple[str, ...] = ("car-hits-rider", "rider-hits-car")
+VERDICTS: tuple[str, ...] = ("avoided", "mitigated", "not-mitigated")
+KMH_PER_MPS = 3.6
+
+
+def _contact(a: TraceArrays) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(hit [B] bool, contact step k [B], velocity step [B]) of every run."""
+    hit = a.collided.any(axis=1)
+    k = np.argmax(a.collided, axis=1)
+    pre = np.maximum(k - 1, 0)
+    rows = np.arange(k.size)
+    pre_ok = a.active[rows, pre] & np.isfinite(a.other_vel[rows, pre]).all(axis=-1)
+    return hit, k, np.where(pre_ok, pre, k)
+
+
+def _cached(a: TraceArrays, key: str, fn):  # noqa: ANN001, ANN202
+    if key not in a.memo:
+        a.memo[key] = fn()
+    return a.memo[key]
+
+
+def relative_velocity(trace: Trace | TraceArrays) -> FloatArray:
+    """[B, 2] v_ego - v_rider just before first contact (m/s); NaN rows without collision."""
+    a = arrays(trace)
+
+    def compute() -> FloatArray:
+        hit, _, vk = _contact(a)
+        rows = np.arange(vk.size)
+        v_rel = a.ego_vel[rows, vk] - np.nan_to_num(a.other_vel[rows, vk])
+        return np.where(hit[:, None], v_rel, np.nan)
+
+    return _cached(a, "severity.v_rel", compute)
+
+
+def impact_speed(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
+    """[B] relative speed at first contact (m/s, >= 0); NaN without collision."""
+    return np.linalg.norm(relative_velocity(trace), axis=-1)
+
+
+def delta_v(
+    trace: Trace | TraceArrays, cfg: MetricsConfig | None = None
+) -> tuple[FloatArray, FloatArray]:
+    """([B] rider delta-v, [B] car delta-v) of a perfectly plastic impact (m/s); NaN
+    without collision. dv_rider = m_c / (m_c + m_r) |v_rel|, dv_car = m_r / (...) |v_rel|.
+    """
+    cfg = MetricsConfig() if cfg is None else cfg
+    v = impact_speed(trace, cfg)
+    total = cfg.car_mass_kg + cfg.rider_mass_kg
+    return cfg.car_mass_kg / total * v, cfg.rider_mass_kg / total * v
+
+
+def _side_normal(a: TraceArrays) -> tuple[ObjArray, FloatArray]:
+    """([B] hit side, [B, 2] the hit face's outward normal in the world frame)."""
+
+    def compute() -> tuple[ObjArray, FloatArray]:
+        hit, k, _ = _contact(a)
+        rows = np.arange(k.size)
+        rel = a.rel_xy[rows, k]
+        tr = a.trace
+        ex = np.abs(rel[:, 0]) / (0.5 * tr.ego_length_m)
+        ey = np.abs(rel[:, 1]) / (0.5 * tr.ego_width_m)
+        lengthwise = ex >= ey
+        side = np.where(
+            lengthwise,
+            np.where(rel[:, 0] >= 0.0, "front", "rear"),
+            np.where(rel[:, 1] > 0.0, "left", "right"),
+        ).astype(object)
+        side[~hit] = ""
+        yaw = a.ego_yaw[rows, k]
+        fwd = np.stack([np.cos(yaw), np.sin(yaw)], axis=-1)
+        left = np.stack([-np.sin(yaw), np.cos(yaw)], axis=-1)
+        sign_x = np.where(rel[:, 0] >= 0.0, 1.0, -1.0)[:, None]
+        sign_y = np.where(rel[:, 1] > 0.0, 1.0, -1.0)[:, None]
+        normal = np.where(lengthwise[:, None], sign_x * fwd, sign_y * left)
+        return side, normal
+
+    return _cached(a, "severity.side", compute)
+
+
+def impact_side(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> ObjArray:
+    """[B] side of the car hit: 'front' / 'rear' / 'left' / 'right'; '' without collision."""
+    return _side_normal(arrays(trace))[0].copy()
+
+
+def closing_contributions(trace: Trace | TraceArrays) -> tuple[FloatArray, FloatArray]:
+    """([B] car's, [B] rider's) contribution to the closing speed along the hit face's
+    outward normal just before contact (m/s); NaN without collision."""
+    a = arrays(trace)
+    hit, _, vk = _contact(a)
+    rows = np.arange(vk.size)
+    _, n = _side_normal(a)
+    car = np.sum(a.ego_vel[rows, vk] * n, axis=-1)
+    rider = -np.sum(np.nan_to_num(a.other_vel[rows, vk]) * n, axis=-1)
+    return np.where(hit, car, np.nan), np.where(hit, rider, np.nan)
+
+
+def striking(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> ObjArray:
+    """[B] 'car-hits-rider' or 'rider-hits-car' (see module docstring); '' without collision."""
+    car, rider = closing_contributions(trace)
+    out = np.where(car >= rider, STRIKING[0], STRIKING[1]).astype(object)
+    out[np.isnan(car)] = ""
+    return out
+
+
+def injury_risk_of_speed(speed_mps: npt.ArrayLike, cfg: MetricsConfig | None = None) -> FloatArray:
+    """Injury probability of the rider at impact speeds ``speed_mps`` (any shape, m/s):
+    1 / (1 + exp(b0 - b1 * 3.6 v)); NaN stays NaN."""
+    cfg = MetricsConfig() if cfg is None else cfg
+    v_kmh = np.asarray(speed_mps, dtype=np.float64) * KMH_PER_MPS
+    return 1.0 / (1.0 + np.exp(cfg.injury_intercept - cfg.injury_slope_per_kmh * v_kmh))
+
+
+def injury_risk(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
+    """[B] the rider's injury risk at the impact speed (probability in (0, 1); the outcome
+    is ``cfg.injury_outcome``); 0 without collision (no impact, no injury)."""
+    v = impact_speed(trace, cfg)
+    return np.where(np.isnan(v), 0.0, injury_risk_of_speed(v, cfg))
+
+
+def verdict(
+    collision: npt.ArrayLike,
+    impact_speed_mps: npt.ArrayLike,
+    none_collision: npt.ArrayLike,
+    none_impact_speed_mps: npt.ArrayLike,
+    mitigation_share: float = MetricsConfig.mitigation_share,
+) -> ObjArray:
+    """Verdict of B policy runs against their no-avoidance runs (same variants, same order).
+
+    Args:
+        collision, impact_speed_mps: [B] the policy runs (speed NaN where no collision).
+        none_collision, none_impact_speed_mps: [B] the no-avoidance ('none') runs.
+        mitigation_share: the share in (0, 1) by which the impact speed must drop.
+    Returns:
+        [B] 'avoided' (no collision), 'mitigated' (impact speed <= (1 - share) x the
+        no-avoidance run's), else 'not-mitigated' (also a collision the 'none' run did
+        not have).
+    """
+    if not 0.0 < mitigation_share < 1.0:
+        raise ValueError(f"mitigation_share must lie in (0, 1), got {mitigation_share}")
+    hit = np.asarray(collision, dtype=bool)
+    v = np.asarray(impact_speed_mps, dtype=np.float64)
+    none_hit = np.asarray(none_collision, dtype=bool)
+    v0 = np.asarray(none_impact_speed_mps, dtype=np.float64)
+    if not (hit.shape == v.shape == none_hit.shape == v0.shape):
+        raise ValueError(
+            f"verdict needs equal shapes, got {hit.shape}, {v.shape}, {none_hit.shape}, {v0.shape}"
+        )
+    with np.errstate(invalid="ignore"):
+        reduced = none_hit & (v <= (1.0 - mitigation_share) * v0)
+    out = np.where(hit, np.where(reduced, VERDICTS[1], VERDICTS[2]), VERDICTS[0])
+    return out.astype(object)
