@@ -87,8 +87,10 @@ def _init_worker(
     pdeathsig: bool,
     initializer: Callable[..., Any] | None,
     initargs: tuple,
+    ready: Any,
 ) -> None:
-    """Initializer of every worker: ignore SIGINT, die with the parent, then the user's one."""
+    """Initializer of every worker: ignore SIGINT, die with the parent, run the user's
+    initializer, then put this worker's pid on the ``ready`` queue."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if pdeathsig:
         set_parent_death_signal(signal.SIGKILL)
@@ -100,6 +102,7 @@ def _init_worker(
     ).start()
     if initializer is not None:
         initializer(*initargs)
+    ready.put(os.getpid())
 
 
 class WorkerPool(ProcessPoolExecutor):
@@ -113,7 +116,8 @@ class WorkerPool(ProcessPoolExecutor):
         pdeathsig: use Linux's PR_SET_PDEATHSIG (default); False leaves only the portable
             watchdog (what other systems get; tests use it to check that path).
     Attributes:
-        pids: the worker process ids, in start order (empty before :meth:`start`).
+        pids: the worker process ids, in the order they became ready (empty before
+            :meth:`start`).
     """
 
     def __init__(
@@ -129,25 +133,54 @@ class WorkerPool(ProcessPoolExecutor):
             raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
         if not poll_s > 0:
             raise ValueError(f"poll_s must be > 0, got {poll_s!r}")
+        ctx = mp.get_context("spawn")
+        self._ready = ctx.Queue()
         super().__init__(
             max_workers=workers,
-            mp_context=mp.get_context("spawn"),
+            mp_context=ctx,
             initializer=_init_worker,
-            initargs=(os.getpid(), float(poll_s), bool(pdeathsig), initializer, tuple(initargs)),
-        )
+            initargs=(
+                os.getpid(), float(poll_s), bool(pdeathsig), initializer, tuple(initargs),
+                self._ready,
+            ),
+        )  # fmt: skip
         self.workers = workers
         self.pids: tuple[int, ...] = ()
 
-    def start(self) -> WorkerPool:
-        """Start every worker now (and run the initializer in each); returns self.
+    def start(self, timeout_s: float = 300.0) -> WorkerPool:
+        """Start every worker now and wait until each has run its initializer; returns self.
 
-        Submits one trivial task per worker from the calling thread, which makes the
-        executor start all ``workers`` processes, and waits for them.
+        Trivial tasks submitted from the calling thread make the executor start all
+        ``workers`` processes; each reports its pid once initialised.
+
+        Raises:
+            concurrent.futures.process.BrokenProcessPool: a worker died while starting
+                (e.g. its initializer raised).
+            TimeoutError: the workers were not all ready within ``timeout_s`` [s].
         """
-        if not self.pids:
-            for f in [self.submit(os.getpid) for _ in range(self.workers)]:
-                f.result()
-            self.pids = tuple(p.pid for p in (self._processes or {}).values())
+        if self.pids:
+            return self
+        import queue
+
+        futures = []
+        while len(self._processes or {}) < self.workers and len(futures) < 4 * self.workers:
+            futures.append(self.submit(int))
+        pids: list[int] = []
+        deadline = time.monotonic() + timeout_s
+        while len(pids) < self.workers:
+            try:
+                pids.append(self._ready.get(timeout=0.1))
+            except queue.Empty:
+                for f in futures:
+                    if f.done():
+                        f.result()  # raises BrokenProcessPool when a worker died
+                if time.monotonic() > deadline:
+                    raise TimeoutError(
+                        f"{self.workers} workers not ready in {timeout_s} s"
+                    ) from None
+        for f in futures:
+            f.result()
+        self.pids = tuple(pids)
         return self
 
     def kill_workers(self, timeout_s: float = 5.0) -> None:
