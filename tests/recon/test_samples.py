@@ -9,6 +9,8 @@ import pytest
 from vei.errors import ConfigError, InputError
 from vei.experiments.sweep_spec import SAMPLE_COLUMN, spec_from_dict, variants_table
 from vei.io.interaction import read_interaction
+from vei.recon.calibration import POSTERIOR_STD_INFLATION
+from vei.recon.compare import leave_one_recording_out
 from vei.recon.pipeline import PRESETS, reconstruct
 from vei.recon.samples import rider_band, sample_rider, scenario_with_sample
 
@@ -26,24 +28,29 @@ STADTMITTE = "stadtmitte_12_audi_geradeaus_03"
 
 
 @pytest.fixture(scope="module")
-def probabilistic(trafficmonitoring_root, tmp_path_factory):
-    """Every shared recording reconstructed with interp 'kalman' and the smoothed ego."""
+def imported(trafficmonitoring_root, tmp_path_factory):
+    """Every shared recording with riders, imported at 1 FPS (with its ground truth)."""
     from vei.datasets.trafficmonitoring import import_scenario
 
     out = tmp_path_factory.mktemp("tm")
     return {
-        name: reconstruct(
-            read_interaction(import_scenario(trafficmonitoring_root, name, out / name)),
-            PRESETS["probabilistic"],
-        )
+        name: read_interaction(import_scenario(trafficmonitoring_root, name, out / name))
         for name in RECORDINGS
     }
+
+
+@pytest.fixture(scope="module")
+def probabilistic(imported):
+    """Every shared recording reconstructed with interp 'kalman' and the smoothed ego."""
+    return {name: reconstruct(inter, PRESETS["probabilistic"]) for name, inter in imported.items()}
 
 
 def test_kalman_calibration_on_every_shared_recording(probabilistic):
     # Measured (benchmarks/bench_recon_accuracy.py, 20 rider tracks): mean track RMSE vs the
     # 1 s Savitzky-Golay ground truth 0.323 m (cubic 0.351, smoothing 0.316); 95 % coverage
-    # pooled over ground-truth samples 87.9 % (denoised) / 91.7 % (raw + keyframe noise).
+    # pooled over ground-truth samples 95.0 % (denoised) / 94.0 % (raw + keyframe noise)
+    # with the calibrated std factor 1.461 (fitted on these recordings: the honest,
+    # held-out figure is the leave-one-out test below); 87.9 % without it.
     # The keyframes themselves lie 0.25 m RMS (track mean) from the denoised ground truth.
     tracks = [
         t
@@ -56,8 +63,8 @@ def test_kalman_calibration_on_every_shared_recording(probabilistic):
     w = df["n_samples"].to_numpy(float)
     cov_sg = float(np.sum(w * df["coverage_sg"]) / w.sum())
     cov_raw = float(np.sum(w * df["coverage_raw"]) / w.sum())
-    assert 0.85 <= cov_sg <= 0.93
-    assert 0.89 <= cov_raw <= 0.96
+    assert 0.93 <= cov_sg <= 0.97
+    assert 0.92 <= cov_raw <= 0.97
     assert df["rmse_sg_m"].mean() < 0.34  # below cubic's 0.351
     assert (df["rmse_sg_m"] <= df["rmse_m"] + 1e-9).mean() > 0.9  # denoising helps
     for sc in probabilistic.values():
@@ -65,6 +72,20 @@ def test_kalman_calibration_on_every_shared_recording(probabilistic):
         assert 0.02 <= noise["noise_m"] <= 0.5  # camera jitter is decimetres
         # The whole noise model is stored, so scenario readers can resample it.
         assert noise["method"] in ("ml", "fixed")
+        if noise["method"] == "ml":
+            assert noise["std_inflation"] == POSTERIOR_STD_INFLATION
+
+
+def test_calibration_factor_holds_on_held_out_recordings(probabilistic, imported):
+    # Leave one recording out: the factor fitted on the other six, coverage scored on the
+    # held-out one. Measured: pooled held-out coverage 95.5 % (model alone 87.9 %), fold
+    # factors 1.41-1.69, factor on all seven 1.460 (the shipped constant is 1.461).
+    loo = leave_one_recording_out(probabilistic, imported)
+    assert len(loo["folds"]) == 7
+    assert 0.86 <= loo["coverage_model"] <= 0.90
+    assert 0.90 <= loo["coverage_held_out"] <= 0.98  # the issue's target band
+    assert all(1.3 <= f["factor"] <= 1.8 for f in loo["folds"])
+    assert loo["factor_all"] == pytest.approx(POSTERIOR_STD_INFLATION, abs=0.01)
 
 
 def test_smoothed_ego_path_is_smoother_and_stays_on_the_fixes(probabilistic):

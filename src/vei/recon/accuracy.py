@@ -26,12 +26,12 @@ import pandas as pd
 from scipy.signal import savgol_filter
 
 from vei.geo.frame import LocalFrame
+from vei.recon.calibration import CHI2_2DOF_95
 from vei.types import RIDER_CATEGORIES
 
 FloatArray = npt.NDArray[np.float64]
 
-#: chi-square quantile, 2 degrees of freedom, 0.95: -2 ln(0.05).
-CHI2_2DOF_95 = float(-2.0 * np.log(0.05))
+__all__ = ["CHI2_2DOF_95", "denoise_ground_truth", "evaluate", "track_errors"]
 #: Savitzky-Golay denoising of the ground truth: window [s] and polynomial order.
 SG_WINDOW_S = 1.0
 SG_POLYORDER = 2

@@ -14,19 +14,28 @@ from collections.abc import Iterable, Mapping
 import numpy as np
 import pandas as pd
 
+from vei.geo.frame import LocalFrame
+from vei.recon import calibration
+from vei.recon.accuracy import denoise_ground_truth
 from vei.recon.interpolate import INTERP_METHODS
 from vei.recon.pipeline import ReconstructionConfig, reconstruct
-from vei.types import RIDER_CATEGORIES, Interaction
+from vei.recon.samples import scenario_noise
+from vei.recon.smoother import posterior
+from vei.types import RIDER_CATEGORIES, Interaction, Scenario
 
 
 def compare_methods(
-    interactions: Mapping[str, Interaction], methods: Iterable[str] = INTERP_METHODS
+    interactions: Mapping[str, Interaction],
+    methods: Iterable[str] = INTERP_METHODS,
+    keep: dict[str, Scenario] | None = None,
 ) -> pd.DataFrame:
     """Per-track accuracy of each method on each recording.
 
     Args:
         interactions: name -> interaction with ground truth.
         methods: interpolation methods (INTERP_METHODS).
+        keep: if given, receives name -> the 'kalman' scenario of each recording (for
+            :func:`model_d2` without reconstructing again).
     Returns:
         DataFrame, one row per (recording, rider track, method): recording, agent_id,
         method, n_keyframes, n_samples, rmse_m, rmse_sg_m, keyframe_rmse_sg_m (the
@@ -38,6 +47,8 @@ def compare_methods(
     for name, inter in interactions.items():
         for method in methods:
             sc = reconstruct(inter, ReconstructionConfig(interp=method))
+            if keep is not None and method == "kalman":
+                keep[name] = sc
             rec = sc.extra["reconstruction"]
             n_kf = {t["agent_id"]: t["n_keyframes"] for t in rec["tracks"]}
             noise = rec.get("noise") or {}
@@ -90,3 +101,63 @@ def summarise(table: pd.DataFrame) -> pd.DataFrame:
             }
         )
     return pd.DataFrame(out)
+
+
+def model_d2(scenario: Scenario, ground_truth: pd.DataFrame) -> dict[str, np.ndarray]:
+    """Squared Mahalanobis distances of the denoised ground truth under the *uncalibrated*
+    rider posterior (std_inflation 1), per rider track: the input of
+    :func:`vei.recon.calibration.fit_inflation` / ``leave_one_out``.
+
+    Args:
+        scenario: a scenario reconstructed with ``interp='kalman'`` (keyframes, plane and
+            noise estimate stored in it).
+        ground_truth: the interaction's ground truth (t_s, track_id, lat_deg, lon_deg).
+    Returns:
+        agent_id -> [N] d^2 = |posterior mean - denoised truth|^2 / std^2 [-] at the ground
+        truth times inside the track's keyframe span (tracks with >= 2 keyframes).
+    """
+    noise = scenario_noise(scenario)
+    frame = LocalFrame.from_proj_string(scenario.projection)
+    gt = ground_truth.assign(track_id=ground_truth["track_id"].astype(str))
+    by_track = dict(list(gt.groupby("track_id", sort=False)))
+    out: dict[str, np.ndarray] = {}
+    for aid, kf in scenario.keyframes.groupby("agent_id", sort=True):
+        g = by_track.get(str(kf["source_track_id"].iloc[0]))
+        if kf["category"].iloc[0] not in RIDER_CATEGORIES or g is None or len(kf) < 2:
+            continue
+        g = g.sort_values("t_s")
+        t = g["t_s"].to_numpy(np.float64)
+        xy = np.column_stack(frame.to_xy(g["lat_deg"].to_numpy(), g["lon_deg"].to_numpy()))
+        sg = denoise_ground_truth(t, xy)
+        tk = kf["t_s"].to_numpy(np.float64)
+        inside = (t >= tk[0] - 1e-9) & (t <= tk[-1] + 1e-9)
+        if not inside.any():
+            continue
+        post = posterior(
+            [(tk, kf[["x_m", "y_m"]].to_numpy(np.float64))],
+            [np.clip(t[inside], tk[0], tk[-1])],
+            noise.noise_m,
+            noise.accel_psd_m2ps3,
+        )[0]
+        e2 = np.sum((post.xy_m - sg[inside]) ** 2, axis=1)
+        out[str(aid)] = e2 / np.maximum(post.std_m**2, 1e-12)
+    return out
+
+
+def leave_one_recording_out(
+    scenarios: Mapping[str, Scenario], interactions: Mapping[str, Interaction]
+) -> dict:
+    """:func:`vei.recon.calibration.leave_one_out` over recordings: each recording's 95 %
+    coverage with the std factor fitted on the other recordings only.
+
+    Args:
+        scenarios: name -> 'kalman' scenario; interactions: name -> interaction (ground truth).
+    Returns:
+        the leave_one_out dict (folds per recording, pooled held-out coverage, factor on all).
+    """
+    d2 = {}
+    for name, sc in scenarios.items():
+        per_track = model_d2(sc, interactions[name].ground_truth)
+        if per_track:
+            d2[name] = np.concatenate(list(per_track.values()))
+    return calibration.leave_one_out(d2)

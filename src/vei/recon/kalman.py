@@ -153,7 +153,8 @@ def kalman_filter(
     Args:
         batch: the tracks (observations [B, T, k, D]).
         h: [k, n] observation matrix (e.g. [[1, 0]] for position only).
-        r: [B, k, k] observation noise covariance per track.
+        r: [B, k, k] observation noise covariance per track, or [B, T, k, k] per step
+            (heteroscedastic: e.g. the reweighted keyframes of :mod:`vei.recon.robust`).
         psd: [B] spectral density of the driving noise per track.
         order: state dimension n (2 or 3), see :func:`transition`.
     Returns:
@@ -178,6 +179,7 @@ def kalman_filter(
     m[:, 0, :] = batch.obs[np.arange(bsz), first, 0, :]
     p = np.broadcast_to(np.diag(PRIOR_VAR[n]), (bsz, n, n)).copy()
     eye = np.eye(n)
+    per_step = r.ndim == 4
     for t in range(tlen):
         if t > 0:
             m = f[:, t] @ m
@@ -185,15 +187,16 @@ def kalman_filter(
         m_pred[:, t], p_pred[:, t] = m, p
         obs = batch.mask[:, t]
         if obs.any():
+            r_t = r[:, t] if per_step else r
             hp = h @ p  # [B, k, n]
-            s = hp @ ht + r  # [B, k, k]
+            s = hp @ ht + r_t  # [B, k, k]
             sinv, logdet = _inv_small(s)
             e = batch.obs[:, t] - h @ m  # [B, k, d]
             gain = np.swapaxes(hp, 1, 2) @ sinv  # [B, n, k]
             w = obs[:, None, None]
             m = np.where(w, m + gain @ e, m)
             ikh = eye - gain @ h  # Joseph form: stays symmetric positive definite
-            p_new = ikh @ p @ np.swapaxes(ikh, 1, 2) + gain @ r @ np.swapaxes(gain, 1, 2)
+            p_new = ikh @ p @ np.swapaxes(ikh, 1, 2) + gain @ r_t @ np.swapaxes(gain, 1, 2)
             p = np.where(w, p_new, p)
             quad = np.einsum("bkd,bkl,bld->b", e, sinv, e)
             loglik += np.where(obs, -0.5 * (d * (k * _LOG2PI + logdet) + quad), 0.0)

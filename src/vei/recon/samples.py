@@ -70,6 +70,8 @@ def scenario_noise(scenario: Scenario) -> NoiseEstimate:
             loglik=float(stored["loglik"]) if stored.get("loglik") is not None else float("nan"),
             n_tracks=int(stored.get("n_tracks", 0)),
             n_keyframes=int(stored.get("n_keyframes", 0)),
+            # Scenarios written before the calibration hold the pure model (factor 1).
+            std_inflation=float(stored.get("std_inflation") or 1.0),
         )
     kf = scenario.keyframes
     if kf is None or kf.empty:
@@ -131,6 +133,7 @@ def sample_rider(
         noise.accel_psd_m2ps3,
         n_samples,
         seed,
+        noise.std_inflation,
     )
     speed = np.hypot(vel[..., 0], vel[..., 1])
     base_yaw = track["yaw_rad"].to_numpy(np.float64)
@@ -207,5 +210,6 @@ def rider_band(scenario: Scenario, agent_id: str | None = None) -> RiderBand:
         [np.clip(t, tk[0], tk[-1])],
         noise.noise_m,
         noise.accel_psd_m2ps3,
+        noise.std_inflation,
     )[0]
     return RiderBand(aid, t, post.xy_m, post.std_m, noise)

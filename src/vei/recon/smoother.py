@@ -27,6 +27,7 @@ import numpy.typing as npt
 from scipy.optimize import minimize
 
 from vei.recon import kalman
+from vei.recon.calibration import POSTERIOR_STD_INFLATION
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -49,6 +50,10 @@ class NoiseEstimate:
             keyframes to estimate).
         loglik: log-likelihood of the keyframes at the estimate (NaN for 'fixed').
         n_tracks, n_keyframes: what the estimate saw.
+        std_inflation: factor (>= 1 in practice) on the model's posterior standard
+            deviation (and on the spread of posterior samples) that calibrates the 95 %
+            region against real ground truth (:mod:`vei.recon.calibration`); 1.0 = the
+            pure model. :func:`estimate_noise` sets POSTERIOR_STD_INFLATION.
     """
 
     noise_m: float
@@ -57,6 +62,13 @@ class NoiseEstimate:
     loglik: float = float("nan")
     n_tracks: int = 0
     n_keyframes: int = 0
+    std_inflation: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("noise_m", "accel_psd_m2ps3", "std_inflation"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise ValueError(f"NoiseEstimate.{name} must be a finite number > 0, got {v!r}")
 
     def as_dict(self) -> dict:
         """Plain dict (JSON; NaN -> None)."""
@@ -152,6 +164,7 @@ class RestrictedLikelihood:
 def estimate_noise(
     tracks: list[tuple[FloatArray, FloatArray]],
     default: NoiseEstimate | None = None,
+    std_inflation: float = POSTERIOR_STD_INFLATION,
 ) -> NoiseEstimate:
     """Maximum-likelihood (sigma, q) of the rider model from a recording's keyframes.
 
@@ -163,6 +176,9 @@ def estimate_noise(
     Args:
         tracks: per track (t_key [K] s strictly increasing, xy_key [K, 2] m).
         default: what to return without usable tracks (default sigma 0.25 m, q 1.0).
+        std_inflation: calibration factor of the posterior std stored in the estimate
+            (default: the leave-one-recording-out validated POSTERIOR_STD_INFLATION; 1.0
+            for the pure model). The default's own factor is kept when it is returned.
     Returns:
         NoiseEstimate (method 'ml', or the default's 'fixed' without usable tracks).
     """
@@ -190,6 +206,7 @@ def estimate_noise(
         loglik=float(-best.fun),
         n_tracks=lik.n_tracks,
         n_keyframes=int(lik.lam.size + 2 * lik.n_tracks),
+        std_inflation=float(std_inflation),
     )
 
 
@@ -232,6 +249,7 @@ def posterior(
     queries: list[FloatArray],
     noise_m: float,
     accel_psd_m2ps3: float,
+    std_scale: float = 1.0,
 ) -> list[Posterior]:
     """RTS-smoothed posteriors of several tracks at their query times (one batch).
 
@@ -239,6 +257,8 @@ def posterior(
         tracks: per track (t_key [K] s, xy_key [K, 2] m).
         queries: per track [N] times [s] (any order inside the keyframe span).
         noise_m: keyframe noise sigma [m]; accel_psd_m2ps3: q [m^2/s^3].
+        std_scale: factor on the posterior standard deviations (covariances times its
+            square; NoiseEstimate.std_inflation); the mean does not depend on it.
     Returns:
         one Posterior per track, at its query times.
     """
@@ -256,9 +276,9 @@ def posterior(
                 t_s=np.asarray(q, float),
                 xy_m=m_s[i, idx, 0, :],
                 vel_mps=m_s[i, idx, 1, :],
-                std_m=np.sqrt(np.clip(p_s[i, idx, 0, 0], 0.0, None)),
-                vel_std_mps=np.sqrt(np.clip(p_s[i, idx, 1, 1], 0.0, None)),
-                pos_vel_cov=p_s[i, idx, 0, 1],
+                std_m=std_scale * np.sqrt(np.clip(p_s[i, idx, 0, 0], 0.0, None)),
+                vel_std_mps=std_scale * np.sqrt(np.clip(p_s[i, idx, 1, 1], 0.0, None)),
+                pos_vel_cov=std_scale**2 * p_s[i, idx, 0, 1],
             )
         )
     return out
@@ -272,6 +292,7 @@ def sample_tracks(
     accel_psd_m2ps3: float,
     n_samples: int,
     seed: int,
+    std_scale: float = 1.0,
 ) -> tuple[FloatArray, FloatArray]:
     """Joint posterior samples of one track's path at times t_s.
 
@@ -280,6 +301,8 @@ def sample_tracks(
         t_s: [N] increasing times [s] inside the keyframe span.
         noise_m, accel_psd_m2ps3: the noise model.
         n_samples: S; seed: numpy seed (same seed -> same samples).
+        std_scale: factor on each sample's deviation from the posterior mean (the
+            calibration of NoiseEstimate.std_inflation; 1.0 = the model's posterior).
     Returns:
         (xy [S, N, 2] positions [m], vel [S, N, 2] velocities [m/s]).
     """
@@ -288,6 +311,9 @@ def sample_tracks(
         batch, _H_POS2, np.full((1, 1, 1), noise_m**2), np.full(1, accel_psd_m2ps3), order=2
     )
     draws = kalman.sample_posterior(res, n_samples, np.random.default_rng(seed))[0]
+    if std_scale != 1.0:
+        mean = kalman.rts_smoother(res)[0][0]
+        draws = mean[None] + std_scale * (draws - mean[None])
     idx = np.searchsorted(times[0], t_s)
     return draws[:, idx, 0, :], draws[:, idx, 1, :]
 
@@ -317,6 +343,7 @@ def prime(interpolants: list, queries: list[FloatArray]) -> None:
         sorted_q,
         noise.noise_m,
         noise.accel_psd_m2ps3,
+        noise.std_inflation,
     )
     for (ip, q), sq, p in zip(todo, sorted_q, posts, strict=True):
         idx = np.searchsorted(sq, q)
@@ -359,7 +386,7 @@ class KalmanInterpolant:
                 t,
                 np.repeat(self.xy_key_m, t.size, axis=0),
                 np.zeros((t.size, 2)),
-                np.full(t.size, self.noise.noise_m),
+                np.full(t.size, self.noise.noise_m * self.noise.std_inflation),
             )
         else:
             order = np.argsort(t, kind="stable")
@@ -368,6 +395,7 @@ class KalmanInterpolant:
                 [t[order]],
                 self.noise.noise_m,
                 self.noise.accel_psd_m2ps3,
+                self.noise.std_inflation,
             )[0]
             inv = np.empty_like(order)
             inv[order] = np.arange(order.size)
