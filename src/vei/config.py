@@ -30,7 +30,7 @@ DesiredVelocityForm = Literal["normalised", "paper"]
 InfluentialPoint = Literal["closest_box_point", "front_bumper"]
 BrakingLaw = Literal["gap", "paper_per_step"]
 RiderModel = Literal["replay", "sfm"]
-EgoMode = Literal["replay-speed", "pid", "cap"]
+EgoMode = Literal["replay-speed", "pid", "cap", "policy"]
 
 #: The paper's case-study cruise speed v_d [m/s] (Section IV-A/B).
 PAPER_CRUISE_SPEED_MPS = 5.6
@@ -213,6 +213,36 @@ SFM_PRESETS: dict[str, SFMConfig] = {
 # --------------------------------------------------------------------------------------
 # Ego vehicle: path following, PID, actuator
 # --------------------------------------------------------------------------------------
+#: Built-in ego policies (vei.policy): name -> 'module:Class'. 'none' and 'paper-cap' run
+#: the engine's own compiled ego modes in a run (KERNEL_POLICIES: name -> ego_mode).
+BUILTIN_POLICIES: dict[str, str] = {
+    "none": "vei.policy.builtin:PIDCruise",
+    "paper-cap": "vei.policy.builtin:PaperCAP",
+    "aeb": "vei.policy.aeb:AEB",
+    "idm": "vei.policy.idm:IDM",
+}
+KERNEL_POLICIES: dict[str, str] = {"none": "pid", "paper-cap": "cap"}
+
+
+def validate_policy_spec(spec: Any) -> str:
+    """``spec`` if it has the form of a policy spec (a ConfigError otherwise); loads nothing.
+
+    A built-in name (BUILTIN_POLICIES), 'package.module:ClassName' or
+    'path/to/file.py:ClassName'.
+    """
+    if not isinstance(spec, str) or not spec.strip():
+        raise ConfigError(f"policy must be a non-empty string, got {spec!r}")
+    if spec in BUILTIN_POLICIES:
+        return spec
+    target, sep, cls = spec.rpartition(":")
+    if not sep or not target or not cls.isidentifier():
+        raise ConfigError(
+            f"policy {spec!r}: expected a built-in name ({', '.join(BUILTIN_POLICIES)}), "
+            "'package.module:ClassName' or 'path/to/file.py:ClassName'"
+        )
+    return spec
+
+
 @dataclass(frozen=True)
 class EgoConfig:
     """Ego vehicle: follows its recorded path; PID speed control; actuator model.
@@ -264,6 +294,13 @@ class EgoConfig:
         actuator_lag_s: time constant of the first-order lag between commanded and actual
             acceleration [s]; 0.2 s is a typical brake/powertrain response. 0 = no lag
             (explicit, allowed).
+        policy: the ego's longitudinal controller (docs/policy.md): a built-in name
+            ('none' = PID cruise, 'paper-cap' = the paper's CAP, 'aeb', 'idm'),
+            'package.module:ClassName' or 'path/to/file.py:ClassName'. None (default) =
+            the configuration's ego_mode decides ('pid' = 'none', 'cap' = 'paper-cap');
+            set, it decides the ego_mode (CaseConfig).
+        policy_params: parameters of the policy (a mapping of keyword arguments of its
+            class, e.g. {ttc_full_s: 1.0} for 'aeb'); None = its defaults.
     """
 
     cruise_speed_mps: float | str = MEDIAN_MOVING
@@ -279,8 +316,22 @@ class EgoConfig:
     max_accel_mps2: float = 3.0
     max_decel_mps2: float = 8.0
     actuator_lag_s: float = 0.2
+    policy: str | None = None
+    policy_params: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
+        if self.policy is not None:
+            validate_policy_spec(self.policy)
+        if self.policy_params is not None:
+            if not isinstance(self.policy_params, Mapping) or not all(
+                isinstance(k, str) for k in self.policy_params
+            ):
+                raise ConfigError(
+                    f"policy_params must be a mapping of parameter names, got {self.policy_params!r}"
+                )
+            if self.policy is None:
+                raise ConfigError("policy_params given without a policy (ego.policy)")
+            object.__setattr__(self, "policy_params", dict(self.policy_params))
         if isinstance(self.cruise_speed_mps, str):
             _choice("cruise_speed_mps", self.cruise_speed_mps, (MEDIAN_MOVING,))
         else:
@@ -460,7 +511,11 @@ class CaseConfig:
             SFMConfig(), is the paper's rider; the presets normal, aggressive, normal-cap,
             aggressive-cap use the calibrated one (SFM_PRESETS), paper-* the paper's.
         ego_mode: 'replay-speed' (the recorded speed profile along the recorded path),
-            'pid' (PID cruise at v_d, no avoidance), 'cap' (PID + CAP).
+            'pid' (PID cruise at v_d, no avoidance = policy 'none'), 'cap' (PID + CAP =
+            policy 'paper-cap'), 'policy' (any other ``ego.policy``, run on the policy
+            API). With ``ego.policy`` set the ego_mode follows from it (the policy is the
+            one name of the controller; 'replay-speed' takes no policy);
+            :attr:`policy_name` is the controller's name either way.
         ego: ego / PID / actuator parameters.
         cap: CAP parameters (used when ego_mode == 'cap').
     """
@@ -476,7 +531,21 @@ class CaseConfig:
         if not isinstance(self.name, str) or not self.name:
             raise ConfigError(f"name must be a non-empty string, got {self.name!r}")
         _choice("rider", self.rider, ("replay", "sfm"))
-        _choice("ego_mode", self.ego_mode, ("replay-speed", "pid", "cap"))
+        if self.ego_mode in BUILTIN_POLICIES:
+            raise ConfigError(
+                f"ego_mode {self.ego_mode!r} is a policy: write ego: {{policy: {self.ego_mode}}}"
+            )
+        _choice("ego_mode", self.ego_mode, ("replay-speed", "pid", "cap", "policy"))
+        pol = getattr(self.ego, "policy", None)
+        if pol is not None:
+            if self.ego_mode == "replay-speed":
+                raise ConfigError(
+                    f"ego.policy {pol!r} with ego_mode 'replay-speed': the replayed speed "
+                    "profile takes no controller; drop one of them"
+                )
+            object.__setattr__(self, "ego_mode", KERNEL_POLICIES.get(pol, "policy"))
+        elif self.ego_mode == "policy":
+            raise ConfigError("ego_mode 'policy' needs ego.policy (a policy name or class)")
         for name, cls in (("sfm", SFMConfig), ("ego", EgoConfig), ("cap", CAPConfig)):
             if not isinstance(getattr(self, name), cls):
                 raise ConfigError(f"{name} must be a {cls.__name__}")
@@ -485,6 +554,13 @@ class CaseConfig:
                 f"ego.max_decel_mps2 ({self.ego.max_decel_mps2}) must be >= |cap.a_min_mps2| "
                 f"({-self.cap.a_min_mps2}) so that the CAP's demand is reachable"
             )
+
+    @property
+    def policy_name(self) -> str:
+        """The controller: ego.policy, else 'none' (pid), 'paper-cap' (cap), 'replay-speed'."""
+        if self.ego.policy is not None:
+            return self.ego.policy
+        return {"pid": "none", "cap": "paper-cap"}.get(self.ego_mode, self.ego_mode)
 
 
 #: Names of the paper's five configurations, in the paper's order (DESIGN.md table).

@@ -8,11 +8,12 @@ masks); :class:`BatchFlags` is that static structure, computed once outside the 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from vei.sim.state import EGO_CAP, EGO_PID, EGO_REPLAY_SPEED, VariantParams
+from vei.sim.state import EGO_CAP, EGO_PID, EGO_POLICY, EGO_REPLAY_SPEED, VariantParams
 
 
 # --------------------------------------------------------------------------------------
@@ -39,6 +40,7 @@ class Block:
         paper_vdes, vehicle_force, front_bumper, paper_per_step: True / False if uniform in
             the block, else the [b] mask.
         rider_limits: some variant has a finite rider speed / acceleration cap.
+        policy: the block's ego policy instance (ego_mode 3), unbound, else None.
     """
 
     start: int
@@ -52,6 +54,7 @@ class Block:
     front_bumper: bool | npt.NDArray[np.bool_]
     paper_per_step: bool | npt.NDArray[np.bool_]
     rider_limits: bool
+    policy: Any = None
 
 
 @dataclass(frozen=True)
@@ -64,8 +67,10 @@ class BatchFlags:
         delay_steps: [B] perception delay in steps. hist_len: H = max(delay) + 1 (1 when
             no CAP variant has a delay).
         is_sfm, is_cap, is_replay_speed, is_ctrl: [B] masks (ctrl = pid or cap).
-        blocks: the maximal runs of variants with equal (ego mode, rider model), in batch
-            order. :func:`simulate` sorts the batch so that there are at most six.
+        blocks: the maximal runs of variants with equal (ego mode, rider model, policy
+            instance), in batch order. :func:`simulate` sorts the batch so that there
+            are at most six plus two per policy instance.
+        any_policy: some variant runs a policy on the API (ego_mode 3).
     """
 
     any_sfm: bool
@@ -80,11 +85,22 @@ class BatchFlags:
     is_replay_speed: npt.NDArray[np.bool_]
     is_ctrl: npt.NDArray[np.bool_]
     blocks: tuple[Block, ...]
+    any_policy: bool = False
 
 
 def group_keys(params: VariantParams) -> npt.NDArray[np.int64]:
-    """[B] group key 2 * ego_mode + rider_sfm (variants with equal keys share a block)."""
-    return 2 * params.ego_mode.astype(np.int64) + params.rider_sfm.astype(np.int64)
+    """[B] group key 2 * ego_mode + rider_sfm + 8 * r (variants with equal keys share a
+    block); r = 0 without a policy, else 1 + the rank of the variant's policy instance in
+    order of first appearance (one block per policy instance)."""
+    key = 2 * params.ego_mode.astype(np.int64) + params.rider_sfm.astype(np.int64)
+    is_pol = params.ego_mode == EGO_POLICY
+    if is_pol.any():
+        ranks: dict[int, int] = {}
+        rank = np.zeros(key.shape, dtype=np.int64)
+        for i in np.flatnonzero(is_pol):
+            rank[i] = ranks.setdefault(id(params.policy[i]), len(ranks) + 1)
+        key = key + 8 * rank
+    return key
 
 
 def batch_flags(params: VariantParams, dt_s: float) -> BatchFlags:
@@ -115,6 +131,7 @@ def batch_flags(params: VariantParams, dt_s: float) -> BatchFlags:
                 paper_per_step=_switch(bp.paper_per_step) if cap else False,
                 rider_limits=sfm
                 and bool((np.isfinite(bp.max_speed_mps) | np.isfinite(bp.max_accel_mps2)).any()),
+                policy=bp.policy[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
             )
         )
     return BatchFlags(
@@ -125,6 +142,7 @@ def batch_flags(params: VariantParams, dt_s: float) -> BatchFlags:
         any_replay_speed=bool(is_rs.any()),
         delay_steps=delay,
         hist_len=int(delay.max()) + 1 if bool((delay[is_cap] > 0).any()) else 1,
+        any_policy=bool((params.ego_mode == EGO_POLICY).any()),
         is_sfm=is_sfm,
         is_cap=is_cap,
         is_replay_speed=is_rs,

@@ -50,7 +50,7 @@ equal one batch of B).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -58,8 +58,9 @@ import numpy.typing as npt
 from vei.config import CASE_PRESETS, CaseConfig, SimConfig, case_preset
 from vei.errors import ConfigError
 from vei.sim.batch import BatchFlags, Block, batch_flags, group_keys
+from vei.sim.observe import PolicyDriver
 from vei.sim.result import _RECORDED, _RECORDED_EXTRA, SimResult
-from vei.sim.state import ScenarioArrays, SimState, VariantParams, prepare_scenario
+from vei.sim.state import EGO_POLICY, ScenarioArrays, SimState, VariantParams, prepare_scenario
 from vei.sim.step import initial_state, step
 from vei.types import Scenario
 
@@ -86,6 +87,9 @@ def simulate(
             'none' = only the summaries (collision time, minimum centre distance) and the
             final state (sweeps that score online, benchmarks).
         progress: show a rich progress bar (when stderr is a terminal; NumPy kernel).
+            Policy variants (ego_mode 3, vei.policy) always run the NumPy step loop with
+            :class:`vei.sim.observe.PolicyDriver`; the other variants of the batch keep
+            the requested kernel.
         kernel: 'numpy' (default): the reference, :func:`step` in a loop; 'numba': the
             compiled kernel :mod:`vei.sim.kernel` (same model, ~10-50x faster at large B,
             needs numba; agrees with 'numpy' to rounding, not bit for bit); 'auto':
@@ -101,77 +105,26 @@ def simulate(
     from vei.sim import kernel as compiled
 
     use_numba = kernel == "numba" or (kernel == "auto" and compiled.available())
-    # Group the variants into contiguous blocks of equal (ego mode, rider model); the
-    # outputs are put back into the caller's order at the end.
+    # Group the variants into contiguous blocks of equal (ego mode, rider model, policy);
+    # the outputs are put back into the caller's order at the end.
     keys = group_keys(params)
     perm = np.argsort(keys, kind="stable")
     sorted_already = bool(np.all(perm == np.arange(perm.size)))
     run_params = params if sorted_already else params.take(perm)
-    fl = batch_flags(run_params, arrays.dt_s)
-    b, t_n = params.batch_size, arrays.n_steps
-    no = len(arrays.other_ids)
-    state = initial_state(arrays, run_params, fl)
-    bufs: dict[str, np.ndarray] = {}
-    xbufs: dict[str, np.ndarray] = {}  # extra riders [T, B, R]
-    n_x = arrays.riders.n
-    hit_buf = None
-    if record == "full":
-        for name, _, dtype in _RECORDED:
-            bufs[name] = np.empty((t_n, b), dtype=dtype)
-        hit_buf = np.empty((t_n, b, no), dtype=bool)
-        for name, _, dtype in _RECORDED_EXTRA:
-            xbufs[name] = np.empty((t_n, b, n_x), dtype=dtype)
-    coll_t = np.full(b, np.nan)
-    min_d = np.full(b, np.inf)
-
-    def _rec(st: SimState) -> None:
-        k = st.k
-        if bufs:
-            for name, attr, _ in _RECORDED:
-                bufs[name][k] = getattr(st, attr)
-            hit_buf[k] = st.hit_other
-            for name, attr, _ in _RECORDED_EXTRA:
-                xbufs[name][k] = getattr(st, attr)
-        newly = st.collided & np.isnan(coll_t)
-        if newly.any():
-            coll_t[newly] = arrays.t_s[k]
-        dx = st.rider_x_m - st.ego_x_m
-        dy = st.rider_y_m - st.ego_y_m
-        d = np.sqrt(dx * dx + dy * dy)
-        np.minimum(min_d, np.where(st.rider_active, d, np.inf), out=min_d)
-
-    if use_numba:
-        out = compiled.run(arrays, run_params, state, fl.hist_len, record == "full")
-        # Variant-major [B, T] series: store as time-major views so that the common
-        # code below ([T, B] buffers, transposed at the end) applies.
-        if out["series"] is not None:
-            bufs = {name: arr.T for name, arr in out["series"].items()}
-            hit_buf = out["hit"].transpose(1, 0, 2)
-            xbufs = {name: arr.transpose(1, 0, 2) for name, arr in out["extra"].items()}
-        coll_t, min_d = out["collision_time_s"], out["min_center_distance_m"]
-        state = SimState(**out["final"])
+    b = params.batch_size
+    # Policy variants (ego_mode 3) sort last and always run the NumPy step loop; the
+    # others keep the requested kernel.
+    n_kernel = int(np.count_nonzero(run_params.ego_mode != EGO_POLICY))
+    if use_numba and 0 < n_kernel < b:
+        parts = [
+            _run_sorted(arrays, run_params.take(slice(0, n_kernel)), record, progress, True),
+            _run_sorted(arrays, run_params.take(slice(n_kernel, b)), record, progress, False),
+        ]
+        bufs, hit_buf, xbufs, coll_t, min_d, state = _merge_runs(parts)
     else:
-        _rec(state)
-        bar = None
-        task = None
-        if progress:
-            import sys
-
-            if sys.stderr.isatty():
-                from rich.progress import Progress
-
-                bar = Progress(transient=True)
-                bar.start()
-                task = bar.add_task(f"simulating {b} variant(s)", total=t_n - 1)
-        try:
-            for _ in range(1, t_n):
-                state = step(state, run_params, arrays, fl)
-                _rec(state)
-                if bar is not None:
-                    bar.advance(task)
-        finally:
-            if bar is not None:
-                bar.stop()
+        bufs, hit_buf, xbufs, coll_t, min_d, state = _run_sorted(
+            arrays, run_params, record, progress, use_numba and n_kernel == b
+        )
     if not sorted_already:
         inv = np.empty_like(perm)
         inv[perm] = np.arange(perm.size)
@@ -222,6 +175,114 @@ def simulate(
         **{name: (xbufs[name].transpose(1, 0, 2) if xbufs else None) for name in _XNAMES},
         **series,
     )
+
+
+def _run_sorted(
+    arrays: ScenarioArrays,
+    run_params: VariantParams,
+    record: Record,
+    progress: bool,
+    use_numba: bool,
+) -> tuple[Any, ...]:
+    """Run a batch already sorted into blocks; returns ([T, B] series buffers, hit
+    buffer, extra-rider buffers, collision times, minimum distances, final state)."""
+    from vei.sim import kernel as compiled
+
+    fl = batch_flags(run_params, arrays.dt_s)
+    b, t_n = run_params.batch_size, arrays.n_steps
+    no = len(arrays.other_ids)
+    state = initial_state(arrays, run_params, fl)
+    bufs: dict[str, np.ndarray] = {}
+    xbufs: dict[str, np.ndarray] = {}  # extra riders [T, B, R]
+    n_x = arrays.riders.n
+    hit_buf = None
+    if record == "full":
+        for name, _, dtype in _RECORDED:
+            bufs[name] = np.empty((t_n, b), dtype=dtype)
+        hit_buf = np.empty((t_n, b, no), dtype=bool)
+        for name, _, dtype in _RECORDED_EXTRA:
+            xbufs[name] = np.empty((t_n, b, n_x), dtype=dtype)
+    coll_t = np.full(b, np.nan)
+    min_d = np.full(b, np.inf)
+
+    def _rec(st: SimState) -> None:
+        k = st.k
+        if bufs:
+            for name, attr, _ in _RECORDED:
+                bufs[name][k] = getattr(st, attr)
+            hit_buf[k] = st.hit_other
+            for name, attr, _ in _RECORDED_EXTRA:
+                xbufs[name][k] = getattr(st, attr)
+        newly = st.collided & np.isnan(coll_t)
+        if newly.any():
+            coll_t[newly] = arrays.t_s[k]
+        dx = st.rider_x_m - st.ego_x_m
+        dy = st.rider_y_m - st.ego_y_m
+        d = np.sqrt(dx * dx + dy * dy)
+        np.minimum(min_d, np.where(st.rider_active, d, np.inf), out=min_d)
+
+    if use_numba:
+        out = compiled.run(arrays, run_params, state, fl.hist_len, record == "full")
+        # Variant-major [B, T] series: store as time-major views so that the common
+        # code ([T, B] buffers, transposed at the end) applies.
+        if out["series"] is not None:
+            bufs = {name: arr.T for name, arr in out["series"].items()}
+            hit_buf = out["hit"].transpose(1, 0, 2)
+            xbufs = {name: arr.transpose(1, 0, 2) for name, arr in out["extra"].items()}
+        return (
+            bufs,
+            hit_buf,
+            xbufs,
+            out["collision_time_s"],
+            out["min_center_distance_m"],
+            SimState(**out["final"]),
+        )
+    driver = PolicyDriver(arrays, run_params, fl) if fl.any_policy else None
+    _rec(state)
+    bar = None
+    task = None
+    if progress:
+        import sys
+
+        if sys.stderr.isatty():
+            from rich.progress import Progress
+
+            bar = Progress(transient=True)
+            bar.start()
+            task = bar.add_task(f"simulating {b} variant(s)", total=t_n - 1)
+    try:
+        for _ in range(1, t_n):
+            action = driver.act(state) if driver is not None else None
+            state = step(state, run_params, arrays, fl, action)
+            _rec(state)
+            if bar is not None:
+                bar.advance(task)
+    finally:
+        if bar is not None:
+            bar.stop()
+    return bufs, hit_buf, xbufs, coll_t, min_d, state
+
+
+def _merge_runs(parts: list[tuple[Any, ...]]) -> tuple[Any, ...]:
+    """Concatenate :func:`_run_sorted` outputs along the batch axis (in order)."""
+    (b0, h0, x0, c0, m0, s0), (b1, h1, x1, c1, m1, s1) = parts
+    bufs = {name: np.concatenate([b0[name], b1[name]], axis=1) for name in b0}
+    hit = None if h0 is None else np.concatenate([h0, h1], axis=1)
+    xb = {name: np.concatenate([x0[name], x1[name]], axis=1) for name in x0}
+    hl = max(s0.hist.shape[1], s1.hist.shape[1])
+
+    def pad(h: np.ndarray) -> np.ndarray:
+        return np.pad(h, ((0, 0), (0, hl - h.shape[1]), (0, 0)))
+
+    merged = {
+        name: (
+            v0 if name == "k"
+            else np.concatenate([pad(v0), pad(v1)], axis=2) if name == "hist"
+            else np.concatenate([v0, v1], axis=0)
+        )
+        for name, v0, v1 in zip(SimState._fields, s0, s1, strict=True)
+    }  # fmt: skip
+    return bufs, hit, xb, np.concatenate([c0, c1]), np.concatenate([m0, m1]), SimState(**merged)
 
 
 def run_cases(

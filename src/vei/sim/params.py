@@ -20,9 +20,27 @@ if TYPE_CHECKING:
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
-#: Ego modes (int8 codes of VariantParams.ego_mode).
-EGO_REPLAY_SPEED, EGO_PID, EGO_CAP = 0, 1, 2
-EGO_MODE_CODES: dict[str, int] = {"replay-speed": EGO_REPLAY_SPEED, "pid": EGO_PID, "cap": EGO_CAP}
+#: Ego modes (int8 codes of VariantParams.ego_mode); 3 = a policy on the API (vei.policy).
+EGO_REPLAY_SPEED, EGO_PID, EGO_CAP, EGO_POLICY = 0, 1, 2, 3
+EGO_MODE_CODES: dict[str, int] = {
+    "replay-speed": EGO_REPLAY_SPEED,
+    "pid": EGO_PID,
+    "cap": EGO_CAP,
+    "policy": EGO_POLICY,
+}
+#: Per-variant parameters of the built-in API policies (sweepable): field -> default.
+POLICY_PARAM_DEFAULTS: dict[str, float] = {
+    "aeb_ttc_warning_s": 2.6,
+    "aeb_ttc_partial_s": 1.6,
+    "aeb_ttc_full_s": 0.9,
+    "aeb_partial_decel_mps2": 4.0,
+    "aeb_full_decel_mps2": 8.0,
+    "idm_max_accel_mps2": 1.0,
+    "idm_comfort_decel_mps2": 1.5,
+    "idm_time_headway_s": 1.0,
+    "idm_min_gap_m": 2.0,
+    "idm_delta": 4.0,
+}
 
 
 # --------------------------------------------------------------------------------------
@@ -69,6 +87,11 @@ class VariantParams:
             release_margin_m, recover_tolerance_mps: CAP (CAPConfig).
         paper_per_step: bool, CAP braking law 'paper_per_step'.
         perception_delay_s: CAP perception delay [s] (rounded to whole steps).
+        policy: object array; the ego policy instance of each variant (vei.policy) where
+            ego_mode == 3 (policy), else None. Variants sharing one instance share one
+            block; the engine calls its ``bind`` with the block's parameters.
+        aeb_*, idm_*: the built-in 'aeb' / 'idm' policies' parameters (AEBConfig,
+            IDMConfig; sweepable as aeb.<name> / idm.<name>); unused by other policies.
         speed_from_recording: bool; the extra SFM riders (vei.sim.riders) take v0 and
             their speed limit from their own recordings (the primary's are resolved into
             v0_mps / max_speed_mps by :meth:`from_case`).
@@ -117,6 +140,17 @@ class VariantParams:
     a_rider_n: FloatArray
     b_rider_per_m: FloatArray
     use_rider_force: BoolArray
+    policy: npt.NDArray[np.object_]
+    aeb_ttc_warning_s: FloatArray
+    aeb_ttc_partial_s: FloatArray
+    aeb_ttc_full_s: FloatArray
+    aeb_partial_decel_mps2: FloatArray
+    aeb_full_decel_mps2: FloatArray
+    idm_max_accel_mps2: FloatArray
+    idm_comfort_decel_mps2: FloatArray
+    idm_time_headway_s: FloatArray
+    idm_min_gap_m: FloatArray
+    idm_delta: FloatArray
     labels: npt.NDArray[np.object_]
 
     def __post_init__(self) -> None:
@@ -174,8 +208,18 @@ class VariantParams:
             raise ConfigError("VariantParams.ego_start_s_m must lie in [-250, 0] m")
         if np.any(self.a_min_mps2 >= 0):
             raise ConfigError("VariantParams.a_min_mps2 must be < 0")
-        if np.any((self.ego_mode < 0) | (self.ego_mode > 2)):
-            raise ConfigError("VariantParams.ego_mode must be 0 (replay-speed), 1 (pid) or 2 (cap)")
+        if np.any((self.ego_mode < 0) | (self.ego_mode > 3)):
+            raise ConfigError(
+                "VariantParams.ego_mode must be 0 (replay-speed), 1 (pid), 2 (cap) or 3 (policy)"
+            )
+        has_policy = np.array([p is not None for p in self.policy], dtype=bool)
+        if np.any(has_policy != (self.ego_mode == EGO_POLICY)):
+            raise ConfigError(
+                "VariantParams.policy must be set exactly where ego_mode == 3 (policy)"
+            )
+        for name in POLICY_PARAM_DEFAULTS:
+            if np.any(~(getattr(self, name) >= 0)) or not np.all(np.isfinite(getattr(self, name))):
+                raise ConfigError(f"VariantParams.{name} must be finite and >= 0")
 
     @property
     def batch_size(self) -> int:
@@ -281,6 +325,8 @@ class VariantParams:
             "a_rider_n": sfm.a_rider_n,
             "b_rider_per_m": sfm.b_rider_per_m,
             "use_rider_force": sfm.use_rider_force,
+            "policy": _case_policy(case),
+            **_policy_param_values(case),
             "labels": case.name,
         }
         unknown = set(overrides) - set(base)
@@ -294,9 +340,14 @@ class VariantParams:
         out: dict[str, Any] = {}
         for f in dataclasses.fields(cls):
             v = values[f.name]
-            if f.name == "labels":
+            if f.name in ("labels", "policy"):
                 arr = np.empty(batch_size, dtype=object)
-                arr[:] = v if np.ndim(v) == 0 else list(v)
+                if isinstance(v, np.ndarray) and v.ndim == 1:
+                    arr[:] = list(v)
+                elif isinstance(v, list | tuple):
+                    arr[:] = list(v)
+                else:
+                    arr.fill(v)
             elif f.name in _BOOL_FIELDS:
                 arr = np.broadcast_to(np.asarray(v, dtype=bool), (batch_size,)).copy()
             elif f.name in _INT_FIELDS:
@@ -341,3 +392,33 @@ class VariantParams:
     def delay_steps(self, dt_s: float) -> npt.NDArray[np.intp]:
         """Perception delay in whole engine steps [B] (rounded to nearest)."""
         return np.rint(self.perception_delay_s / dt_s).astype(np.intp)
+
+
+def _case_policy(case: CaseConfig) -> Any:
+    """The policy instance of a configuration with ego_mode 'policy' (else None)."""
+    if case.ego_mode != "policy":
+        return None
+    from vei.policy.load import load_policy
+
+    return load_policy(case.policy_name, case.ego.policy_params)
+
+
+def _policy_param_values(case: CaseConfig) -> dict[str, float]:
+    """The aeb_* / idm_* VariantParams values of a configuration (defaults, or its
+    policy_params for the built-in 'aeb' / 'idm')."""
+    out = dict(POLICY_PARAM_DEFAULTS)
+    name = case.policy_name
+    if name in ("aeb", "idm"):
+        from vei.policy.aeb import AEB_PARAM_FIELDS, AEBConfig
+        from vei.policy.idm import IDM_PARAM_FIELDS, IDMConfig
+
+        cls, mapping = (
+            (AEBConfig, AEB_PARAM_FIELDS) if name == "aeb" else (IDMConfig, IDM_PARAM_FIELDS)
+        )
+        try:
+            cfg = cls(**(case.ego.policy_params or {}))
+        except TypeError as exc:
+            raise ConfigError(f"ego.policy_params of {name!r}: {exc}") from None
+        for f, vp in mapping.items():
+            out[vp] = float(getattr(cfg, f))
+    return out

@@ -30,6 +30,7 @@ from vei.sim.params import (
     EGO_CAP,
     EGO_MODE_CODES,
     EGO_PID,
+    EGO_POLICY,
     EGO_REPLAY_SPEED,
     VariantParams,
 )
@@ -342,6 +343,7 @@ __all__ = [
     "EGO_CAP",
     "EGO_MODE_CODES",
     "EGO_PID",
+    "EGO_POLICY",
     "EGO_REPLAY_SPEED",
     "ScenarioArrays",
     "SimState",

@@ -8,13 +8,16 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from vei.errors import ConfigError
 from vei.models import ego as ego_model
 from vei.models import sfm as sfm_model
 from vei.models.geometry import boxes_overlap
 from vei.sim.batch import BatchFlags, Block, batch_flags
+from vei.sim.observe import Demand
 from vei.sim.riders import initial_extra_state, pedestrian_sources, repulsion, step_extras
 from vei.sim.state import (
     EGO_CAP,
+    EGO_POLICY,
     EGO_REPLAY_SPEED,
     ScenarioArrays,
     SimState,
@@ -172,21 +175,40 @@ def _slice_state(st: SimState, a: int, b: int) -> SimState:
 
 
 def step(
-    state: SimState, params: VariantParams, arrays: ScenarioArrays, flags: BatchFlags | None = None
+    state: SimState,
+    params: VariantParams,
+    arrays: ScenarioArrays,
+    flags: BatchFlags | None = None,
+    action: Demand | None = None,
 ) -> SimState:
     """Advance all B variants by one step (pure: returns a new state, mutates nothing).
 
     Args:
         state: SimState at step k. params: [B] variants. arrays: the scenario's arrays.
         flags: ``batch_flags(params, arrays.dt_s)``, precomputed once (optional).
+        action: the demands of the policy variants (ego_mode 3) at step k, [B] arrays
+            (vei.sim.observe.PolicyDriver.act); required when the batch has any.
     Returns:
         SimState at step k + 1.
     """
     fl = flags or batch_flags(params, arrays.dt_s)
+    if fl.any_policy and action is None:
+        raise ConfigError(
+            "the batch has policy variants (ego_mode 'policy'): step() needs their demand "
+            "(vei.sim.observe.PolicyDriver.act(state))"
+        )
+
+    def _act(blk: Block) -> Demand | None:
+        if action is None or blk.policy is None:
+            return None
+        sl = slice(blk.start, blk.stop)
+        return Demand(action.accel_mps2[sl], action.command[sl], action.fsm_state[sl])
+
     if len(fl.blocks) == 1:
-        return SimState(k=state.k + 1, **_step_block(state, arrays, fl.blocks[0], fl.hist_len))
+        blk = fl.blocks[0]
+        return SimState(k=state.k + 1, **_step_block(state, arrays, blk, fl.hist_len, _act(blk)))
     outs = [
-        _step_block(_slice_state(state, blk.start, blk.stop), arrays, blk, fl.hist_len)
+        _step_block(_slice_state(state, blk.start, blk.stop), arrays, blk, fl.hist_len, _act(blk))
         for blk in fl.blocks
     ]
     merged = {
@@ -197,7 +219,7 @@ def step(
 
 
 def _step_block(
-    st: SimState, arrays: ScenarioArrays, blk: Block, hist_len: int
+    st: SimState, arrays: ScenarioArrays, blk: Block, hist_len: int, act: Demand | None = None
 ) -> dict[str, np.ndarray]:
     """One step of one homogeneous block; returns the new state's fields (k excluded)."""
     p = blk.params
@@ -223,6 +245,14 @@ def _step_block(
         a_act = (v_new - v) / dt
         a_rep = a_act
         u = ego_model.accel_to_command(a_act, p.max_accel_mps2_ego, p.max_decel_mps2_ego)
+    elif blk.ego_mode == EGO_POLICY:
+        u, a_cmd = _policy_demand(act, p)
+        if act.fsm_state is not None:
+            cap_state = np.where(collided, cap_state, act.fsm_state) if any_coll else act.fsm_state
+        a_act = ego_model.actuator_step(st.ego_act_mps2, a_cmd, p.actuator_lag_s, dt)
+        v_new = ego_model.speed_step(v, a_act, dt)
+        s_new = st.ego_s_m + v_new * dt
+        a_rep = np.where((v_new <= 0.0) & (a_act < 0.0), (v_new - v) / dt, a_act)
     else:
         vd = p.cruise_speed_mps
         err = vd - v
@@ -424,6 +454,25 @@ def _step_block(
         "hist": hist,
         **(extras or {f: getattr(st, f) for f in _EXTRA_FIELDS}),
     }
+
+
+def _policy_demand(act: Demand | None, p: VariantParams) -> tuple[FloatArray, FloatArray]:
+    """(u [b], demanded acceleration [b]) of a policy block: a command is mapped with the
+    actuator limits, an acceleration clipped to [-max_decel, max_accel]."""
+    if act is None:
+        raise ConfigError("a policy block needs its demand (step(..., action=...))")
+    cmd = act.command
+    given = ~np.isnan(cmd)
+    amax, dmax = p.max_accel_mps2_ego, p.max_decel_mps2_ego
+    if given.all():
+        u = np.clip(cmd, -1.0, 1.0)
+        return u, ego_model.command_to_accel(u, amax, dmax)
+    a_cmd = np.clip(act.accel_mps2, -dmax, amax)
+    u = ego_model.accel_to_command(a_cmd, amax, dmax)
+    if given.any():
+        u = np.where(given, np.clip(np.where(given, cmd, 0.0), -1.0, 1.0), u)
+        a_cmd = np.where(given, ego_model.command_to_accel(u, amax, dmax), a_cmd)
+    return u, a_cmd
 
 
 def _social_force_update(

@@ -1,0 +1,286 @@
+"""The engine side of the policy API: observations from the state, policies called per block.
+
+:class:`PolicyDriver` holds, for a batch laid out by :func:`vei.sim.batch.batch_flags`,
+each policy block's bound policy, its memory and a ring buffer of the ground truth (for
+the perception delay). Once per step, before :func:`vei.sim.step.step`::
+
+    action = driver.act(state)          # PolicyAction [B] (None when no policy block)
+    state = step(state, params, arrays, flags, action=action)
+
+Road users of the observation (axis N): the primary rider, the extra SFM riders, the
+replayed others (vei.policy.observation). With a perception delay of n steps the policy
+sees every object's ground truth of step k - n (not perceived while k < n); with
+``perception`` (vei.policy.perception, when enabled) it sees that module's output.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from vei.errors import ConfigError
+from vei.models import ego as ego_model
+from vei.policy.base import PolicyAction, check_policy
+from vei.policy.observation import Observation, category_code, wrap_angle
+from vei.sim.batch import BatchFlags, Block
+from vei.sim.state import ScenarioArrays, SimState, VariantParams
+
+FloatArray = npt.NDArray[np.float64]
+#: Ground-truth channels kept per object: x, y, yaw, vx, vy, active.
+_TRUTH = 6
+
+
+def ground_truth(st: SimState, arrays: ScenarioArrays, sl: slice) -> FloatArray:
+    """Ground truth of every road user at the state's step for the variants ``sl``.
+
+    Returns:
+        [6, b, N] (x_m, y_m, yaw_rad, vx_mps, vy_mps, active as 0/1), N = 1 + R + n_o.
+    """
+    k = st.k
+    prim = np.stack(
+        [st.rider_x_m[sl], st.rider_y_m[sl], st.rider_yaw_rad[sl], st.rider_vx_mps[sl],
+         st.rider_vy_mps[sl], st.rider_active[sl].astype(np.float64)]
+    )[:, :, None]  # fmt: skip
+    parts = [prim]
+    b = prim.shape[1]
+    if arrays.riders.n:
+        parts.append(
+            np.stack(
+                [
+                    st.extra_x_m[sl],
+                    st.extra_y_m[sl],
+                    st.extra_yaw_rad[sl],
+                    st.extra_vx_mps[sl],
+                    st.extra_vy_mps[sl],
+                    st.extra_active[sl].astype(np.float64),
+                ]
+            )  # fmt: skip
+        )
+    no = len(arrays.other_ids)
+    if no:
+        yaw = arrays.other_yaw_rad[k]
+        sp = arrays.other_speed_mps[k]
+        rows = [
+            arrays.other_x_m[k], arrays.other_y_m[k], yaw, sp * np.cos(yaw), sp * np.sin(yaw),
+            arrays.other_active[k].astype(np.float64),
+        ]  # fmt: skip
+        parts.append(np.stack([np.broadcast_to(r, (b, no)) for r in rows]))
+    return np.concatenate(parts, axis=2)
+
+
+def object_table(arrays: ScenarioArrays) -> tuple[FloatArray, FloatArray, npt.NDArray[np.int8]]:
+    """[N] length_m, width_m and int8 category code of the observation's road users."""
+    xr = arrays.riders
+    length = np.concatenate([[arrays.rider_length_m], xr.length_m, arrays.other_length_m])
+    width = np.concatenate([[arrays.rider_width_m], xr.width_m, arrays.other_width_m])
+    cats = [arrays.rider_category, *xr.categories, *arrays.other_categories]
+    return (
+        length.astype(np.float64),
+        width.astype(np.float64),
+        np.array([category_code(c) for c in cats], dtype=np.int8),
+    )
+
+
+def path_lateral(
+    path: ego_model.PathTable, ego_s_m: FloatArray, x: FloatArray, y: FloatArray
+) -> FloatArray:
+    """Signed lateral offset [m] (left +) of points (x, y) [b, N] from the ego path near
+    ego_s_m [b] (the projection of :func:`vei.models.ego.corridor_check`)."""
+    s_e = np.broadcast_to(ego_s_m[:, None], x.shape).reshape(-1)
+    xf, yf = x.reshape(-1), y.reshape(-1)
+    i, w = path.index(s_e)
+    ex, ey, ec, es = path.values_at(i, w, "x", "y", "cos", "sin")
+    s_q = s_e + (xf - ex) * ec + (yf - ey) * es
+    i, w = path.index(s_q)
+    px, py, pc, ps = path.values_at(i, w, "x", "y", "cos", "sin")
+    ddx, ddy = xf - px, yf - py
+    return (ddy * pc - ddx * ps).reshape(x.shape)
+
+
+def build_observation(
+    st: SimState,
+    arrays: ScenarioArrays,
+    blk: Block,
+    truth: FloatArray,
+    valid: npt.NDArray[np.bool_],
+    age_s: FloatArray,
+    table: tuple[FloatArray, FloatArray, npt.NDArray[np.int8]],
+) -> Observation:
+    """The Observation of one block from its state slice and the perceived truth.
+
+    Args:
+        st: the full SimState at step k. blk: the block. truth: [6, b, N] perceived ground
+            truth (delayed). valid: [b, N] perceived. age_s: [b, N] age of the sample [s].
+        table: :func:`object_table`.
+    """
+    sl = slice(blk.start, blk.stop)
+    p = blk.params
+    b = blk.stop - blk.start
+    ex, ey, eyaw = st.ego_x_m[sl], st.ego_y_m[sl], st.ego_yaw_rad[sl]
+    v = st.ego_v_mps[sl]
+    s_e = st.ego_s_m[sl]
+    collided = st.collided[sl]
+    c, s = np.cos(eyaw)[:, None], np.sin(eyaw)[:, None]
+    ox, oy, oyaw, ovx, ovy = truth[0], truth[1], truth[2], truth[3], truth[4]
+    dx, dy = ox - ex[:, None], oy - ey[:, None]
+    dvx, dvy = ovx - (v * np.cos(eyaw))[:, None], ovy - (v * np.sin(eyaw))[:, None]
+    length, width, cat = table
+    n = truth.shape[2]
+    path = arrays.ego_path
+    gap = np.full((b, n), np.inf)
+    # Object 0 (the primary rider): exactly the CAP's corridor test (vei.sim.step).
+    seen = valid[:, 0] & ~collided
+    sidx = np.flatnonzero(seen)
+    L_e = arrays.ego_length_m
+    if sidx.size == b:
+        ahead, g0 = ego_model.corridor_check(
+            path, s_e, L_e, ox[:, 0], oy[:, 0], oyaw[:, 0], length[0], width[0], True,
+            p.corridor_half_width_m, p.detection_range_m,
+        )  # fmt: skip
+        gap[:, 0] = np.where(ahead, g0, np.inf)
+    elif sidx.size:
+        ahead, g0 = ego_model.corridor_check(
+            path, s_e[sidx], L_e, ox[sidx, 0], oy[sidx, 0], oyaw[sidx, 0], length[0], width[0],
+            True, p.corridor_half_width_m[sidx], p.detection_range_m[sidx],
+        )  # fmt: skip
+        gap[sidx, 0] = np.where(ahead, g0, np.inf)
+    if n > 1:
+        rest = valid[:, 1:] & ~collided[:, None]
+        if rest.any():
+            bi, oj = np.nonzero(rest)
+            oj1 = oj + 1
+            ahead, g = ego_model.corridor_check(
+                path, s_e[bi], L_e, ox[bi, oj1], oy[bi, oj1], oyaw[bi, oj1], length[oj1],
+                width[oj1], True, p.corridor_half_width_m[bi], p.detection_range_m[bi],
+            )  # fmt: skip
+            gap[bi, oj1] = np.where(ahead, g, np.inf)
+    lat = np.where(valid, path_lateral(path, s_e, ox, oy), np.inf)
+    z = np.zeros((b, n))
+    return Observation(
+        t_s=np.full(b, st.k * arrays.dt_s),
+        dt_s=arrays.dt_s,
+        ego_speed_mps=v,
+        ego_accel_mps2=st.ego_a_mps2[sl],
+        ego_s_m=s_e,
+        path_length_m=np.full(b, float(arrays.ego_track.data[-1, arrays.ego_track.col("s_m")])),
+        cruise_speed_mps=p.cruise_speed_mps,
+        max_accel_mps2=p.max_accel_mps2_ego,
+        max_decel_mps2=p.max_decel_mps2_ego,
+        ego_length_m=float(arrays.ego_length_m),
+        ego_width_m=float(arrays.ego_width_m),
+        collided=collided,
+        valid=valid,
+        rel_x_m=np.where(valid, dx * c + dy * s, z),
+        rel_y_m=np.where(valid, -dx * s + dy * c, z),
+        rel_yaw_rad=np.where(valid, wrap_angle(oyaw - eyaw[:, None]), z),
+        rel_vx_mps=np.where(valid, dvx * c + dvy * s, z),
+        rel_vy_mps=np.where(valid, -dvx * s + dvy * c, z),
+        length_m=np.broadcast_to(length, (b, n)),
+        width_m=np.broadcast_to(width, (b, n)),
+        age_s=np.where(valid, age_s, np.inf),
+        category=np.broadcast_to(cat, (b, n)),
+        path_gap_m=gap,
+        path_lateral_m=lat,
+    )
+
+
+class Demand(NamedTuple):
+    """The policies' demands for the whole batch [B] (engine order), input of step().
+
+    Attributes:
+        accel_mps2: [B] demanded acceleration [m/s^2] (used where command is NaN).
+        command: [B] command u in [-1, 1], NaN where the policy gave an acceleration.
+        fsm_state: [B] int8 recorded as cap_state.
+    """
+
+    accel_mps2: FloatArray
+    command: FloatArray
+    fsm_state: npt.NDArray[np.int8]
+
+
+class PolicyDriver:
+    """Calls each policy block's policy once per step (see the module docstring).
+
+    Args:
+        arrays: the scenario. params: the batch (engine order). flags: its BatchFlags.
+    """
+
+    def __init__(
+        self,
+        arrays: ScenarioArrays,
+        params: VariantParams,
+        flags: BatchFlags,
+    ) -> None:
+        self.arrays = arrays
+        self.batch_size = params.batch_size
+        self.blocks = [blk for blk in flags.blocks if blk.policy is not None]
+        self.table = object_table(arrays)
+        self.policies = []
+        self.states = []
+        for blk in self.blocks:
+            pol = blk.policy
+            bind = getattr(pol, "bind", None)
+            bound = bind(blk.params) if callable(bind) else pol
+            bound = check_policy(bound, type(pol).__name__)
+            self.policies.append(bound)
+            self.states.append(bound.init_state(blk.stop - blk.start))
+        self.delay = [blk.delay_steps.astype(np.int64) for blk in self.blocks]
+        h = max((int(d.max()) for d in self.delay), default=0) + 1
+        self.hist_len = h
+        self._ring: list[FloatArray | None] = [None] * len(self.blocks)
+
+    def act(self, st: SimState) -> Demand | None:
+        """The PolicyAction [B] of step k (accel_mps2 for every variant: the command of
+        command-giving policies is mapped to its acceleration) or None without policies."""
+        if not self.blocks:
+            return None
+        b_all = self.batch_size
+        acc = np.zeros(b_all)
+        cmd = np.full(b_all, np.nan)
+        fsm = np.zeros(b_all, dtype=np.int8)
+        for i, blk in enumerate(self.blocks):
+            sl = slice(blk.start, blk.stop)
+            b = blk.stop - blk.start
+            truth = ground_truth(st, self.arrays, sl)
+            ring = self._ring[i]
+            if self.hist_len > 1:
+                if ring is None:
+                    ring = np.zeros((self.hist_len,) + truth.shape)
+                    self._ring[i] = ring
+                ring[st.k % self.hist_len] = truth
+                lag_k = st.k - self.delay[i]
+                slot = np.mod(lag_k, self.hist_len)
+                seen = ring[slot, :, np.arange(b), :].transpose(1, 0, 2)  # [6, b, N]
+                ok = (lag_k >= 0)[:, None]
+            else:
+                seen = truth
+                ok = np.ones((b, 1), dtype=bool)
+            valid = (seen[5] > 0.5) & ok
+            age = np.broadcast_to((self.delay[i] * self.arrays.dt_s)[:, None], valid.shape)
+            obs = build_observation(st, self.arrays, blk, seen, valid, age, self.table)
+            action, self.states[i] = self.policies[i].act(obs, self.states[i])
+            if not isinstance(action, PolicyAction):
+                raise ConfigError(
+                    f"policy {type(self.policies[i]).__name__}.act must return (PolicyAction, state), "
+                    f"got {type(action).__name__}"
+                )
+            action = action.checked(b, f"policy {type(self.policies[i]).__name__}")
+            if action.command is not None:
+                cmd[sl] = action.command
+            else:
+                acc[sl] = action.accel_mps2
+            if action.fsm_state is not None:
+                fsm[sl] = action.fsm_state
+        return Demand(accel_mps2=acc, command=cmd, fsm_state=fsm)
+
+
+__all__ = [
+    "Demand",
+    "PolicyDriver",
+    "build_observation",
+    "ground_truth",
+    "object_table",
+    "path_lateral",
+]
