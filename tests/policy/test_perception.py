@@ -18,7 +18,12 @@ from vei.policy.perception import (
     perceive,
     visible_fraction,
 )
-from vei.policy.perception_geometry import line_of_sight_blocked
+from vei.policy.perception_geometry import (
+    in_range_and_fov,
+    sample_points,
+    segments_blocked,
+    sensor_position,
+)
 
 RIDER_L, RIDER_W = 1.2, 0.6
 DT = 0.1
@@ -184,18 +189,79 @@ def test_hidden_rider_visible_fraction_step_by_step():
     assert fractions == pytest.approx([0.0, 0.2, 0.4, 0.6, 0.8, 1.0])
 
 
-def test_line_of_sight_grazing_edge_not_blocked_sensor_inside_ignored():
-    box = [np.array([[v]]) for v in (5.0, 1.0, 0.0, 2.0, 2.0)]  # x in [4, 6], y in [0, 2]
-    points_x = np.array([[10.0, 10.0, 10.0]])
-    points_y = np.array([[0.0, 0.5, -0.5]])  # along the edge y = 0; through it; below it
-    blocked = line_of_sight_blocked(
-        np.array([0.0]), np.array([0.0]), points_x, points_y, *box, np.array([[True]])
+def test_segment_grazing_edge_not_blocked():
+    box = [np.array([v]) for v in (5.0, 1.0, 0.0, 2.0, 2.0)]  # x in [4, 6], y in [0, 2]
+    points_x = np.array([[10.0, 10.0, 10.0, 3.0]])
+    points_y = np.array([[0.0, 0.5, -0.5, 0.5]])  # along the edge y = 0; through; below; short
+    blocked = segments_blocked(np.array([0.0]), np.array([0.0]), points_x, points_y, *box)
+    assert blocked.tolist() == [[False, True, False, False]]
+
+
+def test_occluder_holding_the_sensor_is_ignored():
+    # After a collision the sensor (at the ego centre) lies inside the van's box.
+    cfg = PerceptionConfig(enabled=True, sensor_x_m=0.0)
+    truth = make_truth([{**VAN, "x": 0.5}, {"x": 10.0}])
+    # The rider is seen whole; of the van (x in [-2, 3]) the centre and the front corners
+    # are in the 90 deg field of view, its rear corners behind the sensor.
+    assert visible_fraction(cfg, truth)[0].tolist() == [0.6, 1.0]
+
+
+def brute_force_fraction(cfg: PerceptionConfig, truth: GroundTruth) -> np.ndarray:
+    """Every (target, occluder) pair through segments_blocked, no pre-filter."""
+    n_var, n_obj = truth.shape
+    out = np.zeros((n_var, n_obj))
+    sx, sy = sensor_position(
+        truth.ego_x_m, truth.ego_y_m, truth.ego_yaw_rad, cfg.sensor_x_m, cfg.sensor_y_m
     )
-    assert blocked.tolist() == [[False, True, False]]
-    inside = line_of_sight_blocked(
-        np.array([5.0]), np.array([1.0]), points_x, points_y, *box, np.array([[True]])
-    )
-    assert not inside.any()
+    px, py = sample_points(truth.x_m, truth.y_m, truth.yaw_rad, truth.length_m, truth.width_m)
+    seen = in_range_and_fov(px, py, sx, sy, truth.ego_yaw_rad, cfg.range_m, cfg.fov_deg)
+    for b in range(n_var):
+        for n in range(n_obj):
+            if not truth.valid[b, n]:
+                continue
+            ok = seen[b, n].copy()
+            for m in range(n_obj):
+                if m == n or not (truth.valid[b, m] and truth.can_occlude[b, m]):
+                    continue
+                box = [np.array([getattr(truth, f)[b, m]]) for f in BOX]
+                rx, ry = sx[b] - box[0][0], sy[b] - box[1][0]
+                c, s = math.cos(box[2][0]), math.sin(box[2][0])
+                u, v = rx * c + ry * s, -rx * s + ry * c
+                if abs(u) < 0.5 * box[3][0] and abs(v) < 0.5 * box[4][0]:
+                    continue  # the sensor is inside this box
+                ok &= ~segments_blocked(
+                    sx[b : b + 1], sy[b : b + 1], px[b, n][None], py[b, n][None], *box
+                )[0]
+            out[b, n] = ok.sum() / 5.0
+    return out
+
+
+BOX = ("x_m", "y_m", "yaw_rad", "length_m", "width_m")
+
+
+def test_occlusion_prefilter_matches_brute_force():
+    rng = np.random.default_rng(12)
+    truths = []
+    for _ in range(150):
+        objs = [
+            {
+                "x": float(rng.uniform(-5, 30)),
+                "y": float(rng.uniform(-10, 10)),
+                "yaw": float(rng.uniform(-np.pi, np.pi)),
+                "l": float(rng.choice([1.2, 4.7, 5.0, 10.0])),
+                "w": float(rng.choice([0.6, 1.8, 2.0])),
+                "valid": bool(rng.random() < 0.9),
+                "occ": bool(rng.random() < 0.8),
+            }
+            for _ in range(6)
+        ]
+        truths.append(make_truth(objs, ego=(0.0, 0.0, float(rng.uniform(-0.5, 0.5)), 0.0, 0.0)))
+    truth = stack(truths)
+    cfg = PerceptionConfig(enabled=True, fov_deg=120.0, range_m=35.0, sensor_x_m=1.0)
+    fast = visible_fraction(cfg, truth)
+    slow = brute_force_fraction(cfg, truth)
+    assert np.array_equal(fast, slow)
+    assert 0.05 < np.mean((fast > 0) & (fast < 1)) and np.mean(fast == 1.0) > 0.2  # non-trivial
 
 
 # ---- detection probability and noise -------------------------------------------------
@@ -298,6 +364,9 @@ def test_ego_frame_hand_computed():
     seen = run_steps(cfg, [make_truth([obj], ego=(1.0, -4.0, yaw, 0.0, 0.0))])[0]
     assert (seen.x_m[0, 0], seen.y_m[0, 0]) == pytest.approx((3.0, -2.0), abs=1e-12)
     assert seen.yaw_rad[0, 0] == pytest.approx(4.0 - 2 * math.pi, abs=1e-12)  # wrapped
+    # Heading opposite the ego's: +pi (the range is (-pi, pi]).
+    seen = run_steps(cfg, [make_truth([{"x": 5.0, "yaw": math.pi}])])[0]
+    assert seen.yaw_rad[0, 0] == math.pi
 
 
 def test_disabled_is_exact_truth_even_with_noise_configured():

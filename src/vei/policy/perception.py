@@ -264,9 +264,11 @@ class PerceivedObjects:
         tracked: bool, the entry carries a perceived object (detected now or held); every
             float field is NaN where False.
         detected: bool, detected in this step (``tracked`` and ``age_s == 0``).
-        age_s: time since the last detection [s]: 0 fresh, > 0 held.
+        age_s: time since the last detection [s]: 0 fresh, > 0 held. The engine's latency
+            (``perception_delay_s``) is not included: the sample the policy sees is
+            ``age_s + perception_delay_s`` old.
         x_m, y_m: box centre relative to the ego box centre [m] (held: predicted).
-        yaw_rad: heading relative to the ego's heading [rad], in [-pi, pi).
+        yaw_rad: heading relative to the ego's heading [rad], in (-pi, pi].
         vx_mps, vy_mps: object velocity minus ego velocity, in ego axes [m/s] (the
             rotation rate of the ego frame is not added).
         length_m, width_m: box size [m].
@@ -322,7 +324,7 @@ def _to_ego_frame(state: PerceptionState, truth: GroundTruth) -> PerceivedObject
     dy = wy - truth.ego_y_m[:, None]
     dvx = state.vx_mps - truth.ego_vx_mps[:, None]
     dvy = state.vy_mps - truth.ego_vy_mps[:, None]
-    rel_yaw = np.mod(state.yaw_rad - truth.ego_yaw_rad[:, None] + np.pi, 2.0 * np.pi) - np.pi
+    rel_yaw = np.pi - np.mod(np.pi - (state.yaw_rad - truth.ego_yaw_rad[:, None]), 2.0 * np.pi)
     return PerceivedObjects(
         tracked=state.tracked.copy(),
         detected=state.tracked & (age == 0.0),

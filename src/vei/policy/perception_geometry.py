@@ -19,6 +19,8 @@ blind the sensor).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 
@@ -29,7 +31,7 @@ BoolArray = npt.NDArray[np.bool_]
 
 N_SAMPLE_POINTS = 5
 BLOCK_TOL_M = 1e-6
-_ANGLE_TOL_RAD = 1e-12
+_COS_TOL = 1e-12  # so that a point exactly on the FOV edge counts as inside
 _PARALLEL_TOL = 1e-12
 
 
@@ -92,12 +94,14 @@ def in_range_and_fov(
     """
     dx = px_m - sx_m[:, None, None]
     dy = py_m - sy_m[:, None, None]
-    ok = np.hypot(dx, dy) <= range_m
+    dist = np.hypot(dx, dy)
+    ok = dist <= range_m
     if fov_deg < 360.0:
+        # |bearing| <= h  <=>  cos(bearing) >= cos(h)  <=>  forward >= cos(h) * distance.
         c = np.cos(ego_yaw_rad)[:, None, None]
         s = np.sin(ego_yaw_rad)[:, None, None]
-        bearing = np.arctan2(-s * dx + c * dy, c * dx + s * dy)
-        ok &= np.abs(bearing) <= np.deg2rad(0.5 * fov_deg) + _ANGLE_TOL_RAD
+        cos_half = math.cos(math.radians(0.5 * fov_deg))
+        ok &= c * dx + s * dy >= (cos_half - _COS_TOL) * dist
     return ok
 
 
@@ -113,7 +117,7 @@ def _slab(start: FloatArray, delta: FloatArray, half: FloatArray) -> tuple[Float
     return lo, hi
 
 
-def line_of_sight_blocked(
+def segments_blocked(
     sx_m: FloatArray,
     sy_m: FloatArray,
     px_m: FloatArray,
@@ -123,45 +127,73 @@ def line_of_sight_blocked(
     box_yaw_rad: FloatArray,
     box_length_m: FloatArray,
     box_width_m: FloatArray,
-    can_block: BoolArray,
 ) -> BoolArray:
-    """Whether the segment from the sensor to each point crosses an occluding box.
+    """Whether segments from a sensor to points cross the open interior of a box.
+
+    One box per row q; the slab method in the box's frame. Grazing an edge or touching a
+    corner (less than ``BLOCK_TOL_M`` inside) does not block.
 
     Args:
-        sx_m, sy_m: sensor [K] (m).
-        px_m, py_m: points [K, P] (m).
-        box_x_m, box_y_m, box_yaw_rad, box_length_m, box_width_m: occluders [K, M] (m, rad).
-        can_block: [K, M] bool, which occluders apply to each row (the caller masks out
-            absent boxes, non-occluders and the target itself).
+        sx_m, sy_m: sensor [Q] (m).
+        px_m, py_m: segment ends [Q, P] (m).
+        box_x_m, box_y_m, box_yaw_rad, box_length_m, box_width_m: the boxes [Q] (m, rad).
     Returns:
-        [K, P] bool: True where some occluder's open box holds more than ``BLOCK_TOL_M`` of
-        the segment. Occluders containing the sensor are ignored.
+        [Q, P] bool.
     """
-    c = np.cos(box_yaw_rad)[:, :, None]  # [K, M, 1]
-    s = np.sin(box_yaw_rad)[:, :, None]
-    hl = 0.5 * box_length_m[:, :, None]
-    hw = 0.5 * box_width_m[:, :, None]
-    ox = box_x_m[:, :, None]
-    oy = box_y_m[:, :, None]
-    # Sensor in each box's frame: [K, M, 1].
-    rx = sx_m[:, None, None] - ox
-    ry = sy_m[:, None, None] - oy
-    u0 = rx * c + ry * s
+    c = np.cos(box_yaw_rad)[:, None]
+    s = np.sin(box_yaw_rad)[:, None]
+    hl = 0.5 * box_length_m[:, None]
+    hw = 0.5 * box_width_m[:, None]
+    rx = (sx_m - box_x_m)[:, None]
+    ry = (sy_m - box_y_m)[:, None]
+    u0 = rx * c + ry * s  # sensor in the box's frame [Q, 1]
     v0 = -rx * s + ry * c
-    sensor_inside = (np.abs(u0) < hl) & (np.abs(v0) < hw)
-    # Segment direction in each box's frame: [K, M, P].
-    dx = (px_m - sx_m[:, None])[:, None, :]
-    dy = (py_m - sy_m[:, None])[:, None, :]
-    du = dx * c + dy * s
-    dv = -dx * s + dy * c
-    lo_u, hi_u = _slab(u0, du, hl)
-    lo_v, hi_v = _slab(v0, dv, hw)
+    dx = px_m - sx_m[:, None]
+    dy = py_m - sy_m[:, None]
+    lo_u, hi_u = _slab(u0, dx * c + dy * s, hl)
+    lo_v, hi_v = _slab(v0, -dx * s + dy * c, hw)
     t_in = np.maximum(np.maximum(lo_u, lo_v), 0.0)
     t_out = np.minimum(np.minimum(hi_u, hi_v), 1.0)
-    length = np.hypot(dx, dy)
-    blocked = (t_out - t_in) * length > BLOCK_TOL_M
-    blocked &= (can_block[:, :, None]) & ~sensor_inside
-    return blocked.any(axis=1)
+    return (t_out - t_in) * np.hypot(dx, dy) > BLOCK_TOL_M
+
+
+def _occluder_pairs(
+    sx: FloatArray,
+    sy: FloatArray,
+    x: FloatArray,
+    y: FloatArray,
+    yaw: FloatArray,
+    length: FloatArray,
+    width: FloatArray,
+    occluders: BoolArray,
+    rows_b: npt.NDArray[np.intp],
+    rows_n: npt.NDArray[np.intp],
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """(row, occluder) pairs that can block: a cheap necessary test on bounding circles.
+
+    A segment from the sensor S to a point of the target (within r_t, the target's half
+    diagonal, of its centre T) stays within r_t of the segment S-T; an occluder can only
+    cross it when its centre O lies within r_o + r_t of the segment S-T (r_o its half
+    diagonal). Occluders holding the sensor, the target itself and absent / non-occluding
+    objects are left out. Rows are targets (rows_b, rows_n); returns (row, occluder) index
+    pairs.
+    """
+    n_obj = x.shape[1]
+    dx = x - sx[:, None]  # [B, M], object centres relative to the sensor
+    dy = y - sy[:, None]
+    radius = 0.5 * np.hypot(length, width)
+    c, s = np.cos(yaw), np.sin(yaw)
+    u0 = -(dx * c + dy * s)  # the sensor in each box's frame
+    v0 = dx * s - dy * c
+    usable = occluders & ~((np.abs(u0) < 0.5 * length) & (np.abs(v0) < 0.5 * width))
+    tx, ty = dx[rows_b, rows_n][:, None], dy[rows_b, rows_n][:, None]  # [K, 1]
+    ox, oy = dx[rows_b], dy[rows_b]  # [K, M]
+    t = np.clip((ox * tx + oy * ty) / np.maximum(tx * tx + ty * ty, 1e-300), 0.0, 1.0)
+    reach = radius[rows_b] + radius[rows_b, rows_n][:, None] + 1e-9
+    ok = usable[rows_b] & (np.hypot(ox - t * tx, oy - t * ty) <= reach)
+    ok &= np.arange(n_obj)[None, :] != rows_n[:, None]
+    pair_row, pair_occ = np.nonzero(ok)
+    return pair_row, pair_occ
 
 
 def visible_fraction(
@@ -202,19 +234,23 @@ def visible_fraction(
     if occlusion and n_obj > 1:
         occluders = valid & can_occlude  # [B, M]
         rows_b, rows_n = np.nonzero(seen.any(axis=-1) & occluders.any(axis=1)[:, None])
-        if rows_b.size:
-            not_self = np.arange(n_obj)[None, :] != rows_n[:, None]  # [K, M]
-            blocked = line_of_sight_blocked(
-                sx[rows_b],
-                sy[rows_b],
-                px[rows_b, rows_n],
-                py[rows_b, rows_n],
-                x_m[rows_b],
-                y_m[rows_b],
-                yaw_rad[rows_b],
-                length_m[rows_b],
-                width_m[rows_b],
-                occluders[rows_b] & not_self,
-            )
-            seen[rows_b, rows_n] &= ~blocked
+        rows_q, occ = _occluder_pairs(
+            sx, sy, x_m, y_m, yaw_rad, length_m, width_m, occluders, rows_b, rows_n
+        )
+        if rows_q.size:
+            pb, pn = rows_b[rows_q], rows_n[rows_q]
+            blocked = segments_blocked(
+                sx[pb],
+                sy[pb],
+                px[pb, pn],
+                py[pb, pn],
+                x_m[pb, occ],
+                y_m[pb, occ],
+                yaw_rad[pb, occ],
+                length_m[pb, occ],
+                width_m[pb, occ],
+            )  # [Q, P]
+            hidden = np.zeros((rows_b.size, N_SAMPLE_POINTS), dtype=bool)
+            np.logical_or.at(hidden, rows_q, blocked)
+            seen[rows_b, rows_n] &= ~hidden
     return seen.sum(axis=-1) / float(N_SAMPLE_POINTS)
