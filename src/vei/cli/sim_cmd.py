@@ -217,6 +217,39 @@ def _load_case(config: str):
     return load_config(path, CaseConfig), None
 
 
+_POLICY_HELP = (
+    "Ego policy (the longitudinal controller): none (PID cruise), paper-cap (the paper's CAP), "
+    "aeb, idm, a 'package.module:Class' or 'path/to/file.py:Class' (docs/policy.md). Replaces "
+    "the configuration's controller (ego.policy)."
+)
+
+
+def policy_label(spec: str) -> str:
+    """A row label for a policy spec: the built-in name, or the class name of a user spec."""
+    from vei.config import BUILTIN_POLICIES
+
+    return spec if spec in BUILTIN_POLICIES else spec.rpartition(":")[2]
+
+
+def with_policy(case, spec: str, *, name: str | None = None):  # type: ignore[no-untyped-def]
+    """``case`` driven by the policy ``spec`` (its policy_params kept only for the same spec)."""
+    from dataclasses import replace
+
+    from vei.config import validate_policy_spec
+
+    validate_policy_spec(spec)
+    params = case.ego.policy_params if case.ego.policy == spec else None
+    ego_mode = "pid" if case.ego_mode == "replay-speed" else case.ego_mode
+    if ego_mode == "policy":
+        ego_mode = "pid"  # decided again by the new policy
+    return replace(
+        case,
+        name=name or case.name,
+        ego_mode=ego_mode,
+        ego=replace(case.ego, policy=spec, policy_params=params),
+    )
+
+
 def _read_scenario(folder: Path):
     from vei.io.scenario import read_scenario
 
@@ -274,12 +307,15 @@ def register(app: typer.Typer) -> None:
         figures: Annotated[
             bool, typer.Option("--figures/--no-figures", help="Write the figures.")
         ] = True,
+        policy: Annotated[str | None, typer.Option("--policy", help=_POLICY_HELP)] = None,
     ) -> None:
         """Run one configuration on a scenario and score it."""
         from vei.experiments.casestudy import run_casestudy, summary_document, write_casestudy
         from vei.io.atomic import write_json
 
         case, run_cfg = _load_case(config)
+        if policy is not None:
+            case = with_policy(case, policy)
         shift = (
             time_shift
             if time_shift is not None
@@ -360,12 +396,45 @@ def register(app: typer.Typer) -> None:
         figures: Annotated[
             bool, typer.Option("--figures/--no-figures", help="Write the figures.")
         ] = True,
+        policy: Annotated[
+            list[str] | None,
+            typer.Option(
+                "--policy",
+                help="Compare ego policies instead of the five configurations: one row per "
+                "--policy (repeat it: --policy none --policy aeb), each on the --base "
+                "configuration, labelled by the policy. " + _POLICY_HELP,
+            ),
+        ] = None,
+        base: Annotated[
+            str,
+            typer.Option(
+                "--base",
+                help="With --policy: the configuration (rider) every policy runs on "
+                "(a preset name; default normal: the calibrated social-force rider).",
+            ),
+        ] = "normal",
     ) -> None:
         """Run the paper's five configurations (replay, normal, aggressive, normal-cap, aggressive-cap) and print the summary."""
         from vei.experiments.casestudy import run_casestudy, write_casestudy
 
         scen = _read_scenario(scenario)
         runner = _backend(backend, host, port, esmini, carla_timeout)
+        cases = None
+        if policy:
+            from vei.config import CASE_PRESETS, case_preset
+            from vei.errors import ConfigError
+
+            if base not in CASE_PRESETS:
+                raise ConfigError(f"--base {base!r}: expected one of {', '.join(CASE_PRESETS)}")
+            labels = [policy_label(p) for p in policy]
+            if len(set(labels)) != len(labels):
+                raise ConfigError(f"--policy: the policies {policy} repeat a label ({labels})")
+            cases = [
+                with_policy(case_preset(base), p, name=lab)
+                for p, lab in zip(policy, labels, strict=True)
+            ]
+            if compare:
+                raise ConfigError("--compare runs the five configurations: drop --policy")
         if compare:
             if sfm_riders not in (None, "primary"):
                 from vei.errors import ConfigError
@@ -378,6 +447,7 @@ def register(app: typer.Typer) -> None:
             return
         result = run_casestudy(
             scen,
+            cases=cases,
             time_shift=time_shift,
             backend=runner,
             sim=_with_sfm_riders(None, sfm_riders),
