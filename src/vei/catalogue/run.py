@@ -97,7 +97,9 @@ class _Ray:
 def executor(engine: str, workers: int) -> Iterator[Any]:
     """A job executor with ``map(fn, calls)`` yielding results as jobs finish.
 
-    'local': this process (workers == 1) or a pool of ``workers`` spawned processes;
+    'local': this process (workers == 1) or a pool of ``workers`` spawned processes
+    (:class:`vei.experiments.workers.WorkerPool`: they die with this process, ignore
+    SIGINT, and are killed at once when the block ends with an exception);
     'ray': Ray tasks (``ray.init(num_cpus=workers)`` unless Ray is initialised already,
     e.g. ``ray.init(address='auto')`` on a cluster: then the cluster's CPUs are used).
     """
@@ -131,10 +133,9 @@ def executor(engine: str, workers: int) -> Iterator[Any]:
     if workers == 1:
         yield _Serial()
         return
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
+    from vei.experiments.workers import WorkerPool
 
-    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
+    with WorkerPool(workers) as pool:
         yield _Pool(pool)
 
 

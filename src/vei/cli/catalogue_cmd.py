@@ -88,9 +88,20 @@ def catalogue(
             sweep["n_samples"] = n_variants
         config = dataclasses.replace(config, sweep=sweep)
     console = Console(soft_wrap=True) if sys.stdout.isatty() else Console(width=200)
-    result = run_catalogue(
-        dataset, out, config, recordings=recording or None, engine=engine, workers=workers
-    )
+    try:
+        result = run_catalogue(
+            dataset, out, config, recordings=recording or None, engine=engine, workers=workers
+        )
+    except KeyboardInterrupt:
+        from vei.catalogue.store import done_encounters
+
+        n_done = len(done_encounters(Path(out))) if Path(out).is_dir() else 0
+        typer.echo(
+            f"interrupted: {n_done} encounter(s) done in {out}; "
+            "run the same command again to resume",
+            err=True,
+        )
+        raise typer.Exit(130) from None
     _print_result(console, result, top)
     if report:
         from vei.catalogue.report_data import write_report

@@ -22,6 +22,38 @@ def _pair(text: str | None, name: str, cast: type = float) -> tuple | None:
         raise ConfigError(f"{name} expects two {cast.__name__} values, got {text!r}") from None
 
 
+def interrupted_message(out: Path) -> str:
+    """The line printed when a sweep in ``out`` is interrupted: what is done, how to resume.
+
+    Counts the finished part files of ``out/parts`` and their rows (Parquet footers only)
+    and, when ``out/sweep.json`` says it, the sweep's total number of variants.
+    """
+    import json
+
+    import pyarrow.parquet as pq
+
+    from vei.experiments.sweep import PART_RE
+
+    parts_dir = Path(out) / "parts"
+    parts = [p for p in parts_dir.iterdir() if PART_RE.match(p.name)] if parts_dir.is_dir() else []
+    rows = 0
+    for p in parts:
+        try:
+            rows += pq.ParquetFile(p).metadata.num_rows
+        except (OSError, ValueError):
+            pass
+    total = ""
+    try:
+        n = json.loads((Path(out) / "sweep.json").read_text())["n_variants"]
+        total = f" of {int(n)}"
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    return (
+        f"interrupted: {len(parts)} chunk(s) done ({rows}{total} variants) in {out}; "
+        "run the same command again to resume"
+    )
+
+
 def sweep(
     scenario: Annotated[
         Path,
@@ -168,17 +200,21 @@ def sweep(
         return
     if x_range or y_range:
         raise ConfigError("--x-range / --y-range need --x and --y (boundary search)")
-    result = run_sweep(
-        scenario,
-        sweep_spec,
-        out,
-        engine=engine,
-        workers=workers,
-        chunk_size=chunk_size,
-        progress=progress,
-        max_chunks=max_chunks,
-        k_critical=critical,
-    )
+    try:
+        result = run_sweep(
+            scenario,
+            sweep_spec,
+            out,
+            engine=engine,
+            workers=workers,
+            chunk_size=chunk_size,
+            progress=progress,
+            max_chunks=max_chunks,
+            k_critical=critical,
+        )
+    except KeyboardInterrupt:
+        typer.echo(interrupted_message(out), err=True)
+        raise typer.Exit(130) from None
     table = Table(title="sweep")
     table.add_column("quantity")
     table.add_column("value")

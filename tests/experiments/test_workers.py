@@ -1,0 +1,279 @@
+"""Worker processes die with their parent: WorkerPool alone, and the real `vei sweep` CLI.
+
+Each test starts a real parent process, kills it (SIGKILL / SIGTERM) or interrupts it
+(SIGINT), and looks the worker pids up in /proc: a pid that is gone, or a zombie waiting
+for its new parent to reap it, is a worker that no longer runs.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from vei.experiments.workers import WorkerPool, set_parent_death_signal, worker_pool
+
+REPO = Path(__file__).resolve().parents[2]
+
+pytestmark = pytest.mark.skipif(
+    not sys.platform.startswith("linux"), reason="reads worker processes from /proc"
+)
+
+
+def _state(pid: int) -> str | None:
+    """The process state letter of ``pid`` (R, S, Z, ...), None when there is no such pid."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return stat.rsplit(")", 1)[1].split()[0]
+
+
+def _running(pid: int) -> bool:
+    return _state(pid) not in (None, "Z", "X")
+
+
+def _children(pid: int) -> list[int]:
+    """Pids whose parent is ``pid`` (running ones only)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except OSError:
+            continue
+        fields = stat.rsplit(")", 1)[1].split()
+        if int(fields[1]) == pid and fields[0] not in ("Z", "X"):
+            found.append(int(entry.name))
+    return found
+
+
+def _wait_gone(pids: list[int], timeout_s: float) -> list[int]:
+    """Poll until none of ``pids`` runs; returns those still running after ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        left = [p for p in pids if _running(p)]
+        if not left or time.monotonic() > deadline:
+            return left
+        time.sleep(0.05)
+
+
+def _kill_all(pids: list[int]) -> None:
+    for p in pids:
+        try:
+            os.kill(p, signal.SIGKILL)
+        except OSError:
+            pass
+
+
+POOL_SCRIPT = textwrap.dedent(
+    """
+    import sys, time
+    from vei.experiments.workers import worker_pool
+
+    if __name__ == "__main__":
+        with worker_pool(2, pdeathsig=sys.argv[1] == "1", poll_s=0.2) as pool:
+            futures = [pool.submit(time.sleep, 120) for _ in range(2)]
+            print(" ".join(map(str, pool.pids)), flush=True)
+            time.sleep(120)
+    """
+)
+
+
+@pytest.mark.parametrize(
+    ("sig", "pdeathsig"),
+    [
+        (signal.SIGKILL, True),
+        (signal.SIGTERM, True),
+        (signal.SIGKILL, False),  # the portable watchdog alone
+        (signal.SIGTERM, False),
+    ],
+)
+def test_workers_end_when_the_parent_is_killed(tmp_path, sig, pdeathsig):
+    script = tmp_path / "pool.py"
+    script.write_text(POOL_SCRIPT)
+    parent = subprocess.Popen(
+        [sys.executable, str(script), "1" if pdeathsig else "0"],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
+    pids: list[int] = []
+    try:
+        pids = [int(p) for p in parent.stdout.readline().split()]
+        assert len(pids) == 2 and all(_running(p) for p in pids)
+        assert sorted(pids) == sorted(
+            p for p in _children(parent.pid) if "spawn_main" in _cmdline(p)
+        )
+        parent.send_signal(sig)
+        parent.wait(timeout=10)
+        assert parent.returncode == -sig
+        left = _wait_gone(pids, timeout_s=3.0)
+        assert not left, f"workers {left} outlived their parent (signal {sig})"
+    finally:
+        parent.kill()
+        parent.wait()
+        _kill_all(pids)
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+    except OSError:
+        return ""
+
+
+def test_pool_starts_every_worker_once_and_they_ignore_sigint():
+    with worker_pool(2) as pool:
+        assert len(pool.pids) == 2 and len(set(pool.pids)) == 2
+        for p in pool.pids:
+            os.kill(p, signal.SIGINT)
+        time.sleep(0.3)
+        assert all(_running(p) for p in pool.pids)
+        # the same two processes serve every task: no start per task
+        served = {f.result() for f in [pool.submit(os.getpid) for _ in range(20)]}
+        assert served <= set(pool.pids)
+        assert {f.result() for f in [pool.submit(pow, 3, 4)]} == {81}
+        pids = list(pool.pids)
+    assert not _wait_gone(pids, timeout_s=5.0)
+
+
+def test_an_exception_in_the_block_kills_the_workers_at_once():
+    t0 = time.monotonic()
+    with pytest.raises(KeyboardInterrupt), WorkerPool(2) as pool:
+        pids = list(pool.pids)
+        pool.submit(time.sleep, 60)
+        raise KeyboardInterrupt
+    assert not _wait_gone(pids, timeout_s=3.0)
+    assert time.monotonic() - t0 < 20  # the 60 s task was not waited for
+
+
+def test_bad_arguments_and_prctl_on_linux():
+    with pytest.raises(ValueError, match="workers"):
+        WorkerPool(0)
+    with pytest.raises(ValueError, match="poll_s"):
+        WorkerPool(1, poll_s=0)
+    with worker_pool(1) as pool:  # asked in a worker, never in the test process itself
+        assert pool.submit(set_parent_death_signal, signal.SIGKILL).result() is True
+
+
+# --- the real CLI --------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def demo_scenario(tmp_path_factory) -> Path:
+    """The synthetic demo interaction (vei demo's data), reconstructed into a scenario."""
+    from vei.experiments.demo_data import demo_interaction
+    from vei.io.scenario import write_scenario
+    from vei.recon.pipeline import reconstruct
+
+    folder = tmp_path_factory.mktemp("demo") / "scenario"
+    write_scenario(reconstruct(demo_interaction()), folder)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def spec_path(tmp_path_factory) -> Path:
+    """A 20 x 20 grid (400 variants) over time shift and cruise speed: 16 chunks of 25."""
+    path = tmp_path_factory.mktemp("spec") / "sweep.yaml"
+    path.write_text(
+        "design: grid\nbase: normal\nparameters:\n"
+        "  time_shift_s: {min: -3.0, max: 3.0, num: 20}\n"
+        "  ego.cruise_speed_mps: {min: 3.0, max: 9.0, num: 20}\n"
+    )
+    return path
+
+
+def _sweep_cmd(scenario: Path, spec: Path, out: Path) -> list[str]:
+    return [
+        sys.executable, "-m", "vei.cli.main", "sweep", str(scenario), "--spec", str(spec),
+        "--out", str(out), "--workers", "2", "--chunk-size", "25", "--no-progress",
+    ]  # fmt: skip
+
+
+def _start_and_wait_for_parts(cmd: list[str], out: Path, n_parts: int) -> tuple:
+    """Start the CLI in its own session; once ``n_parts`` part files exist, return (process,
+    its worker pids, all its child pids)."""
+    proc = subprocess.Popen(
+        cmd, cwd=REPO, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    deadline = time.monotonic() + 120
+    workers: list[int] = []
+    while len(list((out / "parts").glob("part-*.parquet"))) < n_parts:
+        if proc.poll() is not None:
+            raise AssertionError(proc.stderr.read().decode())
+        assert time.monotonic() < deadline, "the sweep wrote no parts in 120 s"
+        workers = [p for p in _children(proc.pid) if "spawn_main" in _cmdline(p)] or workers
+        time.sleep(0.05)
+    workers = [p for p in _children(proc.pid) if "spawn_main" in _cmdline(p)] or workers
+    return proc, workers, sorted(set(workers) | set(_children(proc.pid)))
+
+
+def test_vei_sweep_killed_leaves_no_worker_and_resumes(demo_scenario, spec_path, tmp_path):
+    from vei.experiments.sweep import done_ids, read_results, run_sweep
+    from vei.experiments.sweep_spec import load_spec
+
+    out = tmp_path / "killed"
+    cmd = _sweep_cmd(demo_scenario, spec_path, out)
+    proc, workers, everyone = _start_and_wait_for_parts(cmd, out, 2)
+    try:
+        assert len(workers) == 2
+        os.kill(proc.pid, signal.SIGKILL)  # the parent only, not its process group
+        proc.wait(timeout=30)
+        assert proc.returncode == -signal.SIGKILL
+        left = _wait_gone(everyone, timeout_s=5.0)
+        assert not left, f"processes {left} of the killed sweep still run"
+    finally:
+        proc.kill()
+        _kill_all(everyone)
+    assert not (out / "results.parquet").exists()
+    n_done = len(done_ids(out))
+    assert 50 <= n_done < 400
+
+    rerun = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert rerun.returncode == 0, rerun.stderr
+    assert re.search(rf"done before \(resumed\)\s*│\s*{n_done}\s", rerun.stdout), rerun.stdout
+    whole = run_sweep(
+        demo_scenario, load_spec(spec_path), tmp_path / "whole", chunk_size=100, progress=False
+    )
+    assert whole.n_run == 400
+    a, b = read_results(out), read_results(tmp_path / "whole")
+    assert len(a) == 400 and a["variant_id"].is_unique
+    pd.testing.assert_frame_equal(a, b)
+
+
+def test_vei_sweep_sigint_says_how_to_resume(demo_scenario, spec_path, tmp_path):
+    from vei.experiments.sweep import done_ids
+
+    out = tmp_path / "interrupted"
+    cmd = _sweep_cmd(demo_scenario, spec_path, out)
+    proc, workers, everyone = _start_and_wait_for_parts(cmd, out, 1)
+    try:
+        assert len(workers) == 2
+        os.killpg(proc.pid, signal.SIGINT)  # like Ctrl-C in a terminal: the whole group
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+        _kill_all(everyone)
+    err = err.decode()
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    n_parts = len(list((out / "parts").glob("part-*.parquet")))
+    n_done = len(done_ids(out))
+    assert n_parts < 16 and not (out / "results.parquet").exists()
+    line = (
+        f"interrupted: {n_parts} chunk(s) done ({n_done} of 400 variants) in {out}; "
+        "run the same command again to resume"
+    )
+    assert line in " ".join(err.split()), err
+    assert not _wait_gone(everyone, timeout_s=5.0)
