@@ -406,12 +406,8 @@ def search_boundary(
     """
     import sys
 
-    from vei.experiments.sweep import (
-        EngineEvaluator,
-        json_records,
-        most_critical,
-        write_variant_configs,
-    )
+    from vei.experiments.sweep_engine import EngineEvaluator
+    from vei.experiments.sweep_io import json_records, most_critical, write_variant_configs
     from vei.experiments.sweep_spec import PARAMETERS, variant_id, variant_seed
     from vei.io.atomic import write_json, write_parquet, write_text
     from vei.report.riskmap import write_risk_map

@@ -14,8 +14,12 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
+import vei.metrics.conflict as conflict
+import vei.metrics.ego_dynamics as ego_dynamics
+import vei.metrics.kinematics as kinematics
+import vei.metrics.severity as severity
+import vei.metrics.ttc as ttc
 from vei.errors import ConfigError
-from vei.metrics import conflict, ego_dynamics, kinematics, severity, ttc
 from vei.metrics._trace import TraceArrays, arrays
 from vei.metrics.config import MetricsConfig
 from vei.types import Trace

@@ -8,6 +8,8 @@ on a backend.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 
@@ -96,8 +98,7 @@ def trace_from_timeseries(
     active = oth["present"] & oth["active"]
     other_xy = np.stack([oth["x_m"], oth["y_m"]], axis=-1)
     other_xy[~active] = np.nan
-    yaw = np.where(np.isfinite(oth["yaw_rad"]), oth["yaw_rad"], 0.0)
-    speed = np.where(np.isfinite(oth["speed_mps"]), oth["speed_mps"], 0.0)
+    yaw, speed, vel = _heading_velocity(oth["yaw_rad"], oth["speed_mps"])
     trace = Trace(
         t_s=t,
         ego_xy_m=np.stack([ego["x_m"], ego["y_m"]], axis=-1),
@@ -107,7 +108,7 @@ def trace_from_timeseries(
         other_xy_m=other_xy,
         other_yaw_rad=yaw,
         other_speed_mps=speed,
-        other_vel_mps=speed[..., None] * np.stack([np.cos(yaw), np.sin(yaw)], axis=-1),
+        other_vel_mps=vel,
         other_active=active,
         collided=np.logical_or.accumulate(oth["collided"], axis=1),
         ego_length_m=float(ego_dims_m[0]),
@@ -116,3 +117,48 @@ def trace_from_timeseries(
         other_width_m=float(other_dims_m[1]),
     )
     return trace, runs
+
+
+def _heading_velocity(
+    yaw_rad: np.ndarray, speed_mps: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(yaw, speed, [..., 2] velocity = speed * (cos yaw, sin yaw)), NaN yaw/speed -> 0."""
+    yaw = np.where(np.isfinite(yaw_rad), yaw_rad, 0.0)
+    speed = np.where(np.isfinite(speed_mps), speed_mps, 0.0)
+    return yaw, speed, speed[..., None] * np.stack([np.cos(yaw), np.sin(yaw)], axis=-1)
+
+
+def as_timeseries_trace(trace: Trace) -> Trace:
+    """The trace that :func:`trace_from_timeseries` builds from ``trace``'s own time series.
+
+    A long time series carries each agent's pose, speed and yaw, not a velocity vector,
+    so a trace read from one (``vei run``, ``vei casestudy``, any backend) scores the
+    rider's velocity as speed * (cos yaw, sin yaw). The engine's trace
+    (:meth:`vei.sim.result.SimResult.to_trace`) holds the integrator's velocity vector,
+    which differs from that on the rider's first simulated step (the recorded speed and
+    yaw it starts from) by up to ~0.1 m/s. Scoring the engine's trace through this
+    function gives metrics bit-identical to a run scored from its time series -- what a
+    sweep does, so that ``vei run`` of a sweep variant reproduces the sweep's table.
+
+    Args:
+        trace: B runs (e.g. an engine trace).
+    Returns:
+        Trace with other_yaw / other_speed NaN -> 0, other_vel = speed * heading, other_xy
+        NaN where inactive, and ``collided`` latched; every other field as given.
+    """
+    active = np.asarray(trace.other_active, dtype=bool)
+    yaw, speed, vel = _heading_velocity(
+        np.asarray(trace.other_yaw_rad, dtype=np.float64),
+        np.asarray(trace.other_speed_mps, dtype=np.float64),
+    )
+    other_xy = np.array(trace.other_xy_m, dtype=np.float64)
+    other_xy[~active] = np.nan
+    return replace(
+        trace,
+        ego_accel_mps2=np.nan_to_num(np.asarray(trace.ego_accel_mps2, dtype=np.float64)),
+        other_xy_m=other_xy,
+        other_yaw_rad=yaw,
+        other_speed_mps=speed,
+        other_vel_mps=vel,
+        collided=np.logical_or.accumulate(np.asarray(trace.collided, dtype=bool), axis=1),
+    )

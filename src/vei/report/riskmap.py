@@ -26,6 +26,7 @@ def risk_map_figure(
     title: str = "",
     vmin: float = 0.0,
     vmax: float = 1.0,
+    cmap: str = "RdYlGn",
 ):
     """Build the risk-map figure.
 
@@ -37,7 +38,8 @@ def risk_map_figure(
         sample_x, sample_y, sample_collided: optional [N] evaluated points (drawn as
             markers: red crosses collide, gid 'collided'; white dots do not, gid 'safe').
         x_label, y_label, value_label, title: texts.
-        vmin, vmax: colour scale of ``value``.
+        vmin, vmax: colour scale of ``value``; cmap: its matplotlib colormap (default
+            red-yellow-green, high = green; 'RdYlGn_r' where high is bad).
 
     Returns:
         the matplotlib Figure (Agg canvas).
@@ -52,7 +54,7 @@ def risk_map_figure(
         _edges(xc),
         _edges(yc),
         np.ma.masked_invalid(np.asarray(value, float)),
-        cmap="RdYlGn",
+        cmap=cmap,
         vmin=vmin,
         vmax=vmax,
         shading="flat",
