@@ -19,6 +19,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from tests.procs import children, kill_all, running, spawned_workers, wait_gone
 from vei.experiments.workers import WorkerPool, set_parent_death_signal, worker_pool
 
 REPO = Path(__file__).resolve().parents[2]
@@ -26,53 +27,6 @@ REPO = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.skipif(
     not sys.platform.startswith("linux"), reason="reads worker processes from /proc"
 )
-
-
-def _state(pid: int) -> str | None:
-    """The process state letter of ``pid`` (R, S, Z, ...), None when there is no such pid."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return None
-    return stat.rsplit(")", 1)[1].split()[0]
-
-
-def _running(pid: int) -> bool:
-    return _state(pid) not in (None, "Z", "X")
-
-
-def _children(pid: int) -> list[int]:
-    """Pids whose parent is ``pid`` (running ones only)."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            stat = (entry / "stat").read_text()
-        except OSError:
-            continue
-        fields = stat.rsplit(")", 1)[1].split()
-        if int(fields[1]) == pid and fields[0] not in ("Z", "X"):
-            found.append(int(entry.name))
-    return found
-
-
-def _wait_gone(pids: list[int], timeout_s: float) -> list[int]:
-    """Poll until none of ``pids`` runs; returns those still running after ``timeout_s``."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        left = [p for p in pids if _running(p)]
-        if not left or time.monotonic() > deadline:
-            return left
-        time.sleep(0.05)
-
-
-def _kill_all(pids: list[int]) -> None:
-    for p in pids:
-        try:
-            os.kill(p, signal.SIGKILL)
-        except OSError:
-            pass
 
 
 POOL_SCRIPT = textwrap.dedent(
@@ -111,26 +65,17 @@ def test_workers_end_when_the_parent_is_killed(tmp_path, sig, pdeathsig):
     pids: list[int] = []
     try:
         pids = [int(p) for p in parent.stdout.readline().split()]
-        assert len(pids) == 2 and all(_running(p) for p in pids)
-        assert sorted(pids) == sorted(
-            p for p in _children(parent.pid) if "spawn_main" in _cmdline(p)
-        )
+        assert len(pids) == 2 and all(running(p) for p in pids)
+        assert sorted(pids) == sorted(spawned_workers(parent.pid))
         parent.send_signal(sig)
         parent.wait(timeout=10)
         assert parent.returncode == -sig
-        left = _wait_gone(pids, timeout_s=3.0)
+        left = wait_gone(pids, timeout_s=3.0)
         assert not left, f"workers {left} outlived their parent (signal {sig})"
     finally:
         parent.kill()
         parent.wait()
-        _kill_all(pids)
-
-
-def _cmdline(pid: int) -> str:
-    try:
-        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
-    except OSError:
-        return ""
+        kill_all(pids)
 
 
 def test_pool_starts_every_worker_once_and_they_ignore_sigint():
@@ -139,13 +84,13 @@ def test_pool_starts_every_worker_once_and_they_ignore_sigint():
         for p in pool.pids:
             os.kill(p, signal.SIGINT)
         time.sleep(0.3)
-        assert all(_running(p) for p in pool.pids)
+        assert all(running(p) for p in pool.pids)
         # the same two processes serve every task: no start per task
         served = {f.result() for f in [pool.submit(os.getpid) for _ in range(20)]}
         assert served <= set(pool.pids)
         assert {f.result() for f in [pool.submit(pow, 3, 4)]} == {81}
         pids = list(pool.pids)
-    assert not _wait_gone(pids, timeout_s=5.0)
+    assert not wait_gone(pids, timeout_s=5.0)
 
 
 def test_an_exception_in_the_block_kills_the_workers_at_once():
@@ -154,7 +99,7 @@ def test_an_exception_in_the_block_kills_the_workers_at_once():
         pids = list(pool.pids)
         pool.submit(time.sleep, 60)
         raise KeyboardInterrupt
-    assert not _wait_gone(pids, timeout_s=3.0)
+    assert not wait_gone(pids, timeout_s=3.0)
     assert time.monotonic() - t0 < 20  # the 60 s task was not waited for
 
 
@@ -213,10 +158,10 @@ def _start_and_wait_for_parts(cmd: list[str], out: Path, n_parts: int) -> tuple:
         if proc.poll() is not None:
             raise AssertionError(proc.stderr.read().decode())
         assert time.monotonic() < deadline, "the sweep wrote no parts in 120 s"
-        workers = [p for p in _children(proc.pid) if "spawn_main" in _cmdline(p)] or workers
+        workers = spawned_workers(proc.pid) or workers
         time.sleep(0.05)
-    workers = [p for p in _children(proc.pid) if "spawn_main" in _cmdline(p)] or workers
-    return proc, workers, sorted(set(workers) | set(_children(proc.pid)))
+    workers = spawned_workers(proc.pid) or workers
+    return proc, workers, sorted(set(workers) | set(children(proc.pid)))
 
 
 def test_vei_sweep_killed_leaves_no_worker_and_resumes(demo_scenario, spec_path, tmp_path):
@@ -231,11 +176,11 @@ def test_vei_sweep_killed_leaves_no_worker_and_resumes(demo_scenario, spec_path,
         os.kill(proc.pid, signal.SIGKILL)  # the parent only, not its process group
         proc.wait(timeout=30)
         assert proc.returncode == -signal.SIGKILL
-        left = _wait_gone(everyone, timeout_s=5.0)
+        left = wait_gone(everyone, timeout_s=5.0)
         assert not left, f"processes {left} of the killed sweep still run"
     finally:
         proc.kill()
-        _kill_all(everyone)
+        kill_all(everyone)
     assert not (out / "results.parquet").exists()
     n_done = len(done_ids(out))
     assert 50 <= n_done < 400
@@ -264,7 +209,7 @@ def test_vei_sweep_sigint_says_how_to_resume(demo_scenario, spec_path, tmp_path)
         _, err = proc.communicate(timeout=60)
     finally:
         proc.kill()
-        _kill_all(everyone)
+        kill_all(everyone)
     err = err.decode()
     assert proc.returncode == 130, err
     assert "Traceback" not in err
@@ -276,4 +221,4 @@ def test_vei_sweep_sigint_says_how_to_resume(demo_scenario, spec_path, tmp_path)
         "run the same command again to resume"
     )
     assert line in " ".join(err.split()), err
-    assert not _wait_gone(everyone, timeout_s=5.0)
+    assert not wait_gone(everyone, timeout_s=5.0)
