@@ -518,6 +518,12 @@ class CaseConfig:
             :attr:`policy_name` is the controller's name either way.
         ego: ego / PID / actuator parameters.
         cap: CAP parameters (used when ego_mode == 'cap').
+        perception: the ego's sensor between the world and the policy
+            (:class:`vei.policy.perception.PerceptionConfig`: range, field of view,
+            occlusion, noise, detection probability, seed); None (default) or
+            ``enabled: false`` = ideal perception (the paper's case). Its latency is
+            ``cap.perception_delay_s``. Enabled, every closed-loop controller runs on the
+            policy API (also 'none' / 'paper-cap'), which applies it.
     """
 
     name: str
@@ -526,8 +532,14 @@ class CaseConfig:
     ego_mode: EgoMode = "pid"
     ego: EgoConfig = field(default_factory=EgoConfig)
     cap: CAPConfig = field(default_factory=CAPConfig)
+    perception: Any = None
 
     def __post_init__(self) -> None:
+        if self.perception is not None and type(self.perception).__name__ != "PerceptionConfig":
+            raise ConfigError(
+                f"perception must be a PerceptionConfig (vei.policy.perception) or a mapping, "
+                f"got {type(self.perception).__name__}"
+            )
         if not isinstance(self.name, str) or not self.name:
             raise ConfigError(f"name must be a non-empty string, got {self.name!r}")
         _choice("rider", self.rider, ("replay", "sfm"))
@@ -726,13 +738,22 @@ def _build(cls: type[T], raw: Any, where: str) -> T:
     }
     if cls is RunConfig:  # CaseConfig.rider is a string; RunConfig.rider a population
         nested["rider"] = RiderPopulationConfig
+    if cls is CaseConfig and raw.get("perception") is not None:
+        from vei.policy.perception import PerceptionConfig  # the sensor model's own config
+
+        nested["perception"] = PerceptionConfig
     for key, value in raw.items():
         sub = nested.get(key)
         if sub is RiderPopulationConfig and value is None:  # explicit "no population"
             kwargs[key] = None
             continue
         if sub is not None:
-            if base is not None and isinstance(value, Mapping) and "preset" not in value:
+            if (
+                base is not None
+                and isinstance(value, Mapping)
+                and "preset" not in value
+                and getattr(base, key) is not None
+            ):
                 value = _override(getattr(base, key), value, f"{where}.{key}")
             kwargs[key] = _build(sub, value, f"{where}.{key}")
         else:

@@ -41,6 +41,7 @@ class Block:
             the block, else the [b] mask.
         rider_limits: some variant has a finite rider speed / acceleration cap.
         policy: the block's ego policy instance (ego_mode 3), unbound, else None.
+        perception: the block's enabled PerceptionConfig, else None.
     """
 
     start: int
@@ -55,6 +56,7 @@ class Block:
     paper_per_step: bool | npt.NDArray[np.bool_]
     rider_limits: bool
     policy: Any = None
+    perception: Any = None
 
 
 @dataclass(frozen=True)
@@ -98,7 +100,8 @@ def group_keys(params: VariantParams) -> npt.NDArray[np.int64]:
         ranks: dict[int, int] = {}
         rank = np.zeros(key.shape, dtype=np.int64)
         for i in np.flatnonzero(is_pol):
-            rank[i] = ranks.setdefault(id(params.policy[i]), len(ranks) + 1)
+            ident = (id(params.policy[i]), id(params.perception[i]))
+            rank[i] = ranks.setdefault(ident, len(ranks) + 1)
         key = key + 8 * rank
     return key
 
@@ -132,6 +135,7 @@ def batch_flags(params: VariantParams, dt_s: float) -> BatchFlags:
                 rider_limits=sfm
                 and bool((np.isfinite(bp.max_speed_mps) | np.isfinite(bp.max_accel_mps2)).any()),
                 policy=bp.policy[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
+                perception=bp.perception[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
             )
         )
     return BatchFlags(

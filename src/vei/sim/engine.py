@@ -118,12 +118,19 @@ def simulate(
     if use_numba and 0 < n_kernel < b:
         parts = [
             _run_sorted(arrays, run_params.take(slice(0, n_kernel)), record, progress, True),
-            _run_sorted(arrays, run_params.take(slice(n_kernel, b)), record, progress, False),
+            _run_sorted(
+                arrays,
+                run_params.take(slice(n_kernel, b)),
+                record,
+                progress,
+                False,
+                perm[n_kernel:],
+            ),
         ]
         bufs, hit_buf, xbufs, coll_t, min_d, state = _merge_runs(parts)
     else:
         bufs, hit_buf, xbufs, coll_t, min_d, state = _run_sorted(
-            arrays, run_params, record, progress, use_numba and n_kernel == b
+            arrays, run_params, record, progress, use_numba and n_kernel == b, perm
         )
     if not sorted_already:
         inv = np.empty_like(perm)
@@ -183,6 +190,7 @@ def _run_sorted(
     record: Record,
     progress: bool,
     use_numba: bool,
+    variant_keys: npt.NDArray[np.intp] | None = None,
 ) -> tuple[Any, ...]:
     """Run a batch already sorted into blocks; returns ([T, B] series buffers, hit
     buffer, extra-rider buffers, collision times, minimum distances, final state)."""
@@ -237,7 +245,7 @@ def _run_sorted(
             out["min_center_distance_m"],
             SimState(**out["final"]),
         )
-    driver = PolicyDriver(arrays, run_params, fl) if fl.any_policy else None
+    driver = PolicyDriver(arrays, run_params, fl, variant_keys) if fl.any_policy else None
     _rec(state)
     bar = None
     task = None

@@ -9,13 +9,15 @@ the perception delay). Once per step, before :func:`vei.sim.step.step`::
 
 Road users of the observation (axis N): the primary rider, the extra SFM riders, the
 replayed others (vei.policy.observation). With a perception delay of n steps the policy
-sees every object's ground truth of step k - n (not perceived while k < n); with
-``perception`` (vei.policy.perception, when enabled) it sees that module's output.
+sees every object's ground truth of step k - n (not perceived while k < n); with an
+enabled ``CaseConfig.perception`` (vei.policy.perception: range, field of view,
+occlusion, noise, detection probability, held tracks) it sees that sensor model's output
+on the delayed truth.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -212,8 +214,15 @@ class PolicyDriver:
         arrays: ScenarioArrays,
         params: VariantParams,
         flags: BatchFlags,
+        variant_keys: npt.ArrayLike | None = None,
     ) -> None:
         self.arrays = arrays
+        b_all = params.batch_size
+        self.variant_keys = (
+            np.arange(b_all) if variant_keys is None else np.asarray(variant_keys, dtype=np.int64)
+        )
+        if self.variant_keys.shape != (b_all,):
+            raise ConfigError(f"variant_keys must have shape ({b_all},)")
         self.batch_size = params.batch_size
         self.blocks = [blk for blk in flags.blocks if blk.policy is not None]
         self.table = object_table(arrays)
@@ -230,6 +239,7 @@ class PolicyDriver:
         h = max((int(d.max()) for d in self.delay), default=0) + 1
         self.hist_len = h
         self._ring: list[FloatArray | None] = [None] * len(self.blocks)
+        self._pstates: list[Any] = [None] * len(self.blocks)
 
     def act(self, st: SimState) -> Demand | None:
         """The PolicyAction [B] of step k (accel_mps2 for every variant: the command of
@@ -259,6 +269,8 @@ class PolicyDriver:
                 ok = np.ones((b, 1), dtype=bool)
             valid = (seen[5] > 0.5) & ok
             age = np.broadcast_to((self.delay[i] * self.arrays.dt_s)[:, None], valid.shape)
+            if blk.perception is not None:
+                seen, valid, age = self._perceive(i, st, blk, seen, valid, age)
             obs = build_observation(st, self.arrays, blk, seen, valid, age, self.table)
             action, self.states[i] = self.policies[i].act(obs, self.states[i])
             if not isinstance(action, PolicyAction):
@@ -274,6 +286,56 @@ class PolicyDriver:
             if action.fsm_state is not None:
                 fsm[sl] = action.fsm_state
         return Demand(accel_mps2=acc, command=cmd, fsm_state=fsm)
+
+    def _perceive(
+        self, i: int, st: SimState, blk: Block, truth: FloatArray, valid: Any, age: Any
+    ) -> tuple[FloatArray, Any, FloatArray]:
+        """The sensor model (vei.policy.perception) on the delayed truth of block i.
+
+        Every present road user may occlude the others; the ego's own pose is the
+        current one (it knows it exactly). Returns the perceived objects in the world
+        frame ([6, b, N] like the truth), tracked mask [b, N] and age [b, N] (the
+        track's age since its last detection plus the engine's latency).
+        """
+        from vei.policy import perception as perc
+
+        sl = slice(blk.start, blk.stop)
+        b = blk.stop - blk.start
+        n = truth.shape[2]
+        ex, ey, eyaw, v = st.ego_x_m[sl], st.ego_y_m[sl], st.ego_yaw_rad[sl], st.ego_v_mps[sl]
+        c, s = np.cos(eyaw), np.sin(eyaw)
+        length, width, _ = self.table
+        gt = perc.GroundTruth(
+            x_m=truth[0], y_m=truth[1], yaw_rad=truth[2], vx_mps=truth[3], vy_mps=truth[4],
+            length_m=np.broadcast_to(length, (b, n)).copy(),
+            width_m=np.broadcast_to(width, (b, n)).copy(),
+            valid=np.asarray(valid, dtype=bool).copy(), can_occlude=np.asarray(valid, dtype=bool).copy(),
+            ego_x_m=ex, ego_y_m=ey, ego_yaw_rad=eyaw, ego_vx_mps=v * c, ego_vy_mps=v * s,
+        )  # fmt: skip
+        pstate = self._pstates[i]
+        if pstate is None:
+            pstate = perc.init_state(b, n)
+        po, self._pstates[i] = perc.perceive(
+            blk.perception, pstate, gt, st.k, self.arrays.dt_s, self.variant_keys[sl]
+        )
+        tracked = po.tracked
+
+        def z(a: FloatArray) -> FloatArray:
+            return np.where(tracked, a, 0.0)
+
+        cc, ss = c[:, None], s[:, None]
+        px, py, pvx, pvy = z(po.x_m), z(po.y_m), z(po.vx_mps), z(po.vy_mps)
+        world = np.stack(
+            [
+                ex[:, None] + cc * px - ss * py,
+                ey[:, None] + ss * px + cc * py,
+                eyaw[:, None] + z(po.yaw_rad),
+                cc * pvx - ss * pvy + (v * c)[:, None],
+                ss * pvx + cc * pvy + (v * s)[:, None],
+                tracked.astype(np.float64),
+            ]
+        )
+        return world, tracked, np.where(tracked, z(po.age_s) + age, np.inf)
 
 
 __all__ = [

@@ -90,6 +90,8 @@ class VariantParams:
         policy: object array; the ego policy instance of each variant (vei.policy) where
             ego_mode == 3 (policy), else None. Variants sharing one instance share one
             block; the engine calls its ``bind`` with the block's parameters.
+        perception: object array; the enabled PerceptionConfig (vei.policy.perception)
+            of each policy variant, else None (ideal perception).
         aeb_*, idm_*: the built-in 'aeb' / 'idm' policies' parameters (AEBConfig,
             IDMConfig; sweepable as aeb.<name> / idm.<name>); unused by other policies.
         speed_from_recording: bool; the extra SFM riders (vei.sim.riders) take v0 and
@@ -141,6 +143,7 @@ class VariantParams:
     b_rider_per_m: FloatArray
     use_rider_force: BoolArray
     policy: npt.NDArray[np.object_]
+    perception: npt.NDArray[np.object_]
     aeb_ttc_warning_s: FloatArray
     aeb_ttc_partial_s: FloatArray
     aeb_ttc_full_s: FloatArray
@@ -217,6 +220,13 @@ class VariantParams:
             raise ConfigError(
                 "VariantParams.policy must be set exactly where ego_mode == 3 (policy)"
             )
+        if any(
+            q is not None and m != EGO_POLICY
+            for q, m in zip(self.perception, self.ego_mode, strict=True)
+        ):
+            raise ConfigError(
+                "VariantParams.perception applies to policy variants (ego_mode 3) only"
+            )
         for name in POLICY_PARAM_DEFAULTS:
             if np.any(~(getattr(self, name) >= 0)) or not np.all(np.isfinite(getattr(self, name))):
                 raise ConfigError(f"VariantParams.{name} must be finite and >= 0")
@@ -252,6 +262,12 @@ class VariantParams:
             VariantParams with B variants.
         """
         sfm, ego, cap = case.sfm, case.ego, case.cap
+        # An enabled sensor model runs every closed-loop controller on the policy API.
+        perceived = (
+            case.perception is not None
+            and bool(case.perception.enabled)
+            and case.ego_mode != "replay-speed"
+        )
         if ego.cruise_speed_mps == MEDIAN_MOVING:
             vd = arrays.ego_median_moving_speed_mps
             if not math.isfinite(vd):
@@ -300,7 +316,7 @@ class VariantParams:
             "front_bumper": sfm.influential_point == "front_bumper",
             "max_speed_mps": inf if vmax is None else vmax,
             "max_accel_mps2": inf if sfm.max_accel_mps2 is None else sfm.max_accel_mps2,
-            "ego_mode": EGO_MODE_CODES[case.ego_mode],
+            "ego_mode": EGO_MODE_CODES["policy" if perceived else case.ego_mode],
             "cruise_speed_mps": vd,
             "initial_speed_mps": v_init,
             "ego_start_s_m": 0.0 if case.ego_mode == "replay-speed" else -run_up_m,
@@ -325,7 +341,8 @@ class VariantParams:
             "a_rider_n": sfm.a_rider_n,
             "b_rider_per_m": sfm.b_rider_per_m,
             "use_rider_force": sfm.use_rider_force,
-            "policy": _case_policy(case),
+            "policy": _case_policy(case, perceived),
+            "perception": case.perception if perceived else None,
             **_policy_param_values(case),
             "labels": case.name,
         }
@@ -340,7 +357,7 @@ class VariantParams:
         out: dict[str, Any] = {}
         for f in dataclasses.fields(cls):
             v = values[f.name]
-            if f.name in ("labels", "policy"):
+            if f.name in ("labels", "policy", "perception"):
                 arr = np.empty(batch_size, dtype=object)
                 if isinstance(v, np.ndarray) and v.ndim == 1:
                     arr[:] = list(v)
@@ -394,9 +411,10 @@ class VariantParams:
         return np.rint(self.perception_delay_s / dt_s).astype(np.intp)
 
 
-def _case_policy(case: CaseConfig) -> Any:
-    """The policy instance of a configuration with ego_mode 'policy' (else None)."""
-    if case.ego_mode != "policy":
+def _case_policy(case: CaseConfig, perceived: bool = False) -> Any:
+    """The policy instance of a configuration with ego_mode 'policy' (or any closed-loop
+    one with perception enabled), else None."""
+    if case.ego_mode != "policy" and not perceived:
         return None
     from vei.policy.load import load_policy
 
