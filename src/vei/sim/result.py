@@ -208,7 +208,10 @@ class SimResult:
         tt = np.broadcast_to(self.t_s, (nb, t))
         var = np.broadcast_to(idx[:, None], (nb, t))
         cfg = np.broadcast_to(names[:, None], (nb, t))
-        ego_cap = np.where(is_cap[:, None], cap_names[self.cap_state[idx]], "")
+        # (policy variants record their own fsm_state codes in cap_state: not CAP names)
+        ego_cap = np.where(
+            is_cap[:, None], cap_names[np.where(is_cap[:, None], self.cap_state[idx], 0)], ""
+        )
         parts = [
             {
                 "config": cfg, "variant": var, "t_s": tt, "agent_id": EGO_ID, "category": EGO_CATEGORY,

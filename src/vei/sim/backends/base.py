@@ -192,6 +192,7 @@ class ClosedLoop:
         max_steer_rad: float = math.radians(70.0),
     ) -> None:
         from vei.sim import engine
+        from vei.sim.observe import PolicyDriver
         from vei.sim.state import VariantParams, prepare_scenario
 
         self._engine = engine
@@ -209,6 +210,10 @@ class ClosedLoop:
         self.params = VariantParams.from_case(case, self.arrays, 1, time_shift_s=time_shift_s)
         self.flags = engine.batch_flags(self.params, self.arrays.dt_s)
         self.state = engine.initial_state(self.arrays, self.params, self.flags)
+        # A policy on the API (vei.policy: aeb, idm, a user's) decides from the observed state.
+        self._driver = (
+            PolicyDriver(self.arrays, self.params, self.flags) if self.flags.any_policy else None
+        )
         self.lookahead_min_m = lookahead_min_m
         self.lookahead_time_s = lookahead_time_s
         self.wheelbase_m = wheelbase_m
@@ -333,7 +338,8 @@ class ClosedLoop:
     def command(self) -> TickCommand:
         """Run the engine step from the observed state; returns the commands to apply."""
         st = self.state
-        new = self._engine.step(st, self.params, self.arrays, self.flags)
+        action = self._driver.act(st) if self._driver is not None else None
+        new = self._engine.step(st, self.params, self.arrays, self.flags, action)
         collided = bool(st.collided[0])
         steer = 0.0
         if self.steering:
