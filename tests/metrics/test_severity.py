@@ -161,3 +161,23 @@ def test_side_impact_through_engine():
     assert s["impact_speed_mps"][0] == pytest.approx(math.hypot(2.0, 4.0), abs=1e-6)
     assert s["impact_side"][0] == "left"
     assert s["striking"][0] == "rider-hits-car"
+
+
+def test_contact_on_the_riders_first_active_step_has_no_impact_speed():
+    # The rider appears overlapping the car (a time shift can do this): no approach.
+    tr = make_trace(
+        ego_xy=[(0, 0), (0.5, 0)],
+        other_xy=[(2.0, 0.0), (2.0, 0.0)],
+        ego_speed=[10.0, 0.0],
+        other_vel=(0.0, 0.0),
+        active=[False, True],
+        collided=[False, True],
+        ego_dims=(4.7, 1.85),
+        other_dims=(1.2, 0.6),
+        dt=0.05,
+    )
+    s = summarize(tr)
+    assert bool(s["collision"][0])
+    assert np.isnan(s["impact_speed_mps"][0]) and np.isnan(s["injury_risk"][0])
+    assert np.isnan(s["delta_v_rider_mps"][0])
+    assert s["impact_side"][0] == "front" and s["striking"][0] == ""

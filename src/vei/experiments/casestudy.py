@@ -9,7 +9,8 @@ same outputs. ``write_casestudy`` writes::
 
     summary.json        {"scenario_id", "primary_threat", "time_shift_s", "time_shift",
                          "backend", "metrics_config", "paper_outcome", "configs": [...]}
-    summary.csv         one row per configuration (the scalar metrics)
+    summary.csv         one row per configuration (the scalar metrics, severity included,
+                        then 'reference' and 'verdict': see :func:`add_verdicts`)
     timeseries.parquet  the runs' long time series
     fig4_birdseye.png, fig5_speed_profiles.png, fig6_speed_std.png,
     fig8_safety_index.png, ttc_zones.png
@@ -118,6 +119,50 @@ def resolve_cases(names: Sequence[str | CaseConfig] | None) -> tuple[CaseConfig,
     seen = [c.name for c in out]
     if len(set(seen)) != len(seen):
         raise ConfigError(f"configuration names must be unique, got {seen}")
+    return out
+
+
+def is_no_avoidance(case: CaseConfig) -> bool:
+    """The case drives without collision avoidance: policy 'none', or no policy and ego
+    mode 'pid' (the paper's replay / normal / aggressive)."""
+    policy = getattr(case.ego, "policy", None)
+    return policy == "none" or (policy is None and case.ego_mode == "pid")
+
+
+def add_verdicts(
+    summary: pd.DataFrame, cases: Sequence[CaseConfig], cfg: MetricsConfig | None = None
+) -> pd.DataFrame:
+    """``summary`` (one row per case, same order) with columns 'reference' and 'verdict'.
+
+    Each case is compared (:func:`vei.metrics.severity.verdict`) with the no-avoidance
+    case (:func:`is_no_avoidance`) of the same rider (same ``rider`` and ``sfm``) in the
+    same case study: 'avoided', 'mitigated' (impact speed at least
+    ``cfg.mitigation_share`` lower) or 'not-mitigated'. A no-avoidance case is its own
+    reference ('avoided' or 'not-mitigated'); a case without one gets '' in both columns.
+    """
+    from vei.metrics.severity import verdict
+
+    cfg = MetricsConfig() if cfg is None else cfg
+    out = summary.copy()
+    refs: list[str] = []
+    for case in cases:
+        ref = next(
+            (
+                c.name
+                for c in cases
+                if is_no_avoidance(c) and c.rider == case.rider and c.sfm == case.sfm
+            ),
+            "",
+        )
+        refs.append(case.name if is_no_avoidance(case) else ref)
+    out["reference"] = np.asarray(refs, dtype=object)
+    row_of = {n: i for i, n in enumerate(out["name"].astype(str))}
+    has = np.array([r != "" for r in refs])
+    ri = np.array([row_of.get(r, 0) for r in refs])
+    hit = out["collision"].to_numpy(bool)
+    speed = out["impact_speed_mps"].to_numpy(float)
+    v = verdict(hit, speed, hit[ri], speed[ri], cfg.mitigation_share)
+    out["verdict"] = np.where(has, v, "").astype(object)
     return out
 
 
@@ -237,7 +282,7 @@ def run_casestudy(
     order = [c.name for c in case_objs]
     if names != order:
         raise BackendError(f"backend {backend_name!r} returned runs {names}, expected {order}")
-    summary = summarize(trace, mcfg, labels=names)
+    summary = add_verdicts(summarize(trace, mcfg, labels=names), case_objs, mcfg)
     sfm_ids: tuple[str, ...] = ()
     rider_rows = None
     if sim.sfm_riders != "primary":

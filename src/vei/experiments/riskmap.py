@@ -118,6 +118,8 @@ def sweep_severity_map(
     ``value`` 'injury_risk' (default: the rider's injury probability, 0 for a variant
     without collision, so a bin's mean is the expected risk per encounter) or
     'impact_speed_mps' (mean over the bin's *collisions*; bins without one are blank).
+    Variants whose value is NaN (a collision without an approach: the rider appeared in
+    contact, vei.metrics.severity) are left out of the mean, not of the boundary.
     The colour scale runs from 0 (green) to the largest bin value (red).
 
     Returns:
@@ -131,14 +133,17 @@ def sweep_severity_map(
     if axes is None or not {value, "collision"} <= set(results.columns):
         return None
     x, y = axes
-    binned = _binned(results, spec, x, y, value, bins)
-    if value != "injury_risk":  # a mean over the collisions only (NaN without collision)
-        hit = results[results["collision"].to_numpy(bool)]
-        binned["value"] = (
-            _binned(hit, spec, x, y, value, bins)["value"]
-            if len(hit)
-            else np.full_like(binned["value"], np.nan)
-        )
+    binned = _binned(results, spec, x, y, "collision", bins)  # the boundary: every variant
+    v = results[value].to_numpy(float)
+    keep = np.isfinite(v)
+    if value != "injury_risk":  # a mean over the collisions only
+        keep &= results["collision"].to_numpy(bool)
+    rows = results[keep]
+    binned["value"] = (
+        _binned(rows, spec, x, y, value, bins)["value"]
+        if len(rows)
+        else np.full_like(binned["value"], np.nan)
+    )
     segments, _ = share_boundary(binned)
     finite = binned["value"][np.isfinite(binned["value"])]
     vmax = float(finite.max()) if finite.size and finite.max() > 0 else 1.0

@@ -6,8 +6,12 @@ Definitions (one value per run; NaN / '' when the run has no collision):
 - **Contact step**: the first step k at which the boxes overlap (``collided`` turns
   True). The engine zeroes both speeds on the step that detects the overlap, so the
   velocities *at* k are not the impact's. Every velocity below is the one of the last
-  step before contact, k - 1 (dt = 0.05 s at the default 20 Hz); when contact is on the
-  run's first step (or the road user was not active at k - 1), step k itself.
+  step before contact, k - 1 (dt = 0.05 s at the default 20 Hz). When there is no such
+  step -- contact on the run's first step, or on the road user's first active step (a
+  time shift that makes a rider *appear* overlapping the car: seen on the real
+  recording audi_08_klinikum_rechtsabbiegen_02) -- there was no approach to measure:
+  impact speed, delta-v and injury risk are NaN and 'striking' is '' (the side is still
+  reported; ``collision`` is True).
 - **Impact speed** ``|v_rel|``: norm of the relative velocity v_ego - v_rider [m/s],
   v_ego = speed * (cos yaw, sin yaw).
 - **Delta-v** of a perfectly plastic impact (both end with the common velocity; momentum
@@ -64,14 +68,21 @@ VERDICTS: tuple[str, ...] = ("avoided", "mitigated", "not-mitigated")
 KMH_PER_MPS = 3.6
 
 
-def _contact(a: TraceArrays) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(hit [B] bool, contact step k [B], velocity step [B]) of every run."""
+def _contact(a: TraceArrays) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(hit [B] bool, contact step k [B], step before it [B], approach [B] bool: the
+    road user was active with a finite velocity on the step before contact)."""
     hit = a.collided.any(axis=1)
     k = np.argmax(a.collided, axis=1)
     pre = np.maximum(k - 1, 0)
     rows = np.arange(k.size)
-    pre_ok = a.active[rows, pre] & np.isfinite(a.other_vel[rows, pre]).all(axis=-1)
-    return hit, k, np.where(pre_ok, pre, k)
+    approach = (
+        hit
+        & (k > 0)
+        & a.active[rows, pre]
+        & np.isfinite(a.other_vel[rows, pre]).all(axis=-1)
+        & np.isfinite(a.ego_vel[rows, pre]).all(axis=-1)
+    )
+    return hit, k, pre, approach
 
 
 def _cached(a: TraceArrays, key: str, fn):  # noqa: ANN001, ANN202
@@ -85,16 +96,17 @@ def relative_velocity(trace: Trace | TraceArrays) -> FloatArray:
     a = arrays(trace)
 
     def compute() -> FloatArray:
-        hit, _, vk = _contact(a)
-        rows = np.arange(vk.size)
-        v_rel = a.ego_vel[rows, vk] - np.nan_to_num(a.other_vel[rows, vk])
-        return np.where(hit[:, None], v_rel, np.nan)
+        _, _, pre, approach = _contact(a)
+        rows = np.arange(pre.size)
+        v_rel = a.ego_vel[rows, pre] - np.nan_to_num(a.other_vel[rows, pre])
+        return np.where(approach[:, None], v_rel, np.nan)
 
     return _cached(a, "severity.v_rel", compute)
 
 
 def impact_speed(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
-    """[B] relative speed at first contact (m/s, >= 0); NaN without collision."""
+    """[B] relative speed at first contact (m/s, >= 0); NaN without collision or without
+    an approach (contact on the road user's first active step)."""
     return np.linalg.norm(relative_velocity(trace), axis=-1)
 
 
@@ -114,7 +126,7 @@ def _side_normal(a: TraceArrays) -> tuple[ObjArray, FloatArray]:
     """([B] hit side, [B, 2] the hit face's outward normal in the world frame)."""
 
     def compute() -> tuple[ObjArray, FloatArray]:
-        hit, k, _ = _contact(a)
+        hit, k, _, _ = _contact(a)
         rows = np.arange(k.size)
         rel = a.rel_xy[rows, k]
         tr = a.trace
@@ -147,16 +159,17 @@ def closing_contributions(trace: Trace | TraceArrays) -> tuple[FloatArray, Float
     """([B] car's, [B] rider's) contribution to the closing speed along the hit face's
     outward normal just before contact (m/s); NaN without collision."""
     a = arrays(trace)
-    hit, _, vk = _contact(a)
-    rows = np.arange(vk.size)
+    _, _, pre, approach = _contact(a)
+    rows = np.arange(pre.size)
     _, n = _side_normal(a)
-    car = np.sum(a.ego_vel[rows, vk] * n, axis=-1)
-    rider = -np.sum(np.nan_to_num(a.other_vel[rows, vk]) * n, axis=-1)
-    return np.where(hit, car, np.nan), np.where(hit, rider, np.nan)
+    car = np.sum(a.ego_vel[rows, pre] * n, axis=-1)
+    rider = -np.sum(np.nan_to_num(a.other_vel[rows, pre]) * n, axis=-1)
+    return np.where(approach, car, np.nan), np.where(approach, rider, np.nan)
 
 
 def striking(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> ObjArray:
-    """[B] 'car-hits-rider' or 'rider-hits-car' (see module docstring); '' without collision."""
+    """[B] 'car-hits-rider' or 'rider-hits-car' (see module docstring); '' without collision
+    or without an approach."""
     car, rider = closing_contributions(trace)
     out = np.where(car >= rider, STRIKING[0], STRIKING[1]).astype(object)
     out[np.isnan(car)] = ""
@@ -173,9 +186,12 @@ def injury_risk_of_speed(speed_mps: npt.ArrayLike, cfg: MetricsConfig | None = N
 
 def injury_risk(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
     """[B] the rider's injury risk at the impact speed (probability in (0, 1); the outcome
-    is ``cfg.injury_outcome``); 0 without collision (no impact, no injury)."""
-    v = impact_speed(trace, cfg)
-    return np.where(np.isnan(v), 0.0, injury_risk_of_speed(v, cfg))
+    is ``cfg.injury_outcome``); 0 without collision (no impact, no injury); NaN for a
+    collision without an approach (impact speed unknown)."""
+    a = arrays(trace)
+    v = impact_speed(a, cfg)
+    hit = a.collided.any(axis=1)
+    return np.where(hit, injury_risk_of_speed(v, cfg), 0.0)
 
 
 def verdict(
