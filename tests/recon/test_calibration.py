@@ -50,3 +50,19 @@ def test_std_inflation_scales_the_band_and_the_samples_not_the_mean():
     assert np.abs(xy.mean(axis=0) - base.xy_m).max() < 4 * wide.std_m.max() / np.sqrt(4000)
     with pytest.raises(ValueError):
         NoiseEstimate(0.2, 0.5, std_inflation=0.0)
+
+
+def test_sample_share_map_draws_the_staircase_between_mostly_and_rarely_colliding_cells():
+    from vei.report.uncertainty import share_edges
+
+    # 2 x 3 grid, centres x = 0, 1, 2 and y = 10, 20; share without collision:
+    # row y=10: 0.0 0.2 0.9 -> one vertical edge at x = 1.5 from y = 5 to 15;
+    # row y=20: 0.0 0.8 0.9 -> one vertical edge at x = 0.5 from y = 15 to 25;
+    # column x=1: 0.2 below 0.8 -> one horizontal edge at y = 15 from x = 0.5 to 1.5.
+    v = np.array([[0.0, 0.2, 0.9], [0.0, 0.8, 0.9]])
+    segs = share_edges(np.array([0.0, 1.0, 2.0]), np.array([10.0, 20.0]), v)
+    got = sorted(tuple(map(tuple, s.round(9))) for s in segs)
+    assert got == sorted(
+        [((1.5, 5.0), (1.5, 15.0)), ((0.5, 15.0), (0.5, 25.0)), ((0.5, 15.0), (1.5, 15.0))]
+    )
+    assert share_edges(np.array([0.0]), np.array([0.0]), np.array([[np.nan]])).shape == (0, 2, 2)

@@ -263,20 +263,56 @@ def sample_dependence(
     return summary, per_point
 
 
+def _cell_edges(c: FloatArray) -> FloatArray:
+    """[n + 1] cell edges around n increasing centres (midpoints; half a step outside)."""
+    if c.size == 1:
+        return np.array([c[0] - 0.5, c[0] + 0.5])
+    mid = 0.5 * (c[1:] + c[:-1])
+    return np.r_[2 * c[0] - mid[0], mid, 2 * c[-1] - mid[-1]]
+
+
+def share_edges(
+    x_centres: FloatArray, y_centres: FloatArray, value: FloatArray, level: float = 0.5
+) -> FloatArray:
+    """Cell edges between neighbouring cells on opposite sides of ``level`` (a staircase
+    boundary on the grid; NaN cells have none).
+
+    Args:
+        x_centres: [nx], y_centres: [ny] increasing cell centres; value: [ny, nx].
+    Returns:
+        [S, 2, 2] segments ((x0, y0), (x1, y1)) in x/y units.
+    """
+    xe, ye = _cell_edges(np.asarray(x_centres, float)), _cell_edges(np.asarray(y_centres, float))
+    v = np.asarray(value, float)
+    above = v >= level
+    ok = np.isfinite(v)
+    segs = []
+    for i, j in zip(
+        *np.nonzero((above[:, 1:] != above[:, :-1]) & ok[:, 1:] & ok[:, :-1]), strict=True
+    ):
+        segs.append(((xe[j + 1], ye[i]), (xe[j + 1], ye[i + 1])))
+    for i, j in zip(*np.nonzero((above[1:] != above[:-1]) & ok[1:] & ok[:-1]), strict=True):
+        segs.append(((xe[j], ye[i + 1]), (xe[j + 1], ye[i + 1])))
+    return np.array(segs, dtype=float).reshape(-1, 2, 2)
+
+
 def write_sample_share_map(per_point, x: str, y: str, path, title: str = ""):
     """Heatmap of the share of reconstruction samples without collision per design point
     (x, y: two swept parameters; with more, the cells average over the others). Cells
     strictly between 0 and 1 are design points whose outcome depends on where the rider
-    really was. Written atomically; returns the path."""
+    really was; the black staircase separates cells where most samples collide from the
+    others (:func:`share_edges` at 0.5). Written atomically; returns the path."""
     from vei.report.riskmap import write_risk_map
 
     cell = per_point.groupby([y, x], sort=True)["collision_share"].mean().unstack(x)
+    xc, yc = cell.columns.to_numpy(float), cell.index.to_numpy(float)
+    value = 1.0 - cell.to_numpy(float)
     return write_risk_map(
         path,
-        x_centres=cell.columns.to_numpy(float),
-        y_centres=cell.index.to_numpy(float),
-        value=1.0 - cell.to_numpy(float),
-        segments=np.zeros((0, 2, 2)),
+        x_centres=xc,
+        y_centres=yc,
+        value=value,
+        segments=share_edges(xc, yc, value),
         x_label=x,
         y_label=y,
         value_label="share of reconstruction samples without collision",
