@@ -222,3 +222,13 @@ def test_vei_sweep_sigint_says_how_to_resume(demo_scenario, spec_path, tmp_path)
     )
     assert line in " ".join(err.split()), err
     assert not wait_gone(everyone, timeout_s=5.0)
+
+
+def test_a_failing_initializer_is_an_error_and_leaves_no_worker():
+    from concurrent.futures.process import BrokenProcessPool
+
+    t0 = time.monotonic()
+    with pytest.raises(BrokenProcessPool), WorkerPool(2, initializer=int, initargs=("x",)):
+        pass  # int("x") raises ValueError in each worker
+    assert time.monotonic() - t0 < 30
+    assert not wait_gone(spawned_workers(os.getpid()), timeout_s=5.0)

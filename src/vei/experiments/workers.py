@@ -199,7 +199,11 @@ class WorkerPool(ProcessPoolExecutor):
                 p.join(max(0.0, deadline - time.monotonic()))
 
     def __enter__(self) -> WorkerPool:
-        return self.start()
+        try:
+            return self.start()
+        except BaseException:  # Ctrl-C or a failed initializer while starting: no leftovers
+            self.kill_workers()
+            raise
 
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> bool:
         if exc_type is None:
