@@ -11,7 +11,6 @@ on where they ran. Progress bars (rich) show both phases when stderr is a termin
 from __future__ import annotations
 
 import contextlib
-import os
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -108,27 +107,10 @@ def executor(engine: str, workers: int) -> Iterator[Any]:
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ConfigError(f"workers must be an integer >= 1, got {workers!r}")
     if engine == "ray":
-        try:
-            import ray
-        except ImportError as exc:  # pragma: no cover - ray is in the 'distributed' extra
-            from vei.errors import DependencyError
+        from vei.experiments.workers import ray_session
 
-            raise DependencyError("engine 'ray' needs Ray: pip install 'vei[distributed]'") from exc
-        started = False
-        if not ray.is_initialized():
-            os.environ.setdefault("RAY_DISABLE_IMPORT_WARNING", "1")
-            address = os.environ.get("RAY_ADDRESS")
-            if address:
-                ray.init(address=address, log_to_driver=False, configure_logging=False)
-            else:
-                ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False,
-                         configure_logging=False)  # fmt: skip
-            started = True
-        try:
+        with ray_session(workers) as ray:
             yield _Ray(ray)
-        finally:
-            if started:
-                ray.shutdown()
         return
     if workers == 1:
         yield _Serial()

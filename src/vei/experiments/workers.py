@@ -29,8 +29,11 @@ Use::
         futures = [pool.submit(fn, arg) for arg in args]
         print(pool.pids)                                # the worker process ids
 
-``worker_pool(n)`` is the same as a context-manager function. Only the standard library is
-used, so this module sits at the bottom of the ``experiments`` layer and imports no vei code.
+``worker_pool(n)`` is the same as a context-manager function. :func:`ray_session` is the
+other place workers come from: a Ray session for a block (sweeps and catalogues with
+``engine='ray'``). Only the standard library is imported at module level (Ray lazily), so
+this module sits at the bottom of the ``experiments`` layer; of vei it imports only
+``vei.errors``.
 """
 
 from __future__ import annotations
@@ -231,3 +234,37 @@ def worker_pool(
         workers, initializer=initializer, initargs=initargs, poll_s=poll_s, pdeathsig=pdeathsig
     ) as pool:
         yield pool
+
+
+@contextlib.contextmanager
+def ray_session(workers: int) -> Iterator[Any]:
+    """``with ray_session(n) as ray``: the ``ray`` module, initialised for the block.
+
+    Uses the session of this process when Ray is initialised already (and leaves it
+    running); otherwise connects to the cluster at ``$RAY_ADDRESS`` when set, or starts a
+    local Ray with ``num_cpus=workers``, and shuts it down at the end of the block.
+
+    Raises:
+        vei.errors.DependencyError: Ray is not installed (extra ``distributed``).
+    """
+    try:
+        import ray
+    except ImportError as exc:  # pragma: no cover - ray is in the 'distributed' extra
+        from vei.errors import DependencyError
+
+        raise DependencyError("engine 'ray' needs Ray: pip install 'vei[distributed]'") from exc
+    started = False
+    if not ray.is_initialized():
+        os.environ.setdefault("RAY_DISABLE_IMPORT_WARNING", "1")
+        address = os.environ.get("RAY_ADDRESS")
+        if address:
+            ray.init(address=address, log_to_driver=False, configure_logging=False)
+        else:
+            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False,
+                     configure_logging=False)  # fmt: skip
+        started = True
+    try:
+        yield ray
+    finally:
+        if started:
+            ray.shutdown()
