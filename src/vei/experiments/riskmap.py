@@ -170,3 +170,28 @@ def sweep_severity_map(
 def _centre_edges(c: np.ndarray) -> np.ndarray:
     mid = 0.5 * (c[:-1] + c[1:])
     return np.concatenate([[c[0] - (mid[0] - c[0])], mid, [c[-1] + (c[-1] - mid[-1])]])
+
+
+def sweep_severity_maps(
+    results: pd.DataFrame, spec: SweepSpec, out_dir: str | Path
+) -> dict[str, Path]:
+    """The severity maps a sweep writes: ``severity_map.png``, or one
+    ``severity_map_<policy>.png`` per value when the sweep varies the ego ``policy`` (one
+    map per policy, so that e.g. paper-cap and aeb are compared side by side).
+
+    Returns {label: path} of the maps written ('' for the single map).
+    """
+    import re
+
+    out = Path(out_dir)
+    written: dict[str, Path] = {}
+    if "policy" in results.columns and results["policy"].nunique() > 1:
+        for pol, rows in results.groupby("policy", sort=True):
+            safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", str(pol)).strip("_") or "policy"
+            path = out / f"severity_map_{safe}.png"
+            if sweep_severity_map(rows, spec, path) is not None:
+                written[str(pol)] = path
+        return written
+    if sweep_severity_map(results, spec, out / "severity_map.png") is not None:
+        written[""] = out / "severity_map.png"
+    return written

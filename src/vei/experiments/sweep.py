@@ -9,6 +9,7 @@ Output folder layout (``out_dir``)::
     configs/<variant_id>.yaml   each critical variant as a run configuration (vei run --config)
     riskmap.png           mean safety index over the first two range parameters + boundary
     severity_map.png      mean injury risk of the rider over the same plane + boundary
+                          (severity_map_<policy>.png, one per policy, when it is swept)
     reconstruction_samples.json, reconstruction_share.png   with ``reconstruction: {samples:
                           N}``: how many design points depend on the rider's sample, and
                           the share of samples without collision per design point
@@ -249,10 +250,10 @@ def run_sweep(
             write_variant_configs(
                 out / "configs", rows, spec, evaluator.auto_shift_s(prepared[_key_of(d, prepared)])
             )
-        from vei.experiments.riskmap import sweep_risk_map, sweep_severity_map
+        from vei.experiments.riskmap import sweep_risk_map, sweep_severity_maps
 
         risk = sweep_risk_map(results, spec, out / "riskmap.png")
-        sweep_severity_map(results, spec, out / "severity_map.png")
+        sweep_severity_maps(results, spec, out)
         if spec.reconstruction_samples and SAMPLE_COLUMN in results.columns:
             from vei.report.uncertainty import sample_dependence, write_sample_share_map
 
