@@ -45,7 +45,15 @@ def _same(a, b) -> bool:
     return a == b
 
 
-def test_vei_run_of_each_variant_equals_the_sweep_row(demo_scenario, tmp_path):
+@pytest.mark.parametrize(
+    "controller",
+    [
+        {"cap.enabled": {"choices": [False, True]}},
+        {"policy": {"choices": ["none", "aeb"]}},
+    ],
+    ids=["cap", "policy"],
+)
+def test_vei_run_of_each_variant_equals_the_sweep_row(demo_scenario, tmp_path, controller):
     spec = spec_from_dict(
         {
             "design": "grid",
@@ -53,7 +61,7 @@ def test_vei_run_of_each_variant_equals_the_sweep_row(demo_scenario, tmp_path):
             "parameters": {
                 "time_shift_s": {"min": -1.0, "max": 1.0, "num": 3},
                 "ego.cruise_speed_mps": {"min": 4.0, "max": 8.0, "num": 2},
-                "cap.enabled": {"choices": [False, True]},
+                **controller,
             },
         }
     )

@@ -150,7 +150,8 @@ _ALL: tuple[Metric, ...] = (
         "drac_unavoidable",
         "scalar",
         "bool",
-        "DRAC exceeded the braking ceiling before contact (unavoidable by braking alone)",
+        "DRAC exceeded the braking ceiling before contact: had both kept their velocities, "
+        "braking alone could not have avoided contact (the rider may still have escaped)",
         lambda a, c: conflict.drac_unavoidable(a, c),
     ),
     Metric(
