@@ -194,6 +194,16 @@ def test_every_documented_parameter_is_known():
         "cap.d_buf_m",
         "cap.a_min_mps2",
         "perception_delay_s",
+        "policy",
+        "aeb.ttc_warning_s",
+        "aeb.ttc_partial_s",
+        "aeb.ttc_full_s",
+        "aeb.partial_decel_mps2",
+        "aeb.full_decel_mps2",
+        "idm.max_accel_mps2",
+        "idm.comfort_decel_mps2",
+        "idm.time_headway_s",
+        "idm.min_gap_m",
     }
 
 

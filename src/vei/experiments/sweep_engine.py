@@ -61,7 +61,7 @@ DEFAULT_METRICS: tuple[str, ...] = (
 
 
 #: Categorical sweep parameters: variants sharing them share one base configuration.
-_CATEGORICAL = ("rider_model", "cap.enabled", "sfm.vehicle_force")
+_CATEGORICAL = ("rider_model", "cap.enabled", "sfm.vehicle_force", "policy")
 
 
 #: Float sweep parameter -> VariantParams field (sfm.k_des is scaled by k_des_factor).
@@ -76,6 +76,16 @@ _PARAM_FIELDS: dict[str, str] = {
     "cap.d_buf_m": "d_buf_m",
     "cap.a_min_mps2": "a_min_mps2",
     "perception_delay_s": "perception_delay_s",
+    # The built-in policies' parameters (vei.policy.aeb / idm; sweep_spec.POLICY_PARAMS).
+    "aeb.ttc_warning_s": "aeb_ttc_warning_s",
+    "aeb.ttc_partial_s": "aeb_ttc_partial_s",
+    "aeb.ttc_full_s": "aeb_ttc_full_s",
+    "aeb.partial_decel_mps2": "aeb_partial_decel_mps2",
+    "aeb.full_decel_mps2": "aeb_full_decel_mps2",
+    "idm.max_accel_mps2": "idm_max_accel_mps2",
+    "idm.comfort_decel_mps2": "idm_comfort_decel_mps2",
+    "idm.time_headway_s": "idm_time_headway_s",
+    "idm.min_gap_m": "idm_min_gap_m",
     # A population rider's parameters (vei.calibrate.population.RIDER_PARAM_COLUMNS).
     **RIDER_PARAM_COLUMNS,
 }

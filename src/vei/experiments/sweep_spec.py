@@ -144,7 +144,53 @@ PARAMETERS: dict[str, ParamDef] = {
         _f("cap.d_buf_m", "m", "CAP standstill buffer d_buf", lower=0.0),
         _f("cap.a_min_mps2", "m/s^2", "CAP maximum braking (negative)", upper=0.0, upper_open=True),
         _f("perception_delay_s", "s", "delay before the CAP sees the rider", lower=0.0),
+        ParamDef(
+            "policy",
+            "choice",
+            allowed=("none", "paper-cap", "aeb", "idm"),
+            doc="ego policy (vei.policy; replaces cap.enabled: none = PID, paper-cap = CAP)",
+        ),
+        _f(
+            "aeb.ttc_warning_s",
+            "s",
+            "AEB forward collision warning TTC",
+            lower=0.0,
+            lower_open=True,
+        ),
+        _f("aeb.ttc_partial_s", "s", "AEB partial braking TTC", lower=0.0, lower_open=True),
+        _f("aeb.ttc_full_s", "s", "AEB full braking TTC", lower=0.0, lower_open=True),
+        _f(
+            "aeb.partial_decel_mps2",
+            "m/s^2",
+            "AEB partial braking deceleration",
+            lower=0.0,
+            lower_open=True,
+        ),
+        _f(
+            "aeb.full_decel_mps2",
+            "m/s^2",
+            "AEB full braking deceleration",
+            lower=0.0,
+            lower_open=True,
+        ),
+        _f("idm.max_accel_mps2", "m/s^2", "IDM maximum acceleration a", lower=0.0, lower_open=True),
+        _f(
+            "idm.comfort_decel_mps2",
+            "m/s^2",
+            "IDM comfortable deceleration b",
+            lower=0.0,
+            lower_open=True,
+        ),
+        _f("idm.time_headway_s", "s", "IDM desired time headway T", lower=0.0),
+        _f("idm.min_gap_m", "m", "IDM jam distance s0", lower=0.0),
     )
+}
+
+#: Sweep parameters of the built-in policies' configurations: name -> (policy, field).
+POLICY_PARAMS: dict[str, tuple[str, str]] = {
+    name: (name.split(".")[0], name.split(".", 1)[1])
+    for name in PARAMETERS
+    if name.startswith(("aeb.", "idm."))
 }
 
 _GROUPS = ("sfm", "ego", "cap")
@@ -637,7 +683,8 @@ def variant_config(
     Starts from ``CASE_PRESETS[spec.base]``; ``rider_model`` picks replay / the SFM Normal /
     Aggressive preset, then ``sfm.*`` override its fields (``sfm.k_des`` is k_des_nspm:
     the Aggressive preset's k_des_factor still multiplies it); ``cap.enabled`` picks ego mode
-    'cap' or 'pid'; the other parameters map by :data:`CONFIG_FIELDS`. The time shift is
+    'cap' or 'pid'; ``policy`` picks the ego policy (the swept ``aeb.*`` / ``idm.*`` of that
+    policy go to ``ego.policy_params``); the other parameters map by :data:`CONFIG_FIELDS`. The time shift is
     ``auto_shift_s + time_shift_s`` (reference 'auto') or ``time_shift_s`` (reference 'zero'),
     a missing ``time_shift_s`` counting as 0.
 
@@ -670,8 +717,23 @@ def variant_config(
         sec: replace(getattr(case, sec), **vals) for sec, vals in sections.items() if vals
     }
     if "cap.enabled" in params:
+        if "policy" in params:
+            raise ConfigError(
+                "a sweep gives cap.enabled or policy, not both (policy: none | paper-cap | ...)"
+            )
         updates["ego_mode"] = "cap" if bool(params["cap.enabled"]) else "pid"
     case = replace(case, **updates) if updates else case
+    if "policy" in params:  # the controller; its swept parameters go to policy_params
+        pol = str(params["policy"])
+        pp = {
+            f: float(params[k])
+            for k, (owner, f) in POLICY_PARAMS.items()
+            if owner == pol and k in params
+        }
+        ego_mode = "pid" if case.ego_mode in ("policy", "replay-speed") else case.ego_mode
+        case = replace(
+            case, ego_mode=ego_mode, ego=replace(case.ego, policy=pol, policy_params=pp or None)
+        )
     rider_vals = {f: float(params[c]) for c, f in RIDER_PARAM_COLUMNS.items() if c in params}
     if rider_vals and case.rider == "sfm":  # a population rider: its own SFM parameters
         case = replace(case, sfm=replace(case.sfm, speed_from_recording=False, **rider_vals))
