@@ -181,3 +181,17 @@ def test_contact_on_the_riders_first_active_step_has_no_impact_speed():
     assert np.isnan(s["impact_speed_mps"][0]) and np.isnan(s["injury_risk"][0])
     assert np.isnan(s["delta_v_rider_mps"][0])
     assert s["impact_side"][0] == "front" and s["striking"][0] == ""
+
+
+def test_front_corner_caught_while_crossing_is_a_front_impact():
+    # Car 3 m/s east; the rider's centre is beyond both the front (x > 2.35) and the left
+    # (y > 0.925) face, moving left (north) at 4 m/s, away from the left face: the car's
+    # front caught it. Approach speeds: front 3 - 0 = 3 m/s, left 0 - 4 = -4 m/s.
+    tr = _two_step((0, 0), 3.0, (2.6, 1.1), (0.0, 4.0))
+    assert impact_side(tr)[0] == "front"
+    assert striking(tr)[0] == "car-hits-rider"
+    assert impact_speed(tr)[0] == pytest.approx(5.0)  # hypot(3, 4)
+    # The same place with the rider riding south into the car: through the left face.
+    tr = _two_step((0, 0), 3.0, (2.6, 1.1), (0.0, -4.0))
+    assert impact_side(tr)[0] == "left"
+    assert striking(tr)[0] == "rider-hits-car"
