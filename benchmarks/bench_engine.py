@@ -36,6 +36,14 @@ social-force driven too; R = 4: all. Agents per variant = ego + R riders; agent-
 B (1 + R) 500 / wall time (best of ``REPEATS``, compiled kernel, record="none"; also the
 NumPy reference at a smaller batch). Target: per agent-step, R = 4 within 2x of R = 1.
 ``python -m benchmarks.bench_engine --riders`` prints only this table.
+
+Third table, ego policies (vei.policy, ``--policy`` prints only this one): the demo scene
+(2 agents, 500 steps), SFM normal rider, B in ``POLICY_BATCHES`` over time shifts. Rows:
+the built-in CAP (``normal-cap``) on the compiled kernel and on the NumPy step; the same
+CAP through the policy API (``vei.policy.builtin:PaperCAP``, NumPy step + observation
+building); the example vectorised user policy (``examples/my_policy.py:MyPolicy``) and the
+built-in ``aeb`` (both on the API). agent-steps/s = 2 B 500 / wall (one run after a
+warm-up at B = 10; record="none").
 """
 
 from __future__ import annotations
@@ -59,6 +67,7 @@ AGENTS_PER_VARIANT = 2
 RIDER_BATCH = 10_000
 RIDER_BATCH_NUMPY = 1_000
 RIDER_COUNTS = (1, 2, 4)
+POLICY_BATCHES = (1_000, 10_000)
 
 
 def _scene():
@@ -323,9 +332,69 @@ def main_riders() -> None:
     )
 
 
+def policy_rows(batches: tuple[int, ...] = POLICY_BATCHES) -> list[tuple]:
+    """(label, B, wall s, agent-steps/s) of the ego-policy table."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from vei.config import case_preset
+    from vei.sim.engine import simulate
+    from vei.sim.params import EGO_POLICY
+    from vei.sim.state import VariantParams
+
+    arrays, auto = _scene()
+    example = Path(__file__).resolve().parents[1] / "examples" / "my_policy.py"
+
+    def params(kind: str, b: int) -> VariantParams:
+        shifts = auto + np.linspace(-3.0, 3.0, b)
+        if kind in ("cap", "cap-numpy"):
+            return VariantParams.from_case(
+                case_preset("normal-cap"), arrays, b, time_shift_s=shifts
+            )
+        if kind == "cap-api":
+            from vei.policy.builtin import PaperCAP
+
+            p = VariantParams.from_case(case_preset("normal-cap"), arrays, b, time_shift_s=shifts)
+            return p.with_values(ego_mode=EGO_POLICY, policy=PaperCAP())
+        spec = f"{example}:MyPolicy" if kind == "user" else "aeb"
+        c = case_preset("normal")
+        case = replace(c, ego=replace(c.ego, policy=spec))
+        return VariantParams.from_case(case, arrays, b, time_shift_s=shifts)
+
+    kinds = (
+        ("paper-cap, compiled kernel", "cap", "auto"),
+        ("paper-cap, NumPy step", "cap-numpy", "numpy"),
+        ("paper-cap via policy API", "cap-api", "numpy"),
+        ("user policy (vectorised)", "user", "numpy"),
+        ("aeb via policy API", "aeb", "numpy"),
+    )
+    rows = []
+    for label, kind, kern in kinds:
+        simulate(arrays, params(kind, 10), record="none", kernel=kern)  # warm-up / compile
+        for b in batches:
+            p = params(kind, b)
+            wall = _best(lambda p=p, kern=kern: simulate(arrays, p, record="none", kernel=kern), 1)
+            rows.append((label, b, wall, AGENTS_PER_VARIANT * b * arrays.n_steps / wall))
+    return rows
+
+
+def main_policy() -> None:
+    """Print the ego-policy table."""
+    print(f"ego policies: demo scene, 2 agents, 500 steps, normal rider, {os.cpu_count()} CPU(s)")
+    hdr = f"{'policy / path':<30} {'B':>7} {'wall s':>8} {'agent-steps/s':>14}"
+    print(hdr)
+    print("-" * len(hdr))
+    for label, b, wall, rate in policy_rows():
+        print(f"{label:<30} {b:>7} {wall:8.2f} {rate:14.3g}")
+
+
 if __name__ == "__main__":
     import sys
 
-    if "--riders" not in sys.argv[1:]:
-        main()
-    main_riders()
+    args = sys.argv[1:]
+    if "--policy" in args:
+        main_policy()
+    else:
+        if "--riders" not in args:
+            main()
+        main_riders()
