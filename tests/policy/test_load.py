@@ -88,3 +88,10 @@ def test_per_variant_adapter_and_action_checks() -> None:
         PolicyAction(accel_mps2=np.zeros(3)).checked(2, "policy X")
     with pytest.raises(ConfigError, match="NaN"):
         PolicyAction(accel_mps2=np.array([np.nan, 0.0])).checked(2, "policy X")
+
+
+def test_builtin_policies_compare_by_parameters() -> None:
+    assert load_policy("aeb") == load_policy("aeb")
+    assert load_policy("aeb") != load_policy("aeb", {"ttc_full_s": 1.0})
+    assert load_policy("paper-cap") == load_policy("paper-cap")
+    assert load_policy("idm") != load_policy("aeb")

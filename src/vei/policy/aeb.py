@@ -39,7 +39,7 @@ import numpy.typing as npt
 
 from vei.errors import ConfigError
 from vei.policy.base import PolicyAction
-from vei.policy.builtin import PIDCruise
+from vei.policy.builtin import PIDCruise, _ParamEq
 from vei.policy.observation import Observation
 
 FloatArray = npt.NDArray[np.float64]
@@ -150,7 +150,7 @@ def aeb_decel(
     )
 
 
-class AEB:
+class AEB(_ParamEq):
     """TTC-based AEB with FCW and staged braking over PID cruise (see the module docstring).
 
     Args:
@@ -159,6 +159,7 @@ class AEB:
     """
 
     name = "aeb"
+    _EQ_FIELDS = ("p", "pid")
 
     def __init__(self, config: AEBConfig | None = None, **params: float) -> None:
         if config is not None and params:

@@ -32,7 +32,30 @@ def _pick(params: Any, names: tuple[str, ...]) -> dict[str, Any]:
     return {n: np.asarray(getattr(params, n)) for n in names}
 
 
-class PIDCruise:
+def same_params(a: Any, b: Any) -> bool:
+    """Equality of two policies' parameter dicts / values (arrays compared elementwise)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(same_params(a[k], b[k]) for k in a)
+    if isinstance(a, PIDCruise | PaperCAP) or isinstance(b, PIDCruise | PaperCAP):
+        return a == b
+    return bool(np.array_equal(np.asarray(a), np.asarray(b)))
+
+
+class _ParamEq:
+    """Built-in policies compare equal when of the same class with equal parameters
+    (instances stay distinct blocks in the engine, which groups by identity)."""
+
+    _EQ_FIELDS: tuple[str, ...] = ()
+
+    def __eq__(self, other: object) -> bool:
+        if type(other) is not type(self):
+            return NotImplemented
+        return all(same_params(getattr(self, f), getattr(other, f)) for f in self._EQ_FIELDS)
+
+    __hash__ = object.__hash__
+
+
+class PIDCruise(_ParamEq):
     """PID speed control to the cruise speed v_d, no avoidance (the ``none`` policy).
 
     The paper's PID (EgoConfig: kp = ki = kd = 0.05, leaky integral) on e = v_d - v,
@@ -45,6 +68,7 @@ class PIDCruise:
     """
 
     name = "none"
+    _EQ_FIELDS = ("p",)
 
     def __init__(self, **gains: float) -> None:
         from vei.config import EgoConfig
@@ -100,7 +124,7 @@ class PIDCruise:
         return PolicyAction(command=u), new
 
 
-class PaperCAP:
+class PaperCAP(_ParamEq):
     """The paper's collision-avoidance planner (CRUISE / BRAKE / RECOVER) on the API.
 
     The same formulas and order as the engine's CAP branch (vei.sim.step): trigger when
@@ -114,6 +138,7 @@ class PaperCAP:
     """
 
     name = "paper-cap"
+    _EQ_FIELDS = ("cap", "paper_per_step", "pid")
 
     def __init__(self, paper_per_step: bool = False) -> None:
         from vei.config import CAPConfig
@@ -168,4 +193,4 @@ class PaperCAP:
         return PolicyAction(command=u, fsm_state=cap_state), {"cap": cap_state, "pid": pid}
 
 
-__all__ = ["CAP_FIELDS", "PID_FIELDS", "PIDCruise", "PaperCAP"]
+__all__ = ["CAP_FIELDS", "PID_FIELDS", "PIDCruise", "PaperCAP", "same_params"]

@@ -29,6 +29,7 @@ import numpy.typing as npt
 
 from vei.errors import ConfigError
 from vei.policy.base import PolicyAction
+from vei.policy.builtin import _ParamEq
 from vei.policy.observation import Observation
 
 FloatArray = npt.NDArray[np.float64]
@@ -109,7 +110,7 @@ def idm_accel(
     return a * (free - inter)
 
 
-class IDM:
+class IDM(_ParamEq):
     """Intelligent Driver Model on the nearest object ahead in the path (module docstring).
 
     Args:
@@ -117,6 +118,7 @@ class IDM:
     """
 
     name = "idm"
+    _EQ_FIELDS = ("p",)
 
     def __init__(self, config: IDMConfig | None = None, **params: float) -> None:
         if config is not None and params:
