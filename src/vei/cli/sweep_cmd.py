@@ -175,19 +175,27 @@ def sweep(
             table.add_column(col)
         for d in dirs:
             target = Path(out) if len(dirs) == 1 else Path(out) / d.name
-            res = search_boundary(
-                d,
-                sweep_spec,
-                x,
-                y,
-                target,
-                x_range=_pair(x_range, "--x-range"),
-                y_range=_pair(y_range, "--y-range"),
-                coarse=nxy,  # type: ignore[arg-type]
-                levels=levels,
-                k_critical=critical,
-                progress=progress,
-            )
+            try:
+                res = search_boundary(
+                    d,
+                    sweep_spec,
+                    x,
+                    y,
+                    target,
+                    x_range=_pair(x_range, "--x-range"),
+                    y_range=_pair(y_range, "--y-range"),
+                    coarse=nxy,  # type: ignore[arg-type]
+                    levels=levels,
+                    k_critical=critical,
+                    progress=progress,
+                )
+            except KeyboardInterrupt:
+                typer.echo(
+                    f"interrupted: the boundary search of {d.name} did not finish; it does not "
+                    "resume (running the same command again starts it anew)",
+                    err=True,
+                )
+                raise typer.Exit(130) from None
             table.add_row(
                 d.name,
                 str(res.n_evaluations),
