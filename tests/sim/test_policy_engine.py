@@ -137,3 +137,60 @@ def test_range_decides_when_the_rider_is_first_perceived(standing) -> None:
     assert st[np.argmax(st > 0)] == AEB_PARTIAL
     assert not (st == AEB_FCW).any()
     assert np.isnan(r.collision_time_s[0])
+
+
+class _Recorder:
+    """A test policy: cruises (zero demand) and records what it sees of object 0."""
+
+    def __init__(self) -> None:
+        self.seen: list[tuple[float, bool]] = []
+
+    def init_state(self, batch_size: int) -> None:
+        return None
+
+    def act(self, obs, state):
+        from vei.policy.base import PolicyAction
+
+        self.seen.append((float(obs.t_s[0]), bool(obs.valid[0, 0])))
+        return PolicyAction(accel_mps2=np.zeros(obs.batch_size)), None
+
+
+def test_a_rider_behind_a_parked_van_appears_when_the_line_of_sight_clears() -> None:
+    """Ego along +x at 8 m/s (sensor 1 m ahead of its centre); a van (5 x 2 m) parked at
+    (20, -4); a rider (1.2 x 0.6 m) standing at (30, -8). The sight line from the sensor
+    at (xs, 0) to a rider point (px, py) passes the van's near side y = -3 at
+    x = xs + (px - xs) 3 / |py|; it clears the van once that is beyond x = 22.5. The
+    five sample points clear at xs = 17.33 (corner 30.6, -7.7), 17.91 (30.6, -8.3), 18.0
+    (centre), 18.10, 18.59: two points (0.4) at xs > 17.91, i.e. ego x > 16.91 m: the
+    first step with x = 0.4 k beyond it is k = 43 (t = 2.15 s). Without occlusion it is
+    seen from the start."""
+    from vei.sim.testing import TrackSpec, ego_straight, make_scenario
+    from vei.types import EGO_ID
+
+    t = np.arange(0, 5.0 + 1e-9, 0.05)
+    one = np.ones_like(t)
+    van = TrackSpec(
+        "vehicle", t, 20.0 * one, -4.0 * one, 0 * one, 0 * one, length_m=5.0, width_m=2.0
+    )
+    rider = TrackSpec(
+        "escooter", t, 30.0 * one, -8.0 * one, 0 * one, 0 * one, length_m=1.2, width_m=0.6
+    )
+    scen = make_scenario(
+        {EGO_ID: ego_straight(8.0, 5.0), "r": rider, "van": van}, primary_threat="r", rate_hz=20.0
+    )
+    arrays = prepare_scenario(
+        scen, SimConfig(kernel="numpy", rider_length_m=1.2, rider_width_m=0.6)
+    )
+    case = CaseConfig(name="rec", ego=EgoConfig(cruise_speed_mps=8.0, run_up_m=0.0))
+    first = {}
+    for occlusion in (True, False):
+        rec = _Recorder()
+        p = VariantParams.from_case(case, arrays, 1).with_values(
+            ego_mode=3, policy=rec, perception=PerceptionConfig(enabled=True, occlusion=occlusion)
+        )
+        simulate(arrays, p)
+        seen = np.array([v for _, v in rec.seen])
+        first[occlusion] = int(np.argmax(seen))
+        assert seen[first[occlusion] : 64].all() and not seen[64:].any()
+    assert first[False] == 0
+    assert first[True] == 43
