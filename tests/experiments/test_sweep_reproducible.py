@@ -12,6 +12,7 @@ import json
 import math
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
@@ -68,6 +69,14 @@ def test_vei_run_of_each_variant_equals_the_sweep_row(demo_scenario, tmp_path, c
     run_sweep(demo_scenario, spec, tmp_path / "sweep", chunk_size=64, progress=False)
     df = read_results(tmp_path / "sweep")
     assert len(df) == 12
+    if "policy" in df:  # one severity map per policy, and the comparison with 'none'
+        assert (tmp_path / "sweep" / "severity_map_none.png").is_file()
+        assert (tmp_path / "sweep" / "severity_map_aeb.png").is_file()
+        cmp = pd.read_csv(tmp_path / "sweep" / "policy_comparison.csv").set_index("policy")
+        assert cmp.loc["aeb", "variants"] == 6
+        assert cmp.loc["none", "collisions"] == df.loc[df["policy"] == "none", "collision"].sum()
+    else:
+        assert (tmp_path / "sweep" / "severity_map.png").is_file()
     auto = EngineEvaluator().prepare(demo_scenario).auto_shift_s
     paths = write_variant_configs(tmp_path / "configs", df, spec, auto)
     assert df["collision"].any() and not df["collision"].all()  # both outcomes compared

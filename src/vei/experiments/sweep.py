@@ -10,6 +10,9 @@ Output folder layout (``out_dir``)::
     riskmap.png           mean safety index over the first two range parameters + boundary
     severity_map.png      mean injury risk of the rider over the same plane + boundary
                           (severity_map_<policy>.png, one per policy, when it is swept)
+    policy_comparison.csv when the policy is swept with 'none': per policy, collisions,
+                          impact speeds, injury risk and the verdicts against 'none' at the
+                          same design point (vei.experiments.sweep_compare)
     reconstruction_samples.json, reconstruction_share.png   with ``reconstruction: {samples:
                           N}``: how many design points depend on the rider's sample, and
                           the share of samples without collision per design point
@@ -254,6 +257,15 @@ def run_sweep(
 
         risk = sweep_risk_map(results, spec, out / "riskmap.png")
         sweep_severity_maps(results, spec, out)
+        if "policy" in spec.names and (results["policy"].astype(str) == "none").any():
+            from vei.calibrate.population import RIDER_COLUMN
+            from vei.experiments.sweep_compare import policy_summary, policy_verdicts
+            from vei.io.atomic import write_text
+
+            extra = [c for c in ("scenario_id", SAMPLE_COLUMN, RIDER_COLUMN) if c in results]
+            design = [*extra, *(n for n in spec.names if n != "policy")]
+            table = policy_summary(policy_verdicts(results, design))
+            write_text(out / "policy_comparison.csv", table.to_csv(index=False))
         if spec.reconstruction_samples and SAMPLE_COLUMN in results.columns:
             from vei.report.uncertainty import sample_dependence, write_sample_share_map
 
