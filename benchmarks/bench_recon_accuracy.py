@@ -21,7 +21,9 @@ six recordings, coverage scored on the held-out one).
 Then where the error comes from: per track the keyframes' own error, the error of a spline
 through the noise-free denoised truth at the keyframe times (the 1 FPS sampling floor),
 the best smoothing parameter in hindsight, the Student-t smoother; pooled by condition
-(at / between keyframes, long gaps, track ends, turns, stops).
+(at / between keyframes, long gaps, track ends, turns, stops). Then the turn-aware
+coordinated-turn smoother (:mod:`vei.recon.turn_compare`) against 'kalman', with the
+hindsight bound of any per-sample mix of the two.
 
 Targets (issue 13): 'kalman' mean RMSE vs denoised ground truth <= 0.25 m; pooled 95 %
 coverage in [90 %, 98 %] (held out). Run: ``python -m benchmarks recon_accuracy``.
@@ -76,6 +78,7 @@ def main() -> int:
         summarise,
     )
     from vei.recon.pipeline import ReconstructionConfig, reconstruct
+    from vei.recon.turn_compare import turn_table
 
     root = _data_root()
     if root is None:
@@ -90,6 +93,7 @@ def main() -> int:
         loo = leave_one_recording_out(kalman_scenarios, inters)
         floor = floor_table(kalman_scenarios, inters)
         breakdown = error_breakdown(kalman_scenarios, inters)
+        turn_tracks, turn_summary, turn_noise = turn_table(kalman_scenarios, inters)
         ego_rows = []
         for name, inter in inters.items():
             sc = reconstruct(inter, ReconstructionConfig(ego_path="kalman"))
@@ -156,6 +160,16 @@ def main() -> int:
     print(floor.drop(columns=["oracle_lam_s3"]).mean(numeric_only=True).round(3).to_string())
     print("\n'kalman' error by condition (pooled over all rider samples):")
     print(breakdown.round(3).to_string(index=False))
+    print(
+        "\nTurn-aware model: coordinated-turn EKF/RTS smoother ('turn', noise by ML on the other "
+        "recordings' keyframes) vs 'kalman' (constant velocity), RMSE [m] vs denoised truth:"
+    )
+    print(turn_tracks.round(3).to_string(index=False))
+    print("turn noise (sigma [m], q [m^2/s^3], q_omega [rad^2/s^3]) per held-out recording:")
+    for name, nz in turn_noise.items():
+        print(f"  {name}: {nz.noise_m:.3f} {nz.accel_psd_m2ps3:.3f} {nz.turn_psd_rad2ps3:.4f}")
+    print("summary (mean over tracks; turning / not turning / ends pooled; coverage held out):")
+    print(turn_summary.round(4).to_string(index=False))
     print("\nEgo path, lateral acceleration [m/s^2] and lateral jerk [m/s^3] of the 20 Hz path:")
     print(pd.DataFrame(ego_rows).round(3).to_string(index=False))
     k = summ[summ["method"] == "kalman"].iloc[0]
