@@ -3,6 +3,7 @@ import math
 import numpy as np
 import pytest
 
+from vei.metrics import MetricsConfig
 from vei.metrics.conflict import drac_series, gap_series, max_drac, min_gap, pet
 
 from .helpers import make_trace
@@ -67,3 +68,55 @@ def test_pet_zero_when_occupancies_overlap_or_collision_and_nan_without_crossing
         ego_speed=10.0,
     )
     assert math.isnan(pet(parallel)[0])
+
+
+def test_drac_is_zero_for_a_rider_passing_beside():
+    # Rider 1.5 m left of the car's path, 10 m ahead, standing: the car closes along its
+    # heading (v_close = 8 m/s, gap ~9 m) but would pass it: no braking needed.
+    tr = make_trace(ego_xy=(0, 0), other_xy=(12.0, 2.5), ego_speed=8.0, other_yaw=0.0)
+    assert max_drac(tr)[0] == 0.0
+    # On the path: v^2 / (2 gap) = 64 / (2 x 9.5) with ego 4 m and rider 1 m long.
+    tr = make_trace(ego_xy=(0, 0), other_xy=(12.0, 0.0), ego_speed=8.0)
+    assert max_drac(tr)[0] == pytest.approx(64.0 / 19.0)
+
+
+def test_drac_capped_at_one_g_and_flagged():
+    from vei.metrics.conflict import drac_unavoidable
+
+    # 10 m/s towards a standing rider 0.5 m ahead: 100 / 1 = 100 m/s^2 -> 9.81, flagged.
+    tr = make_trace(ego_xy=(0, 0), other_xy=(3.0, 0.0), ego_speed=10.0)
+    assert max_drac(tr)[0] == 9.81 and bool(drac_unavoidable(tr)[0])
+    cfg = MetricsConfig(drac_ceiling_mps2=200.0)
+    assert max_drac(tr, cfg)[0] == pytest.approx(100.0) and not drac_unavoidable(tr, cfg)[0]
+    # From the contact step on: NaN (no deceleration avoids a crash that happened).
+    tr = make_trace(
+        ego_xy=[(0, 0), (0.4, 0), (0.4, 0)],
+        other_xy=(3.0, 0.0),
+        ego_speed=[10.0, 0.0, 0.0],
+        collided=[False, True, True],
+    )
+    d = drac_series(tr)[0]
+    assert d[0] == 9.81 and np.isnan(d[1:]).all()
+
+
+def test_max_drac_equals_the_series_maximum_on_engine_runs():
+    from vei.config import case_preset
+    from vei.metrics._trace import arrays
+    from vei.metrics.conflict import drac_unavoidable
+    from vei.sim.engine import simulate
+    from vei.sim.state import VariantParams, prepare_scenario
+    from vei.sim.testing import crossing_scenario
+
+    arr = prepare_scenario(crossing_scenario())
+    shifts = 4.886 + np.linspace(-3.0, 3.0, 61)
+    p = VariantParams.from_case(case_preset("normal"), arr, shifts.size, time_shift_s=shifts)
+    tr = simulate(arr, p).to_trace()
+    fast = max_drac(tr)  # the course test on the largest candidates only
+    series = drac_series(arrays(tr))  # every step's course test
+    full = np.full(series.shape[0], np.nan)
+    has = np.isfinite(series).any(axis=1)
+    full[has] = np.nanmax(series[has], axis=1)
+    np.testing.assert_array_equal(fast, full)
+    raw_flag = (np.nan_to_num(series, nan=0.0) >= 9.81).any(axis=1)
+    assert (drac_unavoidable(tr) <= raw_flag).all()  # flagged runs reach the ceiling
+    assert 0 < raw_flag.sum() < raw_flag.size  # both kinds in the batch

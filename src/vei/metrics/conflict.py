@@ -50,28 +50,88 @@ def min_gap(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> Flo
     return out
 
 
-def _drac_raw(a: TraceArrays) -> FloatArray:
-    """[B, T] uncapped DRAC (m/s^2): see the module docstring; NaN inactive or from contact."""
-    if "drac_raw" in a.memo:
-        return a.memo["drac_raw"]
-    from vei.metrics.geometry import time_to_contact
-
+def _drac_candidates(a: TraceArrays) -> tuple[np.ndarray, FloatArray, FloatArray]:
+    """([B, T] candidate steps: present, ahead, apart and closing, before contact;
+    [B, T] uncapped v_close^2 / (2 gap) there (-inf elsewhere); [B, T, 2] rider velocity)."""
+    if "drac_candidates" in a.memo:
+        return a.memo["drac_candidates"]
     heading = np.stack([np.cos(a.ego_yaw), np.sin(a.ego_yaw)], axis=-1)
     other_vel = np.nan_to_num(a.other_vel)
     v_close = a.ego_speed - np.sum(other_vel * heading, axis=-1)
     gap = np.nan_to_num(a.gap, nan=0.0)
-    candidate = a.ahead & (v_close > 0.0) & (gap > 0.0)
+    candidate = a.ahead & (v_close > 0.0) & (gap > 0.0) & ~a.collided
+    with np.errstate(divide="ignore", invalid="ignore"):
+        raw = np.where(candidate, v_close**2 / (2.0 * np.where(candidate, gap, 1.0)), -np.inf)
+    a.memo["drac_candidates"] = (candidate, raw, other_vel)
+    return candidate, raw, other_vel
+
+
+def _on_course(a: TraceArrays, b: np.ndarray, t: np.ndarray, other_vel: FloatArray) -> np.ndarray:
+    """[K] the boxes of runs b at steps t would meet if both kept their velocities."""
+    from vei.metrics.geometry import time_to_contact
+
+    ttc = time_to_contact(
+        a.ego_corners[b, t], a.other_corners[b, t], other_vel[b, t] - a.ego_vel[b, t]
+    )
+    return np.isfinite(ttc)
+
+
+def _drac_raw(a: TraceArrays) -> FloatArray:
+    """[B, T] uncapped DRAC (m/s^2): see the module docstring; NaN inactive or from contact."""
+    if "drac_raw" in a.memo:
+        return a.memo["drac_raw"]
+    candidate, raw, other_vel = _drac_candidates(a)
     on_course = np.zeros_like(candidate)
     if candidate.any():
-        ttc = time_to_contact(
-            a.ego_corners[candidate], a.other_corners[candidate], (other_vel - a.ego_vel)[candidate]
-        )
-        on_course[candidate] = np.isfinite(ttc)
-    closing = candidate & on_course
-    with np.errstate(divide="ignore", invalid="ignore"):
-        drac = np.where(closing, v_close**2 / (2.0 * np.where(closing, gap, 1.0)), 0.0)
+        b, t = np.nonzero(candidate)
+        on_course[b, t] = _on_course(a, b, t, other_vel)
+    drac = np.where(on_course, raw, 0.0)
     out = np.where(a.active & ~a.collided, drac, np.nan)
     a.memo["drac_raw"] = out
+    return out
+
+
+def _max_drac_raw(a: TraceArrays) -> FloatArray:
+    """[B] max over steps of :func:`_drac_raw` without evaluating every step's course test:
+    each run's candidates are tested in descending order of DRAC (in blocks of 1, 2, 4, ...)
+    until one is on course. NaN where the road user is never present before contact."""
+    if "max_drac_raw" in a.memo:
+        return a.memo["max_drac_raw"]
+    if "drac_raw" in a.memo:  # the full series is there anyway
+        d = a.memo["drac_raw"]
+        out = np.full(d.shape[0], np.nan)
+        has = np.isfinite(d).any(axis=1)
+        out[has] = np.nanmax(d[has], axis=1)
+        a.memo["max_drac_raw"] = out
+        return out
+    candidate, raw, other_vel = _drac_candidates(a)
+    n_b = raw.shape[0]
+    n_cand = candidate.sum(axis=1)
+    order = np.argsort(-raw, axis=1, kind="stable")  # candidates first, largest DRAC first
+    best = np.zeros(n_b)
+    todo = np.flatnonzero(n_cand > 0)
+    start, width = 0, 1
+    while todo.size:
+        cols = start + np.arange(width)
+        bb = np.repeat(todo, width)
+        jj = np.tile(cols, todo.size)
+        valid = jj < n_cand[bb]
+        bb, jj = bb[valid], jj[valid]
+        tt = order[bb, jj]
+        ok = _on_course(a, bb, tt, other_vel)
+        found = np.zeros(n_b, dtype=bool)
+        # the first on-course candidate of each run in this block (the largest DRAC)
+        first_j = np.full(n_b, np.iinfo(np.int64).max)
+        np.minimum.at(first_j, bb[ok], jj[ok])
+        found[todo] = first_j[todo] < np.iinfo(np.int64).max
+        hit = np.flatnonzero(found)
+        best[hit] = raw[hit, order[hit, first_j[hit]]]
+        start += width
+        width *= 2
+        todo = todo[~found[todo] & (n_cand[todo] > start)]
+    present = (a.active & ~a.collided).any(axis=1)
+    out = np.where(present, best, np.nan)
+    a.memo["max_drac_raw"] = out
     return out
 
 
@@ -84,23 +144,20 @@ def drac_series(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) ->
 
 def max_drac(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
     """[B] largest DRAC before first contact (m/s^2), capped at cfg.drac_ceiling_mps2; NaN
-    if the road user is never active before contact."""
-    d = drac_series(trace, cfg)
-    out = np.full(d.shape[0], np.nan)
-    has = np.isfinite(d).any(axis=1)
-    out[has] = np.nanmax(d[has], axis=1)
-    return out
+    if the road user is never active before contact. Equals the series' maximum."""
+    cfg = MetricsConfig() if cfg is None else cfg
+    return np.minimum(_max_drac_raw(arrays(trace)), cfg.drac_ceiling_mps2)
 
 
 def drac_unavoidable(
     trace: Trace | TraceArrays, cfg: MetricsConfig | None = None
 ) -> npt.NDArray[np.bool_]:
-    """[B] the DRAC exceeded cfg.drac_ceiling_mps2 at some step before first contact: no
-    braking within the car's limit could have avoided the crash from that step."""
+    """[B] the DRAC exceeded cfg.drac_ceiling_mps2 at some step before first contact: had
+    both kept their velocities, braking within the car's limit could not have avoided
+    contact from that step."""
     cfg = MetricsConfig() if cfg is None else cfg
-    raw = _drac_raw(arrays(trace))
     with np.errstate(invalid="ignore"):
-        return (raw > cfg.drac_ceiling_mps2).any(axis=1)
+        return _max_drac_raw(arrays(trace)) > cfg.drac_ceiling_mps2
 
 
 def _first_crossing(p: FloatArray, q: FloatArray) -> tuple[int, float, int, float] | None:
