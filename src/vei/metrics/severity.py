@@ -17,9 +17,9 @@ Definitions (one value per run; NaN / '' when the run has no collision):
 - **Delta-v** of a perfectly plastic impact (both end with the common velocity; momentum
   conserved): dv_car = m_r / (m_c + m_r) |v_rel|, dv_rider = m_c / (m_c + m_r) |v_rel|.
   Masses: ``MetricsConfig.car_mass_kg`` (1,500 kg) and ``rider_mass_kg`` (95 kg, the SFM
-  rider + e-scooter). A plastic impact is the upper bound of the velocity change for a
-  given closing speed when the bodies do not bounce; a rider who is thrown off the car
-  front reaches about the car's speed, which this is.
+  rider + e-scooter). Plastic (restitution e = 0) is the usual assumption for a car
+  striking a vulnerable road user, who is carried or thrown at about the car's speed; a
+  bounce (e > 0) would multiply both delta-v by (1 + e), so these are the lower bound.
 - **Impact side**: the face of the ego box through which the rider came in. In the ego
   frame (x forward, y left) at the contact step, the faces the rider's centre lies beyond
   (x > L/2: front, x < -L/2: rear, y > W/2: left, y < -W/2: right) are the candidates;
