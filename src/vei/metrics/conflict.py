@@ -68,11 +68,15 @@ def _drac_candidates(a: TraceArrays) -> tuple[np.ndarray, FloatArray, FloatArray
 
 def _on_course(a: TraceArrays, b: np.ndarray, t: np.ndarray, other_vel: FloatArray) -> np.ndarray:
     """[K] the boxes of runs b at steps t would meet if both kept their velocities."""
-    from vei.metrics.geometry import time_to_contact
+    from vei.metrics.geometry import box_corners, time_to_contact
 
-    ttc = time_to_contact(
-        a.ego_corners[b, t], a.other_corners[b, t], other_vel[b, t] - a.ego_vel[b, t]
-    )
+    # Corners of the K tested steps only, always computed the same way (whatever else a
+    # summary computed before), so the answer depends on the inputs alone.
+    tr = a.trace
+    ego_c = box_corners(a.ego_xy[b, t], a.ego_yaw[b, t], tr.ego_length_m, tr.ego_width_m)
+    yaw = np.nan_to_num(a.other_yaw[b, t])
+    oth_c = box_corners(a.other_xy[b, t], yaw, tr.other_length_m, tr.other_width_m)
+    ttc = time_to_contact(ego_c, oth_c, other_vel[b, t] - a.ego_vel[b, t])
     return np.isfinite(ttc)
 
 
