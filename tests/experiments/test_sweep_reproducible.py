@@ -66,7 +66,8 @@ def test_vei_run_of_each_variant_equals_the_sweep_row(demo_scenario, tmp_path, c
             },
         }
     )
-    run_sweep(demo_scenario, spec, tmp_path / "sweep", chunk_size=64, progress=False)
+    res = run_sweep(demo_scenario, spec, tmp_path / "sweep", chunk_size=64, progress=False)
+    assert (res.n_variants, res.n_run, res.n_skipped) == (12, 12, 0)
     df = read_results(tmp_path / "sweep")
     assert len(df) == 12
     if "policy" in df:  # one severity map per policy, and the comparison with 'none'

@@ -264,8 +264,8 @@ def run_sweep(
 
             extra = [c for c in ("scenario_id", SAMPLE_COLUMN, RIDER_COLUMN) if c in results]
             design = [*extra, *(n for n in spec.names if n != "policy")]
-            table = policy_summary(policy_verdicts(results, design))
-            write_text(out / "policy_comparison.csv", table.to_csv(index=False))
+            comparison = policy_summary(policy_verdicts(results, design))
+            write_text(out / "policy_comparison.csv", comparison.to_csv(index=False))
         if spec.reconstruction_samples and SAMPLE_COLUMN in results.columns:
             from vei.report.uncertainty import sample_dependence, write_sample_share_map
 
