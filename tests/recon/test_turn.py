@@ -112,10 +112,10 @@ def test_estimate_noise_on_straight_tracks():
     # little acceleration and a turn-rate noise at the bottom of its range.
     rng = np.random.default_rng(2)
     tracks = []
-    for _ in range(6):
-        t = np.arange(0.0, 12.0)
+    for _ in range(5):
+        t = np.arange(0.0, 10.0)
         v = rng.normal(0, 3.0, 2)
-        tracks.append((t, np.outer(t, v) + rng.normal(0, 0.3, (12, 2))))
+        tracks.append((t, np.outer(t, v) + rng.normal(0, 0.3, (10, 2))))
     est = turn.estimate_turn_noise(tracks)
     assert 0.22 <= est.noise_m <= 0.38, est
     assert est.accel_psd_m2ps3 < 0.05, est

@@ -35,7 +35,7 @@ PRIOR_POS_VAR, PRIOR_SPEED_VAR, PRIOR_TURN_VAR = 1e4, 1e2, 0.25
 #: q_omega [rad^2/s^3].
 TURN_BOUNDS: tuple[tuple[float, float], ...] = ((0.02, 3.0), (1e-3, 1e2), (1e-5, 10.0))
 _H = np.array([[1.0, 0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0, 0.0]])
-_SMALL_OMEGA = 1e-6
+_SMALL_OMEGA = 1e-9
 #: Passes of the iterated extended smoother (1: the plain extended RTS smoother).
 N_ITER = 3
 
@@ -68,11 +68,12 @@ class TurnNoise:
 
 
 def _sin_cos_terms(w: float, dt: float) -> tuple[float, float, float, float]:
-    """sin(w dt)/w, (1 - cos(w dt))/w, cos(w dt), sin(w dt) (series near w = 0)."""
+    """sin(w dt)/w, (1 - cos(w dt))/w (as 2 sin^2(w dt / 2)/w: no cancellation), cos(w dt),
+    sin(w dt); the limits w -> 0 below _SMALL_OMEGA."""
     wt = w * dt
     if abs(w) < _SMALL_OMEGA:
         return dt - w**2 * dt**3 / 6.0, w * dt**2 / 2.0, math.cos(wt), math.sin(wt)
-    return math.sin(wt) / w, (1.0 - math.cos(wt)) / w, math.cos(wt), math.sin(wt)
+    return math.sin(wt) / w, 2.0 * math.sin(0.5 * wt) ** 2 / w, math.cos(wt), math.sin(wt)
 
 
 def propagate(s: FloatArray, dt_s: float) -> FloatArray:
@@ -85,25 +86,26 @@ def propagate(s: FloatArray, dt_s: float) -> FloatArray:
 
 
 def jacobian(s: FloatArray, dt_s: float) -> FloatArray:
-    """d propagate / d s [5, 5] (the turn-rate column by central differences)."""
+    """d propagate / d s [5, 5] (closed form; series in omega near 0)."""
     _, vx, _, vy, w = s
     a, b, c, sn = _sin_cos_terms(w, dt_s)
-    j = np.array(
+    t = dt_s
+    if abs(w) < 1e-4:
+        da = -w * t**3 / 3.0
+        db = t**2 / 2.0 - w**2 * t**4 / 8.0
+    else:
+        da = t * c / w - sn / w**2
+        db = t * sn / w - (1.0 - c) / w**2
+    dc, dsn = -t * sn, t * c
+    return np.array(
         [
-            [1.0, a, 0.0, -b, 0.0],
-            [0.0, c, 0.0, -sn, 0.0],
-            [0.0, b, 1.0, a, 0.0],
-            [0.0, sn, 0.0, c, 0.0],
+            [1.0, a, 0.0, -b, da * vx - db * vy],
+            [0.0, c, 0.0, -sn, dc * vx - dsn * vy],
+            [0.0, b, 1.0, a, db * vx + da * vy],
+            [0.0, sn, 0.0, c, dsn * vx + dc * vy],
             [0.0, 0.0, 0.0, 0.0, 1.0],
         ]
     )
-    h = 1e-6
-    sp, sm = s.copy(), s.copy()
-    sp[4] += h
-    sm[4] -= h
-    j[:, 4] = (propagate(sp, dt_s) - propagate(sm, dt_s)) / (2.0 * h)
-    j[4, 4] = 1.0
-    return j
 
 
 def process_cov(dt_s: float, accel_psd: float, turn_psd: float) -> FloatArray:
@@ -235,16 +237,16 @@ def _pass(
             jac[i] = f
         mp[i], pp[i] = m, p
         if mask[i]:
-            s = _H @ p @ _H.T + r
-            e = obs[i] - _H @ m
-            sinv = np.linalg.inv(s)
-            g = p @ _H.T @ sinv
+            ph = p[:, [0, 2]]  # P H^T
+            s = ph[[0, 2], :] + r
+            det = s[0, 0] * s[1, 1] - s[0, 1] * s[1, 0]
+            sinv = np.array([[s[1, 1], -s[0, 1]], [-s[1, 0], s[0, 0]]]) / det
+            e = obs[i] - m[[0, 2]]
+            g = ph @ sinv
             m = m + g @ e
             ikh = np.eye(5) - g @ _H
             p = ikh @ p @ ikh.T + g @ r @ g.T
-            loglik += -0.5 * (
-                2.0 * math.log(2.0 * math.pi) + math.log(np.linalg.det(s)) + e @ sinv @ e
-            )
+            loglik += -0.5 * (2.0 * math.log(2.0 * math.pi) + math.log(det) + e @ sinv @ e)
         mf[i], pf[i] = m, p
     if smooth:
         ms, ps = mf.copy(), pf.copy()
