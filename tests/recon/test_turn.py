@@ -15,9 +15,10 @@ SIGMA_M = 0.25
 
 
 def test_propagate_quarter_circle():
-    # 5 m/s on a circle of radius 10 m (omega = 0.5 rad/s): after pi s a quarter... half turn.
+    # 5 m/s on a circle of radius 10 m (omega = 0.5 rad/s): a quarter turn takes pi s and
+    # ends 10 m ahead and 10 m to the left, heading +y.
     s = np.array([0.0, 5.0, 0.0, 0.0, 0.5])
-    end = turn.propagate(s, math.pi / 2 / 0.5)  # a quarter turn
+    end = turn.propagate(s, math.pi / 2 / 0.5)
     assert end == pytest.approx([10.0, 0.0, 10.0, 5.0, 0.5], abs=1e-9)
     straight = turn.propagate(np.array([1.0, 2.0, 3.0, -1.0, 0.0]), 2.0)
     assert straight == pytest.approx([5.0, 2.0, 1.0, -1.0, 0.0], abs=1e-9)
