@@ -29,7 +29,7 @@ time_shift_reference: zero
 parameters:
   time_shift_s: {min: 1.0, max: 5.0, num: 4}
   ego.cruise_speed_mps: {min: 4.0, max: 8.0, num: 3}
-  cap.enabled: false
+  ego.policy: none
 """
 
 

@@ -169,7 +169,7 @@ def test_search_boundary_on_the_demo_scenario(demo_scenario, tmp_path):
             "parameters": {
                 "time_shift_s": {"min": -3.0, "max": 3.0, "num": 5},
                 "ego.cruise_speed_mps": {"min": 3.0, "max": 9.0, "num": 5},
-                "cap.enabled": False,
+                "ego.policy": "none",
             },
         }
     )
@@ -190,7 +190,7 @@ def test_search_boundary_on_the_demo_scenario(demo_scenario, tmp_path):
     assert res.n_evaluations < res.grid_evaluations
     assert 0 < s["collision"].sum() < len(s)
     assert (s["time_shift_s"] == s["x"]).all() and (s["ego.cruise_speed_mps"] == s["y"]).all()
-    assert not s["cap.enabled"].any()
+    assert (s["ego.policy"] == "none").all()
     # every crossing sits on a lattice edge between a colliding and a safe sample
     key = {
         (int(i), int(j)): bool(c) for i, j, c in zip(s["i"], s["j"], s["collision"], strict=True)

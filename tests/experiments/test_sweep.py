@@ -126,13 +126,13 @@ def test_variant_params_equal_each_rows_own_configuration(demo_scenario):
             "parameters": {
                 "time_shift_s": {"min": -2.0, "max": 2.0},
                 "rider_model": {"choices": ["replay", "normal", "aggressive"]},
-                "sfm.k_des": {"min": 60.0, "max": 140.0},
-                "sfm.mass": {"min": 70.0, "max": 120.0},
-                "cap.enabled": {"choices": [True, False]},
-                "cap.T_safe_s": {"min": 1.0, "max": 3.0},
+                "sfm.k_des_nspm": {"min": 60.0, "max": 140.0},
+                "sfm.mass_kg": {"min": 70.0, "max": 120.0},
+                "ego.policy": {"choices": ["paper-cap", "none"]},
+                "cap.t_safe_s": {"min": 1.0, "max": 3.0},
                 "cap.a_min_mps2": {"min": -7.5, "max": -3.0},
                 "ego.cruise_speed_mps": {"min": 4.0, "max": 8.0},
-                "perception_delay_s": {"min": 0.0, "max": 0.5},
+                "cap.perception_delay_s": {"min": 0.0, "max": 0.5},
             },
         }
     )
@@ -166,7 +166,7 @@ def test_swept_v0_over_the_calibrated_default_is_the_riders_speed(demo_scenario)
     from vei.sim.state import VariantParams
 
     spec = spec_from_dict(
-        {"design": "grid", "parameters": {"sfm.v0": {"min": 2.0, "max": 6.0, "num": 3}}}
+        {"design": "grid", "parameters": {"sfm.v0_mps": {"min": 2.0, "max": 6.0, "num": 3}}}
     )
     ev = EngineEvaluator(time_shift_reference="auto", base="normal-cap")
     prep = ev.prepare(demo_scenario)
@@ -192,7 +192,7 @@ def test_results_do_not_depend_on_chunking_or_workers(demo_scenario, tmp_path):
             "parameters": {
                 "time_shift_s": {"min": -2.0, "max": 2.0},
                 "rider_model": {"choices": ["normal", "aggressive"]},
-                "cap.enabled": {"choices": [True, False]},
+                "ego.policy": {"choices": ["paper-cap", "none"]},
             },
         }
     )
@@ -390,7 +390,7 @@ def test_sweep_risk_map_of_a_scattered_design(tmp_path):
             "seed": 1,
             "parameters": {
                 "time_shift_s": {"min": -3.0, "max": 3.0},
-                "sfm.k_des": {"min": 50.0, "max": 150.0},
+                "sfm.k_des_nspm": {"min": 50.0, "max": 150.0},
                 "ego.cruise_speed_mps": {"min": 3.0, "max": 9.0},
             },
         }

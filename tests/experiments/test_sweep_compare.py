@@ -16,7 +16,7 @@ def _results() -> pd.DataFrame:
         {
             "scenario_id": ["s"] * 6,
             "time_shift_s": [0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
-            "policy": ["none", "aeb", "paper-cap"] * 2,
+            "ego.policy": ["none", "aeb", "paper-cap"] * 2,
             "collision": [True, False, True, True, True, True],
             "impact_speed_mps": [5.0, nan, 3.9, 5.0, 4.5, nan],
             "injury_risk": [0.02, 0.0, 0.01, 0.02, 0.015, nan],
@@ -34,7 +34,7 @@ def test_verdicts_against_none_at_the_same_design_point():
         "not-mitigated",  # 4.5 > 4.0
         "not-mitigated",  # a collision without approach (speed unknown)
     ]
-    table = policy_summary(out).set_index("policy")
+    table = policy_summary(out).set_index("ego.policy")
     assert table.loc["aeb", "collisions"] == 1
     assert table.loc["aeb", "mean_impact_speed_mps"] == pytest.approx(4.5)
     assert table.loc["paper-cap", "mitigated"] == 1
@@ -43,7 +43,7 @@ def test_verdicts_against_none_at_the_same_design_point():
 
 def test_missing_reference_and_bad_input():
     df = _results()
-    df.loc[3, "policy"] = "idm"  # design point 1.0 has no 'none' row
+    df.loc[3, "ego.policy"] = "idm"  # design point 1.0 has no 'none' row
     out = policy_verdicts(df, ["scenario_id", "time_shift_s"])
     assert list(out["verdict"][3:]) == ["", "", ""]
     with pytest.raises(InputError):

@@ -29,10 +29,10 @@ SPEC = {
     "design": "grid",
     "base": "normal-cap",
     "parameters": {
-        "policy": {"choices": ["paper-cap", "aeb"]},
+        "ego.policy": {"choices": ["paper-cap", "aeb"]},
         "time_shift_s": {"min": -1.0, "max": 1.0, "num": 3},
         "ego.cruise_speed_mps": {"min": 5.0, "max": 8.0, "num": 2},
-        "aeb.ttc_partial_s": {"choices": [1.4, 1.8]},
+        "ego.policy_params.ttc_partial_s": {"choices": [1.4, 1.8]},
     },
 }
 
@@ -44,19 +44,23 @@ def test_batch_parameters_equal_each_rows_configuration(demo_scenario) -> None:
     table = variants_table(spec, prep.scenario_id)
     assert len(table) == 24
     batch = variant_params(table, prep.arrays, auto_shift_s=prep.auto_shift_s)
-    is_aeb = table["policy"].to_numpy() == "aeb"
+    is_aeb = table["ego.policy"].to_numpy() == "aeb"
     np.testing.assert_array_equal(batch.ego_mode == EGO_POLICY, is_aeb)
-    np.testing.assert_array_equal(batch.aeb_ttc_partial_s, table["aeb.ttc_partial_s"].to_numpy())
+    np.testing.assert_array_equal(
+        batch.aeb_ttc_partial_s, table["ego.policy_params.ttc_partial_s"].to_numpy()
+    )
     for i, row in table.iterrows():
         cfg = variant_config(row_params(row, spec), spec, auto_shift_s=prep.auto_shift_s)
-        assert cfg.case.policy_name == row["policy"]
-        if row["policy"] == "aeb":
-            assert cfg.case.ego.policy_params == {"ttc_partial_s": row["aeb.ttc_partial_s"]}
+        assert cfg.case.policy_name == row["ego.policy"]
+        if row["ego.policy"] == "aeb":
+            assert cfg.case.ego.policy_params == {
+                "ttc_partial_s": row["ego.policy_params.ttc_partial_s"]
+            }
         one = VariantParams.from_case(cfg.case, prep.arrays, 1, time_shift_s=cfg.time_shift)
         for f in dataclasses.fields(one):
             if f.name in ("labels", "policy", "perception"):
                 continue
-            if f.name.startswith("aeb_") and row["policy"] != "aeb":
+            if f.name.startswith("aeb_") and row["ego.policy"] != "aeb":
                 continue  # swept but unused by paper-cap (the batch keeps the column's value)
             assert getattr(batch, f.name)[i] == getattr(one, f.name)[0], f.name
         assert type(batch.policy[i]) is type(one.policy[0])
@@ -69,15 +73,17 @@ def test_policy_sweep_runs_and_aeb_parameters_act(demo_scenario) -> None:
     table = variants_table(spec, prep.scenario_id)
     out = ev.evaluate(prep, table).set_index("variant_id").loc[table["variant_id"]]
     assert np.isfinite(out["min_gap_m"].to_numpy(float)).all()
-    aeb = table["policy"].to_numpy() == "aeb"
+    aeb = table["ego.policy"].to_numpy() == "aeb"
     gap = out["min_gap_m"].to_numpy(float)
     # braking earlier (partial at TTC 1.8 s instead of 1.4 s) keeps a larger minimum gap
-    early = aeb & (table["aeb.ttc_partial_s"].to_numpy() == 1.8)
-    late = aeb & (table["aeb.ttc_partial_s"].to_numpy() == 1.4)
+    early = aeb & (table["ego.policy_params.ttc_partial_s"].to_numpy() == 1.8)
+    late = aeb & (table["ego.policy_params.ttc_partial_s"].to_numpy() == 1.4)
     assert gap[early].mean() > gap[late].mean()
 
 
-def test_cap_enabled_and_policy_together_is_an_error() -> None:
-    spec = spec_from_dict({"design": "grid", "parameters": {"policy": "aeb", "cap.enabled": True}})
-    with pytest.raises(ConfigError, match="cap.enabled or policy"):
-        variant_config({"policy": "aeb", "cap.enabled": True}, spec, auto_shift_s=0.0)
+def test_cap_enabled_is_replaced_by_the_policy() -> None:
+    with pytest.raises(ConfigError, match=r"'cap.enabled' was replaced by 'ego.policy'"):
+        spec_from_dict({"design": "grid", "parameters": {"ego.policy": "aeb", "cap.enabled": True}})
+    spec = spec_from_dict({"design": "grid", "parameters": {"ego.policy": "aeb"}})
+    with pytest.raises(ConfigError, match=r"'cap.enabled' was replaced by 'ego.policy'"):
+        variant_config({"ego.policy": "aeb", "cap.enabled": True}, spec, auto_shift_s=0.0)

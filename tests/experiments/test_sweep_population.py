@@ -82,8 +82,8 @@ def test_population_spec_errors() -> None:
         _spec(rider={"profile": "calibrated"})
     with pytest.raises(ConfigError, match="unknown key"):
         _spec(rider={"profile": "calibrated", "sample": 3, "samples": 3})
-    with pytest.raises(ConfigError, match="do not also sweep sfm.v0"):
-        _spec(parameters={"sfm.v0": {"min": 2.0, "max": 4.0, "num": 2}})
+    with pytest.raises(ConfigError, match="do not also sweep sfm.v0_mps"):
+        _spec(parameters={"sfm.v0_mps": {"min": 2.0, "max": 4.0, "num": 2}})
     with pytest.raises(ConfigError, match="sample must be >= 1"):
         _spec(rider={"profile": "calibrated", "sample": 0})
 

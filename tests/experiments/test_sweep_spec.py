@@ -22,7 +22,7 @@ parameters:
   rider_model: {choices: [normal, aggressive]}
   ego:
     cruise_speed_mps: {min: 4.0, max: 6.0, num: 3}
-  cap.enabled: true
+  ego.policy: paper-cap
 """
 
 
@@ -31,14 +31,14 @@ def test_grid_yaml_is_the_cartesian_product(tmp_path):
     path.write_text(GRID_YAML)
     spec = load_spec(path)
     assert spec.design == "grid"
-    assert spec.names == ("time_shift_s", "rider_model", "ego.cruise_speed_mps", "cap.enabled")
+    assert spec.names == ("time_shift_s", "rider_model", "ego.cruise_speed_mps", "ego.policy")
     table = variants_table(spec, "demo")
     assert len(table) == 5 * 2 * 3 == spec.n_variants()
     assert list(table.columns[:4]) == ["variant_id", "scenario_id", "variant_index", "seed"]
     assert sorted(set(table["time_shift_s"])) == pytest.approx([-1.0, -0.5, 0.0, 0.5, 1.0])
     assert sorted(set(table["ego.cruise_speed_mps"])) == pytest.approx([4.0, 5.0, 6.0])
     assert set(table["rider_model"]) == {"normal", "aggressive"}
-    assert table["cap.enabled"].all()
+    assert (table["ego.policy"] == "paper-cap").all()
     # last parameter varies fastest: rows 0..2 differ only in the cruise speed
     assert list(table["ego.cruise_speed_mps"][:3]) == pytest.approx([4.0, 5.0, 6.0])
     assert table["variant_id"].is_unique
@@ -63,7 +63,7 @@ def test_lhs_is_seeded_and_stratified():
         "seed": 11,
         "parameters": {
             "time_shift_s": {"min": -2.0, "max": 2.0},
-            "sfm.k_des": {"min": 50.0, "max": 150.0},
+            "sfm.k_des_nspm": {"min": 50.0, "max": 150.0},
             "rider_model": {"choices": ["replay", "normal", "aggressive", "normal"][:3]},
         },
     }
@@ -74,7 +74,7 @@ def test_lhs_is_seeded_and_stratified():
     # Latin hypercube: exactly one sample in each of the 40 equal strata of every range
     strata = np.floor((t1["time_shift_s"].to_numpy() + 2.0) / 4.0 * 40).astype(int)
     assert sorted(strata) == list(range(40))
-    strata_k = np.floor((t1["sfm.k_des"].to_numpy() - 50.0) / 100.0 * 40).astype(int)
+    strata_k = np.floor((t1["sfm.k_des_nspm"].to_numpy() - 50.0) / 100.0 * 40).astype(int)
     assert sorted(strata_k) == list(range(40))
     # 3 choices over 40 rows: strata of width 40/3 -> 13 or 14 each
     counts = t1["rider_model"].value_counts()
@@ -92,7 +92,7 @@ def test_random_design_within_bounds_and_duplicates_kept_once():
             "seed": 1,
             "parameters": {
                 "rider_model": {"choices": ["normal", "aggressive"]},
-                "cap.enabled": False,
+                "ego.policy": "none",
             },
         }
     )
@@ -131,10 +131,11 @@ def test_random_design_within_bounds_and_duplicates_kept_once():
         ({"design": "lhs", "n_samples": 0, "parameters": {"time_shift_s": 0.0}}, "n_samples"),
         ({"design": "grid", "n_samples": 4, "parameters": {"time_shift_s": 0.0}}, "n_samples"),
         ({"design": "sobol", "parameters": {"time_shift_s": 0.0}}, "design"),
-        ({"design": "grid", "parameters": {"sfm.k_des": 0.0}}, "sfm.k_des must be > 0"),
+        ({"design": "grid", "parameters": {"sfm.k_des_nspm": 0.0}}, "sfm.k_des_nspm must be > 0"),
         ({"design": "grid", "parameters": {"cap.a_min_mps2": 3.0}}, "cap.a_min_mps2 must be < 0"),
         ({"design": "grid", "parameters": {"rider_model": "wild"}}, "rider_model"),
-        ({"design": "grid", "parameters": {"cap.enabled": 1}}, "true or false"),
+        ({"design": "grid", "parameters": {"sfm.use_vehicle_force": 1}}, "true or false"),
+        ({"design": "grid", "parameters": {"ego.policy": "cap"}}, "ego.policy expects one of"),
         (
             {"design": "grid", "parameters": {"time_shift_s": {"min": 2.0, "max": 1.0, "num": 2}}},
             "min",
@@ -182,28 +183,27 @@ def test_every_documented_parameter_is_known():
     assert set(PARAMETERS) == {
         "time_shift_s",
         "rider_model",
-        "sfm.k_des",
-        "sfm.A",
-        "sfm.b",
-        "sfm.v0",
-        "sfm.mass",
-        "sfm.vehicle_force",
+        "sfm.k_des_nspm",
+        "sfm.a_veh_n",
+        "sfm.b_veh_per_m",
+        "sfm.v0_mps",
+        "sfm.mass_kg",
+        "sfm.use_vehicle_force",
         "ego.cruise_speed_mps",
-        "cap.enabled",
-        "cap.T_safe_s",
+        "cap.t_safe_s",
         "cap.d_buf_m",
         "cap.a_min_mps2",
-        "perception_delay_s",
-        "policy",
-        "aeb.ttc_warning_s",
-        "aeb.ttc_partial_s",
-        "aeb.ttc_full_s",
-        "aeb.partial_decel_mps2",
-        "aeb.full_decel_mps2",
-        "idm.max_accel_mps2",
-        "idm.comfort_decel_mps2",
-        "idm.time_headway_s",
-        "idm.min_gap_m",
+        "cap.perception_delay_s",
+        "ego.policy",
+        "ego.policy_params.ttc_warning_s",
+        "ego.policy_params.ttc_partial_s",
+        "ego.policy_params.ttc_full_s",
+        "ego.policy_params.partial_decel_mps2",
+        "ego.policy_params.full_decel_mps2",
+        "ego.policy_params.max_accel_mps2",
+        "ego.policy_params.comfort_decel_mps2",
+        "ego.policy_params.time_headway_s",
+        "ego.policy_params.min_gap_m",
     }
 
 
@@ -216,7 +216,7 @@ def test_shipped_example_spec_is_valid():
     table = variants_table(spec, "example")
     assert len(table) == 2000
     assert table["cap.a_min_mps2"].between(-8.0, -4.0).all()
-    assert (table["sfm.b"] == 3.5).all()
+    assert (table["sfm.b_veh_per_m"] == 3.5).all()
 
 
 def test_swept_v0_is_the_riders_own_speed_over_the_calibrated_default():
@@ -224,9 +224,9 @@ def test_swept_v0_is_the_riders_own_speed_over_the_calibrated_default():
     from vei.config import CASE_PRESETS
     from vei.experiments.sweep_spec import variant_config
 
-    spec = spec_from_dict({"design": "grid", "parameters": {"sfm.v0": 4.0}})
+    spec = spec_from_dict({"design": "grid", "parameters": {"sfm.v0_mps": 4.0}})
     assert CASE_PRESETS[spec.base].sfm.speed_from_recording is True
-    case = variant_config({"sfm.v0": 4.0}, spec, auto_shift_s=0.0).case
+    case = variant_config({"sfm.v0_mps": 4.0}, spec, auto_shift_s=0.0).case
     assert case.sfm.v0_mps == 4.0 and case.sfm.speed_from_recording is False
-    kept = variant_config({"sfm.k_des": 90.0}, spec, auto_shift_s=0.0).case
+    kept = variant_config({"sfm.k_des_nspm": 90.0}, spec, auto_shift_s=0.0).case
     assert kept.sfm.k_des_nspm == 90.0 and kept.sfm.speed_from_recording is True

@@ -42,7 +42,13 @@ RIDER_COLUMN = "rider_sample"
 #: (rider.k_des_nspm before the configuration's k_des_factor).
 RIDER_PARAM_COLUMNS: dict[str, str] = {f"rider.{f}": f for f in POPULATION_FIELDS}
 #: Sweep parameters a rider population sets (not sweepable together with it).
-POPULATION_SET: tuple[str, ...] = ("sfm.k_des", "sfm.A", "sfm.b", "sfm.v0", "sfm.mass")
+POPULATION_SET: tuple[str, ...] = (
+    "sfm.k_des_nspm",
+    "sfm.a_veh_n",
+    "sfm.b_veh_per_m",
+    "sfm.v0_mps",
+    "sfm.mass_kg",
+)
 
 
 def parse_population(raw: Any, where: str, default_seed: Any = 0) -> RiderPopulationConfig | None:

@@ -176,7 +176,7 @@ def sweep_severity_maps(
     results: pd.DataFrame, spec: SweepSpec, out_dir: str | Path
 ) -> dict[str, Path]:
     """The severity maps a sweep writes: ``severity_map.png``, or one
-    ``severity_map_<policy>.png`` per value when the sweep varies the ego ``policy`` (one
+    ``severity_map_<policy>.png`` per value when the sweep varies ``ego.policy`` (one
     map per policy, so that e.g. paper-cap and aeb are compared side by side).
 
     Returns {label: path} of the maps written ('' for the single map).
@@ -185,8 +185,8 @@ def sweep_severity_maps(
 
     out = Path(out_dir)
     written: dict[str, Path] = {}
-    if "policy" in results.columns and results["policy"].nunique() > 1:
-        for pol, rows in results.groupby("policy", sort=True):
+    if "ego.policy" in results.columns and results["ego.policy"].nunique() > 1:
+        for pol, rows in results.groupby("ego.policy", sort=True):
             safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", str(pol)).strip("_") or "policy"
             path = out / f"severity_map_{safe}.png"
             if sweep_severity_map(rows, spec, path) is not None:

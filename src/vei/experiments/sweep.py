@@ -257,13 +257,13 @@ def run_sweep(
 
         risk = sweep_risk_map(results, spec, out / "riskmap.png")
         sweep_severity_maps(results, spec, out)
-        if "policy" in spec.names and (results["policy"].astype(str) == "none").any():
+        if "ego.policy" in spec.names and (results["ego.policy"].astype(str) == "none").any():
             from vei.calibrate.population import RIDER_COLUMN
             from vei.experiments.sweep_compare import policy_summary, policy_verdicts
             from vei.io.atomic import write_text
 
             extra = [c for c in ("scenario_id", SAMPLE_COLUMN, RIDER_COLUMN) if c in results]
-            design = [*extra, *(n for n in spec.names if n != "policy")]
+            design = [*extra, *(n for n in spec.names if n != "ego.policy")]
             comparison = policy_summary(policy_verdicts(results, design))
             write_text(out / "policy_comparison.csv", comparison.to_csv(index=False))
         if spec.reconstruction_samples and SAMPLE_COLUMN in results.columns:

@@ -24,8 +24,8 @@ def policy_verdicts(
     ``reference`` at the same design point (same scenario and ``design`` columns).
 
     Args:
-        results: sweep results with columns 'policy', 'collision', 'impact_speed_mps' and
-            ``design`` (e.g. the spec's parameter names except 'policy', plus
+        results: sweep results with columns 'ego.policy', 'collision', 'impact_speed_mps' and
+            ``design`` (e.g. the spec's parameter names except 'ego.policy', plus
             'scenario_id' and a rider-sample column when present).
         design: the columns that identify a design point.
         reference: the no-avoidance policy (default 'none' = the PID cruise).
@@ -38,16 +38,16 @@ def policy_verdicts(
         InputError: a needed column is missing, or a design point holds two rows of one
             policy.
     """
-    need = {"policy", "collision", "impact_speed_mps", *design}
+    need = {"ego.policy", "collision", "impact_speed_mps", *design}
     missing = sorted(need - set(results.columns))
     if missing:
         raise InputError(f"sweep results lack column(s) {', '.join(missing)}", field=missing[0])
     key = list(design)
-    if results.duplicated([*key, "policy"]).any():
+    if results.duplicated([*key, "ego.policy"]).any():
         raise InputError(
             "two rows of one policy at the same design point: add the column that tells them apart to design"
         )
-    ref = results[results["policy"].astype(str) == reference][
+    ref = results[results["ego.policy"].astype(str) == reference][
         [*key, "collision", "impact_speed_mps"]
     ].rename(columns={"collision": "_ref_collision", "impact_speed_mps": "_ref_speed"})
     merged = results.reset_index(drop=True).merge(ref, on=key, how="left", sort=False)
@@ -68,12 +68,12 @@ def policy_summary(with_verdicts: pd.DataFrame) -> pd.DataFrame:
     """One row per policy: variants, collisions, mean / max impact speed over the
     collisions with an approach [m/s], mean injury risk, and the count of each verdict."""
     rows = []
-    for pol, g in with_verdicts.groupby("policy", sort=True):
+    for pol, g in with_verdicts.groupby("ego.policy", sort=True):
         hit = g["collision"].to_numpy(bool)
         speed = g["impact_speed_mps"].to_numpy(float)
         speed = speed[hit & np.isfinite(speed)]
         row = {
-            "policy": pol,
+            "ego.policy": pol,
             "variants": len(g),
             "collisions": int(hit.sum()),
             "mean_impact_speed_mps": float(speed.mean()) if speed.size else float("nan"),

@@ -13,6 +13,13 @@ import pandas as pd
 
 from vei.calibrate.population import RIDER_PARAM_COLUMNS
 from vei.errors import ConfigError
+from vei.experiments.sweep_params import (
+    CONFIG_FIELDS,
+    PARAMETERS,
+    POLICY_PARAM,
+    POLICY_PARAMS,
+    check_aeb_rows,
+)
 from vei.experiments.sweep_spec import SAMPLE_COLUMN
 
 
@@ -61,38 +68,28 @@ DEFAULT_METRICS: tuple[str, ...] = (
 
 
 #: Categorical sweep parameters: variants sharing them share one base configuration.
-_CATEGORICAL = ("rider_model", "cap.enabled", "sfm.vehicle_force", "policy")
+_CATEGORICAL = ("rider_model", "sfm.use_vehicle_force", POLICY_PARAM)
 
 
-#: Float sweep parameter -> VariantParams field (sfm.k_des is scaled by k_des_factor).
+def _policy_field(policy: str, fname: str) -> str:
+    from vei.policy.aeb import AEB_PARAM_FIELDS
+    from vei.policy.idm import IDM_PARAM_FIELDS
+
+    return (AEB_PARAM_FIELDS if policy == "aeb" else IDM_PARAM_FIELDS)[fname]
+
+
+#: Float sweep parameter (results column) -> VariantParams field: the run-config field of
+#: that name (sfm.k_des_nspm is scaled by k_des_factor), a built-in policy's parameter
+#: (vei.policy.aeb / idm), a population rider's (RIDER_PARAM_COLUMNS).
 _PARAM_FIELDS: dict[str, str] = {
-    "sfm.k_des": "k_des_nspm",
-    "sfm.A": "a_veh_n",
-    "sfm.b": "b_veh_per_m",
-    "sfm.v0": "v0_mps",
-    "sfm.mass": "mass_kg",
-    "ego.cruise_speed_mps": "cruise_speed_mps",
-    "cap.T_safe_s": "t_safe_s",
-    "cap.d_buf_m": "d_buf_m",
-    "cap.a_min_mps2": "a_min_mps2",
-    "perception_delay_s": "perception_delay_s",
-    # The built-in policies' parameters (vei.policy.aeb / idm; sweep_spec.POLICY_PARAMS).
-    "aeb.ttc_warning_s": "aeb_ttc_warning_s",
-    "aeb.ttc_partial_s": "aeb_ttc_partial_s",
-    "aeb.ttc_full_s": "aeb_ttc_full_s",
-    "aeb.partial_decel_mps2": "aeb_partial_decel_mps2",
-    "aeb.full_decel_mps2": "aeb_full_decel_mps2",
-    "idm.max_accel_mps2": "idm_max_accel_mps2",
-    "idm.comfort_decel_mps2": "idm_comfort_decel_mps2",
-    "idm.time_headway_s": "idm_time_headway_s",
-    "idm.min_gap_m": "idm_min_gap_m",
-    # A population rider's parameters (vei.calibrate.population.RIDER_PARAM_COLUMNS).
+    **{n: f for n, (_, f) in CONFIG_FIELDS.items() if PARAMETERS[n].kind == "float"},
+    **{n: _policy_field(pol, f) for n, (pol, f) in POLICY_PARAMS.items()},
     **RIDER_PARAM_COLUMNS,
 }
 
 
 #: Columns of a destination gain (scaled by the configuration's k_des_factor).
-_K_DES_COLUMNS = ("sfm.k_des", "rider.k_des_nspm")
+_K_DES_COLUMNS = ("sfm.k_des_nspm", "rider.k_des_nspm")
 
 
 @dataclass(frozen=True)
@@ -123,8 +120,8 @@ def variant_params(
 ) -> Any:
     """The engine's per-variant parameters ([B] arrays) of a variants table, vectorised.
 
-    Rows are grouped by their categorical parameters (rider model, CAP on/off, vehicle
-    force: at most 12 groups); each group starts from the run configuration that
+    Rows are grouped by their categorical parameters (rider model, vehicle force, policy:
+    at most 24 groups); each group starts from the run configuration that
     :func:`vei.experiments.sweep_spec.variant_config` gives it and takes the float
     parameters as [B_g] overrides. The result equals, row by row, the parameters of the
     row's own run configuration (what ``vei run --config`` runs; a test checks this).
@@ -139,10 +136,13 @@ def variant_params(
         ``vei.sim.state.VariantParams`` with B variants in row order (labels = variant ids).
 
     Raises:
-        ConfigError: a variant's configuration is invalid (e.g. a_min beyond the brake).
+        ConfigError: a variant's configuration is invalid (e.g. a_min beyond the brake,
+            AEB thresholds out of order).
     """
     from vei.experiments.sweep_spec import SweepSpec, variant_config
     from vei.sim.state import VariantParams
+
+    check_aeb_rows(variants, base)
 
     probe = SweepSpec(
         design="grid", parameters=(), time_shift_reference=time_shift_reference, base=base

@@ -1,6 +1,16 @@
 """Sweepable parameters: the catalogue (:data:`PARAMETERS`: kind, unit, bounds) and a
 variant's run configuration (:func:`variant_config`).
 
+A sweep parameter is named by its place in the run configuration (``vei run --config``):
+the dotted path of the field under the configuration (``CaseConfig``), e.g.
+``cap.t_safe_s``, ``sfm.k_des_nspm``, ``ego.policy``, and for a built-in policy's own
+parameters ``ego.policy_params.<field of AEBConfig / IDMConfig>``. The same name is the
+results' column. Two design parameters have no field of their own: ``time_shift_s`` (an
+offset to the scenario's automatic shift, or the absolute shift, per the spec's
+``time_shift_reference``; the run config's ``time_shift`` is the absolute value) and
+``rider_model`` (replay / the SFM Normal / Aggressive preset: ``rider`` plus ``sfm``).
+The spellings of earlier versions (:data:`RENAMED`) are refused with the new name.
+
 Used by :mod:`vei.experiments.sweep_spec`, which re-exports these names.
 """
 
@@ -9,7 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal, Protocol
 
 import numpy as np
 
@@ -17,8 +27,16 @@ from vei.calibrate.population import RIDER_PARAM_COLUMNS
 from vei.config import CASE_PRESETS, SFM_PRESETS, RunConfig
 from vei.errors import ConfigError
 
-if TYPE_CHECKING:
-    from vei.experiments.sweep_spec import SweepSpec
+
+class SpecLike(Protocol):
+    """What :func:`variant_config` reads of a sweep spec (``SweepSpec`` has it)."""
+
+    @property
+    def base(self) -> str: ...
+
+    @property
+    def time_shift_reference(self) -> str: ...
+
 
 RIDER_MODELS: tuple[str, ...] = ("replay", "normal", "aggressive")
 
@@ -28,7 +46,8 @@ class ParamDef:
     """What a sweepable parameter is: its kind and the values it may take.
 
     Attributes:
-        name: dotted name (e.g. ``sfm.k_des``).
+        name: dotted name: the field's path in the run configuration (e.g.
+            ``sfm.k_des_nspm``), or a design parameter (``time_shift_s``, ``rider_model``).
         kind: 'float', 'bool' or 'choice' (a string out of ``allowed``).
         lower, upper: open/closed physical bounds a float must respect (None = unbounded);
             ``lower_open`` / ``upper_open`` say whether the bound itself is excluded.
@@ -77,6 +96,33 @@ def _f(name: str, unit: str, doc: str, **kw: Any) -> ParamDef:
     return ParamDef(name=name, kind="float", unit=unit, doc=doc, **kw)
 
 
+#: Run-config path of a policy's own parameters (``ego: {policy: aeb, policy_params: {..}}``).
+POLICY_PARAMS_PREFIX = "ego.policy_params."
+
+#: (policy, field of its config (vei.policy.aeb.AEBConfig / idm.IDMConfig), unit, doc, bounds).
+_POLICY_FIELDS: tuple[tuple[Any, ...], ...] = (
+    ("aeb", "ttc_warning_s", "s", "AEB forward collision warning TTC", {"lower_open": True}),
+    ("aeb", "ttc_partial_s", "s", "AEB partial braking TTC", {"lower_open": True}),
+    ("aeb", "ttc_full_s", "s", "AEB full braking TTC", {"lower_open": True}),
+    (
+        "aeb",
+        "partial_decel_mps2",
+        "m/s^2",
+        "AEB partial braking deceleration",
+        {"lower_open": True},
+    ),
+    ("aeb", "full_decel_mps2", "m/s^2", "AEB full braking deceleration", {"lower_open": True}),
+    ("idm", "max_accel_mps2", "m/s^2", "IDM maximum acceleration a", {"lower_open": True}),
+    ("idm", "comfort_decel_mps2", "m/s^2", "IDM comfortable deceleration b", {"lower_open": True}),
+    ("idm", "time_headway_s", "s", "IDM desired time headway T", {}),
+    ("idm", "min_gap_m", "m", "IDM jam distance s0", {}),
+)
+_POLICY_DEFS = tuple(
+    _f(f"{POLICY_PARAMS_PREFIX}{f}", unit, f"{doc} ({pol} only)", lower=0.0, **kw)
+    for pol, f, unit, doc, kw in _POLICY_FIELDS
+)
+
+
 #: Every parameter a sweep can vary, in the column order of the variants table.
 PARAMETERS: dict[str, ParamDef] = {
     p.name: p
@@ -88,87 +134,83 @@ PARAMETERS: dict[str, ParamDef] = {
             allowed=RIDER_MODELS,
             doc="primary rider: kinematic replay, SFM normal or SFM aggressive",
         ),
-        _f("sfm.k_des", "N s/m", "desired-velocity gain", lower=0.0, lower_open=True),
-        _f("sfm.A", "N", "vehicle repulsion amplitude", lower=0.0),
-        _f("sfm.b", "1/m", "vehicle repulsion decay rate", lower=0.0, lower_open=True),
-        _f("sfm.v0", "m/s", "rider's nominal desired speed", lower=0.0, lower_open=True),
-        _f("sfm.mass", "kg", "rider + e-scooter mass", lower=0.0, lower_open=True),
-        ParamDef("sfm.vehicle_force", "bool", doc="apply the vehicle repulsion force f_veh"),
+        _f(
+            "sfm.k_des_nspm",
+            "N s/m",
+            "desired-velocity gain k_des (before the configuration's k_des_factor)",
+            lower=0.0,
+            lower_open=True,
+        ),
+        _f("sfm.a_veh_n", "N", "vehicle repulsion amplitude A", lower=0.0),
+        _f("sfm.b_veh_per_m", "1/m", "vehicle repulsion decay rate b", lower=0.0, lower_open=True),
+        _f("sfm.v0_mps", "m/s", "rider's nominal desired speed v0", lower=0.0, lower_open=True),
+        _f("sfm.mass_kg", "kg", "rider + e-scooter mass", lower=0.0, lower_open=True),
+        ParamDef("sfm.use_vehicle_force", "bool", doc="apply the vehicle repulsion force f_veh"),
         _f("ego.cruise_speed_mps", "m/s", "ego PID cruise speed v_d", lower=0.0, lower_open=True),
-        ParamDef("cap.enabled", "bool", doc="collision-avoidance planner on (else PID cruise)"),
-        _f("cap.T_safe_s", "s", "CAP time headway T_safe", lower=0.0, lower_open=True),
+        _f("cap.t_safe_s", "s", "CAP time headway T_safe", lower=0.0, lower_open=True),
         _f("cap.d_buf_m", "m", "CAP standstill buffer d_buf", lower=0.0),
         _f("cap.a_min_mps2", "m/s^2", "CAP maximum braking (negative)", upper=0.0, upper_open=True),
-        _f("perception_delay_s", "s", "delay before the CAP sees the rider", lower=0.0),
+        _f("cap.perception_delay_s", "s", "perception latency (the policy sees late)", lower=0.0),
         ParamDef(
-            "policy",
+            "ego.policy",
             "choice",
             allowed=("none", "paper-cap", "aeb", "idm"),
-            doc="ego policy (vei.policy; replaces cap.enabled: none = PID, paper-cap = CAP)",
+            doc="ego policy (vei.policy): none = PID cruise, paper-cap = PID + CAP, aeb, idm",
         ),
-        _f(
-            "aeb.ttc_warning_s",
-            "s",
-            "AEB forward collision warning TTC",
-            lower=0.0,
-            lower_open=True,
-        ),
-        _f("aeb.ttc_partial_s", "s", "AEB partial braking TTC", lower=0.0, lower_open=True),
-        _f("aeb.ttc_full_s", "s", "AEB full braking TTC", lower=0.0, lower_open=True),
-        _f(
-            "aeb.partial_decel_mps2",
-            "m/s^2",
-            "AEB partial braking deceleration",
-            lower=0.0,
-            lower_open=True,
-        ),
-        _f(
-            "aeb.full_decel_mps2",
-            "m/s^2",
-            "AEB full braking deceleration",
-            lower=0.0,
-            lower_open=True,
-        ),
-        _f("idm.max_accel_mps2", "m/s^2", "IDM maximum acceleration a", lower=0.0, lower_open=True),
-        _f(
-            "idm.comfort_decel_mps2",
-            "m/s^2",
-            "IDM comfortable deceleration b",
-            lower=0.0,
-            lower_open=True,
-        ),
-        _f("idm.time_headway_s", "s", "IDM desired time headway T", lower=0.0),
-        _f("idm.min_gap_m", "m", "IDM jam distance s0", lower=0.0),
+        *_POLICY_DEFS,
     )
 }
 
 #: Sweep parameters of the built-in policies' configurations: name -> (policy, field).
 POLICY_PARAMS: dict[str, tuple[str, str]] = {
+    f"{POLICY_PARAMS_PREFIX}{f}": (pol, f) for pol, f, *_ in _POLICY_FIELDS
+}
+
+#: The sweep parameter that picks the ego's controller (a results column too).
+POLICY_PARAM = "ego.policy"
+
+#: Sweep parameter -> (config section, field) of the run configuration's CaseConfig: the
+#: name is the path (time shift, rider model and the policy aside).
+CONFIG_FIELDS: dict[str, tuple[str, str]] = {
     name: (name.split(".")[0], name.split(".", 1)[1])
     for name in PARAMETERS
-    if name.startswith(("aeb.", "idm."))
+    if name.startswith(("sfm.", "ego.", "cap.")) and name.count(".") == 1 and name != POLICY_PARAM
+}
+
+#: Spellings of earlier versions -> the parameter's name now (a spec using one is refused).
+RENAMED: dict[str, str] = {
+    "sfm.k_des": "sfm.k_des_nspm",
+    "sfm.A": "sfm.a_veh_n",
+    "sfm.b": "sfm.b_veh_per_m",
+    "sfm.v0": "sfm.v0_mps",
+    "sfm.mass": "sfm.mass_kg",
+    "sfm.vehicle_force": "sfm.use_vehicle_force",
+    "cap.T_safe_s": "cap.t_safe_s",
+    "perception_delay_s": "cap.perception_delay_s",
+    "policy": POLICY_PARAM,
+    **{f"{pol}.{f}": f"{POLICY_PARAMS_PREFIX}{f}" for pol, f, *_ in _POLICY_FIELDS},
+}
+#: Earlier parameters whose setting is now another parameter: old name -> how to write it.
+REPLACED: dict[str, str] = {
+    "cap.enabled": "'ego.policy' (cap.enabled true = paper-cap, false = none)",
 }
 
 
-#: Sweep parameter -> (config section, field) of vei.config (time shift and rider model aside).
-CONFIG_FIELDS: dict[str, tuple[str, str]] = {
-    "sfm.k_des": ("sfm", "k_des_nspm"),
-    "sfm.A": ("sfm", "a_veh_n"),
-    "sfm.b": ("sfm", "b_veh_per_m"),
-    "sfm.v0": ("sfm", "v0_mps"),
-    "sfm.mass": ("sfm", "mass_kg"),
-    "sfm.vehicle_force": ("sfm", "use_vehicle_force"),
-    "ego.cruise_speed_mps": ("ego", "cruise_speed_mps"),
-    "cap.T_safe_s": ("cap", "t_safe_s"),
-    "cap.d_buf_m": ("cap", "d_buf_m"),
-    "cap.a_min_mps2": ("cap", "a_min_mps2"),
-    "perception_delay_s": ("cap", "perception_delay_s"),
-}
+def check_name(name: str, where: str) -> None:
+    """Refuse a sweep parameter name of an earlier version, naming the new one.
+
+    Raises:
+        ConfigError: ``name`` is in :data:`RENAMED` or :data:`REPLACED`.
+    """
+    if name in RENAMED:
+        raise ConfigError(f"{where}: sweep parameter '{name}' was renamed '{RENAMED[name]}'")
+    if name in REPLACED:
+        raise ConfigError(f"{where}: sweep parameter '{name}' was replaced by {REPLACED[name]}")
 
 
 def variant_config(
     params: Mapping[str, Any],
-    spec: SweepSpec,
+    spec: SpecLike,
     *,
     auto_shift_s: float | None = None,
     name: str = "variant",
@@ -176,12 +218,13 @@ def variant_config(
     """The full run configuration of one variant (what ``vei run --config`` reads back).
 
     Starts from ``CASE_PRESETS[spec.base]``; ``rider_model`` picks replay / the SFM Normal /
-    Aggressive preset, then ``sfm.*`` override its fields (``sfm.k_des`` is k_des_nspm:
-    the Aggressive preset's k_des_factor still multiplies it); ``cap.enabled`` picks ego mode
-    'cap' or 'pid'; ``policy`` picks the ego policy (the swept ``aeb.*`` / ``idm.*`` of that
-    policy go to ``ego.policy_params``); the other parameters map by :data:`CONFIG_FIELDS`. The time shift is
-    ``auto_shift_s + time_shift_s`` (reference 'auto') or ``time_shift_s`` (reference 'zero'),
-    a missing ``time_shift_s`` counting as 0.
+    Aggressive preset, then ``sfm.*``, ``ego.*`` and ``cap.*`` set the fields of those
+    names (:data:`CONFIG_FIELDS`; ``sfm.k_des_nspm`` is the field k_des_nspm, so the
+    configuration's ``k_des_factor``, 2 for the Aggressive presets, still multiplies it:
+    the effective gain is value x factor); ``ego.policy`` picks the controller and the swept
+    ``ego.policy_params.*`` of that policy go to its ``ego.policy_params`` (those of another
+    policy are left out). The time shift is ``auto_shift_s + time_shift_s`` (reference
+    'auto') or ``time_shift_s`` (reference 'zero'), a missing ``time_shift_s`` counting as 0.
 
     Args:
         params: {dotted parameter name: value} of the variant.
@@ -194,6 +237,8 @@ def variant_config(
     """
     from dataclasses import replace
 
+    for key in params:
+        check_name(key, name)
     base = CASE_PRESETS[spec.base]
     case = replace(base, name=name)
     rider = params.get("rider_model")
@@ -211,15 +256,9 @@ def variant_config(
     updates: dict[str, Any] = {
         sec: replace(getattr(case, sec), **vals) for sec, vals in sections.items() if vals
     }
-    if "cap.enabled" in params:
-        if "policy" in params:
-            raise ConfigError(
-                "a sweep gives cap.enabled or policy, not both (policy: none | paper-cap | ...)"
-            )
-        updates["ego_mode"] = "cap" if bool(params["cap.enabled"]) else "pid"
     case = replace(case, **updates) if updates else case
-    if "policy" in params:  # the controller; its swept parameters go to policy_params
-        pol = str(params["policy"])
+    if POLICY_PARAM in params:  # the controller; its swept parameters go to policy_params
+        pol = str(params[POLICY_PARAM])
         pp = {
             f: float(params[k])
             for k, (owner, f) in POLICY_PARAMS.items()
@@ -240,3 +279,43 @@ def variant_config(
     else:
         shift = offset
     return RunConfig(case=case, time_shift=shift)
+
+
+def check_aeb_rows(variants: Any, base: str = "normal-cap") -> None:
+    """Refuse variants whose AEB thresholds are out of order, as ``vei run`` does.
+
+    Rows whose policy is 'aeb' (column ``ego.policy``, or else the base configuration's)
+    take their swept ``ego.policy_params.*`` and the AEB defaults (or the base's
+    policy_params) for the rest; :func:`vei.policy.aeb.check_aeb_order` checks them.
+
+    Args:
+        variants: [B] rows of a variants table (pandas; variant_id, variant_index and
+            parameter columns).
+        base: the spec's base configuration (CASE_PRESETS).
+    Raises:
+        ConfigError: naming the variant (id and row), the parameters and their values.
+    """
+    from vei.policy.aeb import AEB_PARAM_FIELDS, AEBConfig, check_aeb_order
+
+    case = CASE_PRESETS[base]
+    if POLICY_PARAM in variants.columns:
+        rows = variants[variants[POLICY_PARAM].astype(str).to_numpy() == "aeb"]
+    else:
+        rows = variants if case.policy_name == "aeb" else variants.iloc[:0]
+    if len(rows) == 0:
+        return
+    default = AEBConfig(**((case.ego.policy_params or {}) if case.policy_name == "aeb" else {}))
+    values = {
+        f: rows[c].to_numpy(np.float64)
+        if (c := f"{POLICY_PARAMS_PREFIX}{f}") in rows
+        else getattr(default, f)
+        for f in AEB_PARAM_FIELDS
+    }
+
+    def label_of(i: int) -> str:
+        row = rows.iloc[i]
+        vid = row["variant_id"] if "variant_id" in row else "?"
+        pos = row["variant_index"] if "variant_index" in row else rows.index[i]
+        return f"variant {vid} (variant_index {pos})"
+
+    check_aeb_order(values, len(rows), label_of, prefix=POLICY_PARAMS_PREFIX)

@@ -14,9 +14,9 @@ A sweep spec is a YAML (or JSON) mapping loaded into frozen dataclasses at the e
       time_shift_s: {min: -2.0, max: 2.0, num: 21}   # a range (num: grid points, grid only)
       rider_model: {choices: [normal, aggressive]}   # a finite set
       ego.cruise_speed_mps: {min: 3.0, max: 9.0, num: 13}
-      cap.enabled: true                              # a fixed value
+      ego.policy: paper-cap                          # a fixed value
       sfm:                                           # nested groups are the dotted names
-        k_des: {min: 50.0, max: 200.0, num: 3}
+        k_des_nspm: {min: 50.0, max: 200.0, num: 3}
     reconstruction: {samples: 200}   # optional: every design point runs on each of 200
                                      # posterior samples of the primary rider's trajectory
                                      # (vei.recon.samples, drawn with `seed`; column
@@ -27,7 +27,11 @@ A sweep spec is a YAML (or JSON) mapping loaded into frozen dataclasses at the e
                                      # seed (default: the spec's); columns rider_sample and
                                      # rider.<parameter>)
 
-Unknown keys are errors that name the key and the file; ``0`` never means "default".
+A parameter's name is the path of its field in the run configuration (``cap.t_safe_s``,
+``sfm.k_des_nspm``, ``ego.policy_params.ttc_full_s``; :mod:`vei.experiments.sweep_params`);
+a name of an earlier version (``cap.T_safe_s``, ``sfm.k_des``, ...) is an error naming
+the new one. Unknown keys are errors that name the key and the file; ``0`` never means
+"default".
 Parameters that a spec does not name keep the values of the ``base`` configuration (one of
 ``vei.config.CASE_PRESETS``, default ``normal-cap``: the calibrated rider; ``paper-normal-cap``
 for the paper's). ``rider_model`` normal / aggressive picks the (calibrated) SFM_PRESETS of
@@ -62,18 +66,22 @@ from vei.errors import ConfigError, InputError
 from vei.experiments.sweep_params import (  # noqa: F401 - part of this module's API
     CONFIG_FIELDS,
     PARAMETERS,
+    POLICY_PARAM,
     POLICY_PARAMS,
+    POLICY_PARAMS_PREFIX,
+    RENAMED,
+    REPLACED,
     RIDER_MODELS,
     ParamDef,
+    SpecLike,
+    check_aeb_rows,
+    check_name,
     variant_config,
 )
 
 Design = Literal["grid", "random", "lhs"]
 DESIGNS: tuple[str, ...] = ("grid", "random", "lhs")
 TIME_SHIFT_REFERENCES: tuple[str, ...] = ("auto", "zero")
-
-
-_GROUPS = ("sfm", "ego", "cap")
 
 
 @dataclass(frozen=True)
@@ -133,8 +141,8 @@ class SweepSpec:
             every design point runs on (None: the reconstruction's mean trajectory only).
         rider: a rider population: every design point runs with each of its N sampled
             riders (their SFM parameters in columns RIDER_PARAM_COLUMNS); None: the base
-            configuration's rider. Cannot be combined with sweeping sfm.k_des / A / b / v0
-            / mass (the population sets them).
+            configuration's rider. Cannot be combined with sweeping sfm.k_des_nspm /
+            a_veh_n / b_veh_per_m / v0_mps / mass_kg (the population sets them).
         source: file it was loaded from, if any (for messages).
     """
 
@@ -281,20 +289,34 @@ _PARAM_KEYS = {"min", "max", "num", "choices"}
 
 
 def _flatten_params(raw: Any, where: str) -> dict[str, Any]:
+    """``parameters`` -> {dotted name: value}: groups (``sfm: {k_des_nspm: ..}``,
+    ``ego: {policy_params: {ttc_full_s: ..}}``) become dotted names; a mapping under a
+    known parameter's name is its range / choices."""
     if not isinstance(raw, Mapping) or not raw:
         raise ConfigError(f"{where}: 'parameters' must be a non-empty mapping of parameter names")
     flat: dict[str, Any] = {}
-    for key, val in raw.items():
-        key = str(key)
-        if key in _GROUPS and isinstance(val, Mapping):
-            for sub, subval in val.items():
-                flat[f"{key}.{sub}"] = subval
-        else:
-            flat[key] = val
+
+    def walk(prefix: str, node: Mapping[Any, Any]) -> None:
+        for key, val in node.items():
+            name = f"{prefix}{key}"
+            is_group = any(p.startswith(f"{name}.") for p in PARAMETERS) or any(
+                p.startswith(f"{name}.") for p in (*RENAMED, *REPLACED)
+            )
+            if name not in PARAMETERS and is_group and isinstance(val, Mapping):
+                if set(map(str, val)) & _PARAM_KEYS:  # a range given to a group: say so
+                    raise ConfigError(
+                        f"{where}: parameters.{name} is a group of parameters, not one"
+                    )
+                walk(f"{name}.", val)
+            else:
+                flat[name] = val
+
+    walk("", raw)
     return flat
 
 
 def _parse_param(name: str, raw: Any, where: str) -> ParamSpec:
+    check_name(name, where)
     if name not in PARAMETERS:
         raise ConfigError(f"{where}: unknown parameter '{name}'; known: {', '.join(PARAMETERS)}")
     pdef = PARAMETERS[name]
@@ -523,7 +545,9 @@ def variants_table(spec: SweepSpec, scenario_id: str) -> pd.DataFrame:
             df[p.name] = df[p.name].astype(bool)
         else:
             df[p.name] = df[p.name].astype(str)
-    return df.drop_duplicates("variant_id", keep="first").reset_index(drop=True)
+    df = df.drop_duplicates("variant_id", keep="first").reset_index(drop=True)
+    check_aeb_rows(df, spec.base)  # what vei run refuses, a sweep refuses before it runs
+    return df
 
 
 def row_params(row: Mapping[str, Any], spec: SweepSpec) -> dict[str, Any]:

@@ -31,6 +31,7 @@ not public) and every one is a sweepable parameter.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -51,7 +52,7 @@ MIN_CLOSING_SPEED_MPS = 0.1
 
 @dataclass(frozen=True)
 class AEBConfig:
-    """Parameters of the ``aeb`` policy (all sweepable as ``aeb.<name>``).
+    """Parameters of the ``aeb`` policy (all sweepable as ``ego.policy_params.<name>``).
 
     Attributes:
         ttc_warning_s: forward collision warning at TTC <= this [s].
@@ -97,6 +98,49 @@ AEB_PARAM_FIELDS: dict[str, str] = {
     "partial_decel_mps2": "aeb_partial_decel_mps2",
     "full_decel_mps2": "aeb_full_decel_mps2",
 }
+
+
+#: The order AEBConfig requires: (larger, smaller) field pairs.
+AEB_ORDER: tuple[tuple[str, str], ...] = (
+    ("ttc_warning_s", "ttc_partial_s"),
+    ("ttc_partial_s", "ttc_full_s"),
+    ("full_decel_mps2", "partial_decel_mps2"),
+)
+
+
+def check_aeb_order(
+    values: Mapping[str, Any],
+    n: int,
+    label_of: Callable[[int], str] = lambda i: f"variant {i}",
+    *,
+    prefix: str = "aeb.",
+) -> None:
+    """The rule of :class:`AEBConfig` (warning >= partial >= full TTC, full >= partial
+    deceleration) over a batch of variants, so that a sweep refuses what ``vei run`` does.
+
+    Args:
+        values: AEBConfig field -> [n] array or scalar (a fixed value for every variant).
+        n: number of variants B.
+        label_of: variant position -> its name in the message (only the first bad one
+            is named).
+        prefix: how the message spells a field (a sweep: 'ego.policy_params.').
+
+    Raises:
+        ConfigError: naming the first variant out of order, the two parameters and their
+            values (and how many variants are).
+    """
+    v = {k: np.broadcast_to(np.asarray(values[k], dtype=np.float64), (n,)) for k in values}
+    for hi, lo in AEB_ORDER:
+        if hi not in v or lo not in v:
+            continue
+        bad = np.flatnonzero(v[hi] < v[lo])
+        if bad.size:
+            i = int(bad[0])
+            more = f" (and {bad.size - 1} more variants)" if bad.size > 1 else ""
+            raise ConfigError(
+                f"{label_of(i)}: aeb needs {prefix}{hi} >= {prefix}{lo}, got "
+                f"{v[hi][i]:g} < {v[lo][i]:g}{more}"
+            )
 
 
 def path_ttc(gap_m: FloatArray, rel_vx_mps: FloatArray, valid: npt.NDArray[np.bool_]) -> FloatArray:
@@ -220,7 +264,9 @@ __all__ = [
     "AEB_FULL",
     "AEB_OFF",
     "AEB_PARAM_FIELDS",
+    "AEB_ORDER",
     "AEB_PARTIAL",
+    "check_aeb_order",
     "aeb_decel",
     "aeb_stage",
     "path_ttc",
