@@ -14,25 +14,16 @@ bounds the difference.
 
 from __future__ import annotations
 
+import hashlib
+import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from vei.errors import DependencyError
+from vei.sim.kernel_layout import BOOL_FIELDS, FLOAT_FIELDS, N_OUT, P_DELAY, PARAM_FIELDS
 from vei.sim.riders import EXTRA_BOOL_FIELDS, EXTRA_FLOAT_FIELDS, RIDER_COLUMNS
-
-# Rows of the packed parameter matrix P [N_PARAMS, B].
-(
-    P_SHIFT, P_SFM, P_KDES, P_AVEH, P_BVEH, P_V0, P_MASS, P_SIGMA, P_LOOK, P_ARRIVE, P_USEVF, P_PAPERV,
-    P_FRONTB, P_VMAX, P_AMAX_R, P_MODE, P_VD, P_KP, P_KI, P_KD, P_ILIM, P_IWIN, P_AMAX, P_DMAX, P_LAG,
-    P_TSAFE, P_DBUF, P_AMIN, P_HALFW, P_RANGE, P_RELEASE, P_RECTOL, P_PAPERLAW, P_DELAY,
-    P_SFR, P_ARR, P_BRR, P_USERF,
-) = range(38)  # fmt: skip
-N_PARAMS = 38
-
-# Rows of the float output O [N_OUT, T, B] (same order as vei.sim.result._RECORDED floats).
-O_S, O_X, O_Y, O_YAW, O_V, O_A, O_U, O_RX, O_RY, O_RYAW, O_RSP, O_RVX, O_RVY, O_RA = range(14)
-N_OUT = 14
 
 _KERNEL: Any = None
 
@@ -55,28 +46,43 @@ def _build() -> Any:
         raise DependencyError("the compiled engine kernel needs numba (pip install numba)")
     from vei.sim._kernel_numba import kernel
 
+    _drop_stale_cache(kernel)
     _KERNEL = kernel
     return kernel
 
 
-#: SimState float fields in the packed order of the kernel's S0 / FS rows.
-FLOAT_FIELDS = (
-    "ego_s_m", "ego_x_m", "ego_y_m", "ego_yaw_rad", "ego_v_mps", "ego_a_mps2", "ego_act_mps2", "ego_cmd",
-    "pid_integral_m", "pid_prev_error_mps", "cap_state", "rider_x_m", "rider_y_m", "rider_yaw_rad",
-    "rider_vx_mps", "rider_vy_mps", "rider_speed_mps", "rider_a_mps2", "rider_prog_m",
+#: Modules compiled into the kernel (numba's cache checks only the kernel's own file).
+_KERNEL_SOURCES = (
+    "_kernel_numba.py", "_kernel_scalar.py", "_kernel_ego.py", "_kernel_sfm.py",
+    "_kernel_riders.py", "kernel_layout.py",
 )  # fmt: skip
-#: SimState bool fields in the order of B0 / FB rows.
-BOOL_FIELDS = ("rider_active", "rider_started", "collided", "rider_done")
-#: VariantParams fields in the order of the rows of P.
-PARAM_FIELDS = (
-    "time_shift_s", "rider_sfm", "k_des_nspm", "a_veh_n", "b_veh_per_m", "v0_mps", "mass_kg", "sigma_m",
-    "lookahead_m", "arrive_radius_m", "use_vehicle_force", "paper_vdes", "front_bumper", "max_speed_mps",
-    "max_accel_mps2", "ego_mode", "cruise_speed_mps", "kp", "ki", "kd", "integral_limit", "integral_window_s",
-    "max_accel_mps2_ego", "max_decel_mps2_ego", "actuator_lag_s", "t_safe_s", "d_buf_m", "a_min_mps2",
-    "corridor_half_width_m", "detection_range_m", "release_margin_m", "recover_tolerance_mps",
-    "paper_per_step", "perception_delay_s", "speed_from_recording", "a_rider_n", "b_rider_per_m",
-    "use_rider_force",
-)  # fmt: skip
+
+
+def _drop_stale_cache(kernel: Any) -> None:
+    """Flush the kernel's on-disk numba cache when any module compiled into it changed.
+
+    numba keys a cached function by its own source file only, so an edit of a helper module
+    (inlined into the kernel) would otherwise keep serving the old machine code. A SHA-256
+    of all :data:`_KERNEL_SOURCES` is kept next to the cache; on a mismatch the cache is
+    flushed (recompiled on the first call) and the new digest written atomically.
+    """
+    cache = getattr(kernel, "_cache", None)
+    cache_dir = getattr(cache, "cache_path", None)
+    if not cache_dir:
+        return
+    here = Path(__file__).resolve().parent
+    digest = hashlib.sha256(b"".join((here / n).read_bytes() for n in _KERNEL_SOURCES)).hexdigest()
+    stamp = Path(cache_dir) / "_kernel_numba.sources.sha256"
+    try:
+        if stamp.is_file() and stamp.read_text().strip() == digest:
+            return
+        cache.flush()
+        stamp.parent.mkdir(parents=True, exist_ok=True)
+        tmp = stamp.with_name(f"{stamp.name}.{os.getpid()}.tmp")
+        tmp.write_text(digest + "\n")
+        os.replace(tmp, stamp)
+    except OSError:  # read-only install: nothing cached by us can be stale
+        return
 
 
 def _path_rows(path: Any) -> np.ndarray:

@@ -6,16 +6,43 @@ import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
 from vei.config import AUTO, MAX_RUN_UP_M, MEDIAN_MOVING, CaseConfig
 from vei.errors import ConfigError, InputError
+from vei.sim.tables import TimeTable
 
-if TYPE_CHECKING:
-    from vei.sim.state import ScenarioArrays
+
+class SceneDefaults(Protocol):
+    """What :meth:`VariantParams.from_case` reads of a scenario to resolve its defaults.
+
+    :class:`vei.sim.state.ScenarioArrays` has these attributes (a protocol, so that this
+    module does not import the one that imports it).
+    """
+
+    @property
+    def scenario_id(self) -> str:
+        """The scenario's id (for messages)."""
+
+    @property
+    def ego_speed0_mps(self) -> float:
+        """Recorded ego speed at t = 0 [m/s]."""
+
+    @property
+    def ego_median_moving_speed_mps(self) -> float:
+        """Median recorded ego speed while moving [m/s] (NaN when it never moves)."""
+
+    @property
+    def conflict_s_m(self) -> float:
+        """Arc length [m] along the ego's path of its point nearest to the rider's path."""
+
+    @property
+    def rider_track(self) -> TimeTable:
+        """The rider's recording on a uniform time grid (column speed_mps used)."""
+
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -240,7 +267,7 @@ class VariantParams:
     def from_case(
         cls,
         case: CaseConfig,
-        arrays: ScenarioArrays,
+        arrays: SceneDefaults,
         batch_size: int = 1,
         *,
         time_shift_s: npt.ArrayLike = 0.0,
@@ -253,7 +280,8 @@ class VariantParams:
         replay-speed mode always starts from the recorded speed).
 
         Args:
-            case: the configuration. arrays: the scenario's arrays (for resolved defaults).
+            case: the configuration. arrays: the scenario's arrays (a ScenarioArrays; for
+                resolved defaults).
             batch_size: B. time_shift_s: scalar or [B] [s].
             overrides: any field of VariantParams, scalar or [B] (e.g. cruise_speed_mps=
                 np.linspace(4, 8, B)). An overridden cruise_speed_mps also sets

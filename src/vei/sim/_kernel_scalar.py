@@ -1,0 +1,94 @@
+"""Scalar numba helpers of the compiled kernel: interpolation index, box overlap, repulsion.
+
+Imported only when numba is used (by :mod:`vei.sim._kernel_numba` and the other kernel
+helper modules). Every function is compiled at module level with ``cache=True`` so that
+numba's on-disk cache works across processes. Scalars in SI units (m, s, rad, N).
+"""
+
+# ruff: noqa: N803
+from __future__ import annotations
+
+import math
+
+import numba
+
+#: Gap [m] beyond which riders / pedestrians do not repel (vei.models.sfm.RIDER_FORCE_CUTOFF_M).
+CUTOFF_M = 10.0
+
+
+@numba.njit(cache=True)
+def rforce(px, py, qx, qy, rs, a, bb):  # type: ignore[no-untyped-def]
+    """Rider repulsion on p from q (vei.models.sfm.rider_force).
+
+    Args: positions p, q [m]; rs the sum of both radii [m]; a the strength [N]; bb the
+    decay [1/m]. Returns the force (fx, fy) [N]: a exp(-bb gap) along q -> p; zero when the
+    centres coincide or the gap exceeds :data:`CUTOFF_M`.
+    """
+    dx = px - qx
+    dy = py - qy
+    dc = math.sqrt(dx * dx + dy * dy)
+    gap = dc - rs
+    if dc < 1e-9 or gap > CUTOFF_M:
+        return 0.0, 0.0
+    inv = a * math.exp(-bb * gap) / dc
+    return inv * dx, inv * dy
+
+
+@numba.njit(cache=True, inline="always")
+def ped_forces(sx, sy, x0, y0, r0, k, ped_idx, ped_rad, oX, oY, oACT, a, bb):  # type: ignore[no-untyped-def]
+    """Add the repulsion of the active pedestrians at step k to (sx, sy) [N], in order.
+
+    Args: x0, y0 [m] and r0 [m] the repelled rider's position and radius; ped_idx [n] their
+    columns in the others' arrays oX, oY, oACT [T, no]; ped_rad [n] their radii [m]; a [N],
+    bb [1/m] the force parameters. Returns the new (sx, sy), summed one pedestrian at a time
+    in index order (the order of the NumPy reference).
+    """
+    for q in range(ped_idx.shape[0]):
+        jj = ped_idx[q]
+        if oACT[k, jj]:
+            hx_, hy_ = rforce(x0, y0, oX[k, jj], oY[k, jj], r0 + ped_rad[q], a, bb)
+            sx += hx_
+            sy += hy_
+    return sx, sy
+
+
+@numba.njit(cache=True)
+def idx(t0: float, dt: float, n: int, q: float) -> tuple[int, float]:
+    """Linear-interpolation cell of q on the grid t0 + i dt (i < n), clamped to the grid.
+
+    Returns (i, w): the left node i in [0, n - 2] and the weight w in [0, 1] (the value is
+    table[i] + w * slope[i], slopes per cell).
+    """
+    f = (q - t0) * (1.0 / dt)
+    if f < 0.0:
+        f = 0.0
+    elif f > n - 1.0:
+        f = n - 1.0
+    i = int(f)
+    if i > n - 2:
+        i = max(n - 2, 0)
+    return i, f - i
+
+
+@numba.njit(cache=True)
+def sat(ax, ay, ayaw, al, aw, bx, by, byaw, bl, bw) -> bool:  # type: ignore[no-untyped-def]
+    """True when the oriented boxes a and b overlap (separating-axis test, 1e-9 m slack).
+
+    Args: centres [m], yaws [rad], lengths and widths [m] of the two boxes.
+    """
+    ca, sa = math.cos(ayaw), math.sin(ayaw)
+    cb, sb = math.cos(byaw), math.sin(byaw)
+    dx, dy = bx - ax, by - ay
+    hla, hwa, hlb, hwb = 0.5 * al, 0.5 * aw, 0.5 * bl, 0.5 * bw
+    cd = abs(ca * cb + sa * sb)
+    sd = abs(sa * cb - ca * sb)
+    eps = 1e-9
+    if abs(dx * ca + dy * sa) > hla + hlb * cd + hwb * sd + eps:
+        return False
+    if abs(-dx * sa + dy * ca) > hwa + hlb * sd + hwb * cd + eps:
+        return False
+    if abs(dx * cb + dy * sb) > hlb + hla * cd + hwa * sd + eps:
+        return False
+    if abs(-dx * sb + dy * cb) > hwb + hla * sd + hwa * cd + eps:
+        return False
+    return True
