@@ -46,6 +46,41 @@ def test_demo_end_to_end_prints_five_rows_and_writes_the_figures(demo_run):
     assert (out / "scenario" / "scenario.json").exists()
 
 
+def _table_rows(text: str) -> dict[str, list[str]]:
+    """The printed table's rows: config name -> its cells (rich box drawing)."""
+    rows = {}
+    for line in text.splitlines():
+        if line.startswith("│"):
+            cells = [c.strip() for c in line.strip().strip("│").split("│")]
+            if cells[0]:
+                rows[cells[0]] = cells
+    return rows
+
+
+def test_the_table_shows_what_a_collision_costs(demo_run):
+    # impact speed, injury risk and the verdict against no avoidance, as in summary.csv
+    code, text, out = demo_run
+    assert code == 0, text
+    for head in ("impact", "injury", "verdict"):  # a long header wraps over two lines
+        assert head in text
+    rows = _table_rows(text)
+    csv = pd.read_csv(out / "summary.csv", keep_default_na=False, na_values=[""])
+    assert set(csv["name"]) == set(PAPER_CASES) <= set(rows)
+    for r in csv.itertuples():
+        impact, risk, verdict = rows[r.name][-3:]
+        if r.collision:
+            assert impact == f"{r.impact_speed_mps:.2f}" and float(impact) > 0, r.name
+            assert risk == format(r.injury_risk, ".3g") and 0 < float(risk) < 1, r.name
+        else:
+            assert impact == "-" and float(risk) == 0.0, r.name
+        want = "reference" if r.reference == r.name else f"{r.verdict} vs {r.reference}"
+        assert verdict == want, r.name
+    # the paper's case: no avoidance collides (its own reference), the CAP avoids
+    assert rows["normal"][-1] == "reference" and rows["aggressive"][-1] == "reference"
+    assert rows["normal-cap"][-1] == "avoided vs normal"
+    assert rows["aggressive-cap"][-1] == "avoided vs aggressive"
+
+
 def test_casestudy_command_with_given_shift(demo_run, tmp_path, capsys):
     _, _, out = demo_run
     code = main(
