@@ -101,6 +101,21 @@ def test_boundary_option(demo_scenario, tmp_path, capsys):
         (SPEC, ["--x-range", "0,1"], "--x and --y"),
         (SPEC, ["--engine", "dask"], "engine"),
         (SPEC, ["--x", "time_shift_s", "--y", "ego.cruise_speed_mps", "--coarse", "3"], "--coarse"),
+        (
+            SPEC.replace("ego.policy: none", "cap.enabled: false"),
+            [],
+            "sweep parameter 'cap.enabled' was replaced by 'ego.policy'",
+        ),
+        (
+            SPEC + "  cap.T_safe_s: 1.5\n",
+            [],
+            "sweep.yaml: sweep parameter 'cap.T_safe_s' was renamed 'cap.t_safe_s'",
+        ),
+        (
+            SPEC,
+            ["--x", "time_shift_s", "--y", "perception_delay_s", "--y-range", "0,1"],
+            "sweep parameter 'perception_delay_s' was renamed 'cap.perception_delay_s'",
+        ),
     ],
 )
 def test_errors_exit_2_with_a_clear_message(demo_scenario, tmp_path, capsys, text, extra, needle):

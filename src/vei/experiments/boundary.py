@@ -408,11 +408,12 @@ def search_boundary(
 
     from vei.experiments.sweep_engine import EngineEvaluator
     from vei.experiments.sweep_io import json_records, most_critical, write_variant_configs
-    from vei.experiments.sweep_spec import PARAMETERS, variant_id, variant_seed
+    from vei.experiments.sweep_spec import PARAMETERS, check_name, variant_id, variant_seed
     from vei.io.atomic import write_json, write_parquet, write_text
     from vei.report.riskmap import write_risk_map
 
     for axis in (x, y):
+        check_name(axis, "boundary axis")  # an old spelling: say the new one
         if axis not in PARAMETERS or PARAMETERS[axis].kind != "float":
             floats = [n for n, p in PARAMETERS.items() if p.kind == "float"]
             raise ConfigError(
