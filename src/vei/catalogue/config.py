@@ -14,7 +14,7 @@ from vei.catalogue.encounters import EncounterRule
 from vei.errors import ConfigError
 
 #: The default per-encounter sweep: 240 Latin-hypercube variants around the automatic time
-#: shift (+-2 s), over the ego's cruise speed, the rider model and the CAP (on/off, T_safe).
+#: shift (+-2 s), over the ego's cruise speed, the rider model and the CAP (on/off, t_safe_s).
 #: Small on purpose: the whole TrafficMonitoring catalogue runs in a few minutes on 2 cores.
 DEFAULT_SWEEP: dict[str, Any] = {
     "design": "lhs",
@@ -26,7 +26,8 @@ DEFAULT_SWEEP: dict[str, Any] = {
         "time_shift_s": {"min": -2.0, "max": 2.0},
         "ego.cruise_speed_mps": {"min": 3.0, "max": 9.0},
         "rider_model": {"choices": ["replay", "normal", "aggressive"]},
-        "cap": {"enabled": {"choices": [True, False]}, "T_safe_s": {"min": 1.0, "max": 3.0}},
+        "ego.policy": {"choices": ["paper-cap", "none"]},
+        "cap.t_safe_s": {"min": 1.0, "max": 3.0},
     },
 }
 
