@@ -45,6 +45,7 @@ from vei.config_models import (  # noqa: F401 - re-exported: vei.config is the p
     _finite,
     validate_policy_spec,
 )
+from vei.config_perception import PerceptionConfig
 from vei.errors import ConfigError
 
 T = TypeVar("T")
@@ -148,7 +149,7 @@ class CaseConfig:
         ego: ego / PID / actuator parameters.
         cap: CAP parameters (used when ego_mode == 'cap').
         perception: the ego's sensor between the world and the policy
-            (:class:`vei.policy.perception.PerceptionConfig`: range, field of view,
+            (:class:`vei.config_perception.PerceptionConfig`: range, field of view,
             occlusion, noise, detection probability, seed); None (default) or
             ``enabled: false`` = ideal perception (the paper's case). Its latency is
             ``cap.perception_delay_s``. Enabled, every closed-loop controller runs on the
@@ -161,12 +162,12 @@ class CaseConfig:
     ego_mode: EgoMode = "pid"
     ego: EgoConfig = field(default_factory=EgoConfig)
     cap: CAPConfig = field(default_factory=CAPConfig)
-    perception: Any = None
+    perception: PerceptionConfig | None = None
 
     def __post_init__(self) -> None:
-        if self.perception is not None and type(self.perception).__name__ != "PerceptionConfig":
+        if self.perception is not None and not isinstance(self.perception, PerceptionConfig):
             raise ConfigError(
-                f"perception must be a PerceptionConfig (vei.policy.perception) or a mapping, "
+                f"perception must be a PerceptionConfig (vei.config_perception) or a mapping, "
                 f"got {type(self.perception).__name__}"
             )
         if not isinstance(self.name, str) or not self.name:
@@ -368,8 +369,6 @@ def _build(cls: type[T], raw: Any, where: str) -> T:
     if cls is RunConfig:  # CaseConfig.rider is a string; RunConfig.rider a population
         nested["rider"] = RiderPopulationConfig
     if cls is CaseConfig and raw.get("perception") is not None:
-        from vei.policy.perception import PerceptionConfig  # the sensor model's own config
-
         nested["perception"] = PerceptionConfig
     for key, value in raw.items():
         sub = nested.get(key)
