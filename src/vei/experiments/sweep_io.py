@@ -158,9 +158,9 @@ def write_variant_configs(
     paths = []
     for row in variants.to_dict("records"):
         params = {n: row[n] for n in (*spec.names, *RIDER_PARAM_COLUMNS) if n in row}
-        cfg = variant_config(
-            params, spec, auto_shift_s=auto_shift_s, name=f"variant-{row['variant_id']}"
-        )
+        # Named by the variant id, the sweep's label of the variant: the perception's
+        # random numbers are keyed by it (vei.policy.perception_random.label_keys).
+        cfg = variant_config(params, spec, auto_shift_s=auto_shift_s, name=str(row["variant_id"]))
         doc = config_to_dict(cfg)
         header = (
             f"# vei run configuration of sweep variant {row['variant_id']} "

@@ -11,6 +11,8 @@ Box-Muller transform of two uniform streams.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import numpy.typing as npt
 
@@ -44,8 +46,8 @@ def variant_keys_u64(variant_keys: npt.ArrayLike) -> UIntArray:
     """Variant keys as uint64 [B] (integers; negative ones wrap modulo 2^64).
 
     Args:
-        variant_keys: [B] integers identifying each variant (e.g. its index in the sweep's
-            variant table; never its position in a batch, which would break invariance).
+        variant_keys: [B] integers identifying each variant (e.g. :func:`label_keys` of
+            its label; never its position in a batch, which would break invariance).
     Returns:
         [B] uint64.
     """
@@ -57,6 +59,37 @@ def variant_keys_u64(variant_keys: npt.ArrayLike) -> UIntArray:
     if keys.dtype.kind == "i" or keys.size == 0:
         return keys.astype(np.int64).view(np.uint64)
     raise ValueError(f"variant_keys must be integers, got dtype {keys.dtype}")
+
+
+def label_keys(labels: Sequence[object] | npt.ArrayLike) -> UIntArray:
+    """Stable 64-bit perception keys of variants from their labels (names).
+
+    The key of a label is the first 8 bytes (little-endian) of its BLAKE2b hash (UTF-8 of
+    ``str(label)``): it depends on the variant's label only, not on its position in a
+    batch, so a sweep variant (labelled by its variant id) draws the same random numbers in
+    a sweep chunk of any size and in ``vei run`` of its written configuration. Labels that
+    repeat in the given order get distinct keys: the n-th repeat (n >= 1) is hashed
+    with the BLAKE2b salt n (the first occurrence with the default salt 0), so equally named variants of one batch still draw
+    independent numbers (those are reproducible for the same batch, but a repeated label
+    run alone is its first occurrence: give variants distinct labels to re-run them singly).
+
+    Args:
+        labels: [B] labels (any objects; ``str`` of each is hashed).
+    Returns:
+        [B] uint64 keys (pass as ``variant_keys``).
+    """
+    import hashlib
+
+    seen: dict[str, int] = {}
+    out = np.empty(len(labels), dtype=np.uint64)  # type: ignore[arg-type]
+    for i, lab in enumerate(labels):  # type: ignore[arg-type]
+        text = str(lab)
+        n = seen.get(text, 0)
+        seen[text] = n + 1
+        salt = n.to_bytes(16, "little")  # n = 0: all zeros, BLAKE2b's default salt
+        digest = hashlib.blake2b(text.encode("utf-8"), digest_size=8, salt=salt).digest()
+        out[i] = int.from_bytes(digest, "little")
+    return out
 
 
 def counter_bits(

@@ -57,6 +57,7 @@ import numpy.typing as npt
 
 from vei.config import CASE_PRESETS, CaseConfig, SimConfig, case_preset
 from vei.errors import ConfigError
+from vei.policy.perception_random import label_keys
 from vei.sim.batch import BatchFlags, Block, batch_flags, group_keys
 from vei.sim.observe import PolicyDriver
 from vei.sim.result import _RECORDED, _RECORDED_EXTRA, SimResult
@@ -115,6 +116,9 @@ def simulate(
     # Policy variants (ego_mode 3) sort last and always run the NumPy step loop; the
     # others keep the requested kernel.
     n_kernel = int(np.count_nonzero(run_params.ego_mode != EGO_POLICY))
+    # Perception draws are keyed by each variant's label (a sweep's variant id, a run's
+    # configuration name), not by its position: the same in any batch (vei run = sweep).
+    vkeys = label_keys(params.labels)[perm] if n_kernel < b else None
     if use_numba and 0 < n_kernel < b:
         parts = [
             _run_sorted(arrays, run_params.take(slice(0, n_kernel)), record, progress, True),
@@ -124,13 +128,13 @@ def simulate(
                 record,
                 progress,
                 False,
-                perm[n_kernel:],
+                None if vkeys is None else vkeys[n_kernel:],
             ),
         ]
         bufs, hit_buf, xbufs, coll_t, min_d, state = _merge_runs(parts)
     else:
         bufs, hit_buf, xbufs, coll_t, min_d, state = _run_sorted(
-            arrays, run_params, record, progress, use_numba and n_kernel == b, perm
+            arrays, run_params, record, progress, use_numba and n_kernel == b, vkeys
         )
     if not sorted_already:
         inv = np.empty_like(perm)
@@ -190,7 +194,7 @@ def _run_sorted(
     record: Record,
     progress: bool,
     use_numba: bool,
-    variant_keys: npt.NDArray[np.intp] | None = None,
+    variant_keys: npt.NDArray[np.uint64] | None = None,
 ) -> tuple[Any, ...]:
     """Run a batch already sorted into blocks; returns ([T, B] series buffers, hit
     buffer, extra-rider buffers, collision times, minimum distances, final state)."""

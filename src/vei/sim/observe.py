@@ -26,6 +26,7 @@ from vei.errors import ConfigError
 from vei.models import ego as ego_model
 from vei.policy.base import PolicyAction, check_policy
 from vei.policy.observation import Observation, category_code, wrap_angle
+from vei.policy.perception_random import label_keys, variant_keys_u64
 from vei.sim.batch import BatchFlags, Block
 from vei.sim.state import ScenarioArrays, SimState, VariantParams
 
@@ -207,6 +208,9 @@ class PolicyDriver:
 
     Args:
         arrays: the scenario. params: the batch (engine order). flags: its BatchFlags.
+        variant_keys: [B] integer keys of the perception's random numbers (engine order);
+            default :func:`vei.policy.perception_random.label_keys` of ``params.labels``
+            (a variant's draws follow its label, not its position in the batch).
     """
 
     def __init__(
@@ -219,7 +223,7 @@ class PolicyDriver:
         self.arrays = arrays
         b_all = params.batch_size
         self.variant_keys = (
-            np.arange(b_all) if variant_keys is None else np.asarray(variant_keys, dtype=np.int64)
+            label_keys(params.labels) if variant_keys is None else variant_keys_u64(variant_keys)
         )
         if self.variant_keys.shape != (b_all,):
             raise ConfigError(f"variant_keys must have shape ({b_all},)")
