@@ -232,3 +232,26 @@ def test_a_sweep_refuses_aeb_thresholds_that_vei_run_refuses(demo_scenario):
     prep = EngineEvaluator().prepare(demo_scenario)
     with pytest.raises(ConfigError, match="full_decel_mps2 >= ego.policy_params.partial_decel"):
         variant_params(good, prep.arrays, auto_shift_s=prep.auto_shift_s)
+
+
+def test_every_sweep_spec_in_the_docs_and_examples_uses_todays_names():
+    # The YAML blocks of docs/*.md and README.md that hold a sweep spec (top level, or
+    # under 'sweep:' as in a catalogue settings file) and examples/*.yaml all load.
+    import re
+    from pathlib import Path
+
+    import yaml
+
+    root = Path(__file__).resolve().parents[2]
+    texts = {p: p.read_text() for p in [*sorted((root / "docs").glob("*.md")), root / "README.md"]}
+    blocks = [(p, b) for p, t in texts.items() for b in re.findall(r"```yaml\n(.*?)```", t, re.S)]
+    blocks += [(p, p.read_text()) for p in sorted((root / "examples").glob("*.yaml"))]
+    found = 0
+    for path, block in blocks:
+        raw = yaml.safe_load(block)
+        if isinstance(raw, dict) and isinstance(raw.get("sweep"), dict):
+            raw = raw["sweep"]
+        if isinstance(raw, dict) and "parameters" in raw and "design" in raw:
+            spec_from_dict(raw, source=str(path.relative_to(root)))
+            found += 1
+    assert found >= 4  # sweeps.md, policy.md, catalogue.md, examples/sweep.yaml
