@@ -122,6 +122,28 @@ def test_no_two_modules_import_each_other():
     )
 
 
+def _is_config(module: str) -> bool:
+    return module == "vei.config" or module.startswith("vei.config_")
+
+
+def test_config_imports_nothing_above_it():
+    """DESIGN.md layering: the configuration (vei.config*) imports no vei module but
+    vei.errors, vei.types and other vei.config* modules (anywhere in the file, inside
+    functions and under TYPE_CHECKING too)."""
+    graph = import_graph()
+    configs = [m for m in graph if _is_config(m)]
+    assert "vei.config_perception" in graph["vei.config"]  # guard: edges are read
+    upward = sorted(
+        (a, b)
+        for a in configs
+        for b in graph[a]
+        if not (_is_config(b) or b in ("vei.errors", "vei.types"))
+    )
+    assert not upward, f"{len(upward)} upward import(s) of the config layer:\n" + "\n".join(
+        f"  {a} -> {b}" for a, b in upward
+    )
+
+
 def test_no_module_over_600_lines():
     too_long = sorted(
         (n, str(p.relative_to(SRC.parent)))
