@@ -409,11 +409,29 @@ def _build(cls: type[T], raw: Any, where: str) -> T:
                 value = float(value)
             kwargs[key] = value
     try:
-        return replace(base, **kwargs) if base is not None else cls(**kwargs)
+        out = replace(base, **kwargs) if base is not None else cls(**kwargs)
     except TypeError as exc:  # missing required field
         raise ConfigError(f"{where}: {exc}") from None
     except ConfigError as exc:
         raise ConfigError(f"{where}: {exc}") from None
+    if isinstance(out, CaseConfig) and "ego_mode" in raw:
+        _check_ego_mode_agrees(out, raw["ego_mode"], where)
+    return out
+
+
+def _check_ego_mode_agrees(case: CaseConfig, given: Any, where: str) -> None:
+    """An ego_mode written next to ego.policy must be the one the policy implies ('pid'
+    for 'none', 'cap' for 'paper-cap', 'policy' for any other): else the policy would
+    silently win."""
+    pol = case.ego.policy
+    if pol is None:
+        return
+    implied = KERNEL_POLICIES.get(pol, "policy")
+    if given != implied:
+        raise ConfigError(
+            f"{where}: ego_mode {given!r} disagrees with ego.policy {pol!r} (which runs as "
+            f"ego_mode {implied!r}); drop ego_mode (the policy decides) or make them agree"
+        )
 
 
 def _check_speed_override(base_obj: Any, overrides: Mapping[str, Any], where: str) -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any, Literal
 
 from vei.errors import ConfigError
@@ -212,6 +212,38 @@ BUILTIN_POLICIES: dict[str, str] = {
 KERNEL_POLICIES: dict[str, str] = {"none": "pid", "paper-cap": "cap"}
 
 
+#: Policies that take their parameters from the configuration's own fields (EgoConfig's
+#: PID gains, CAPConfig), not from ``ego.policy_params``: at bind they take the run's
+#: per-variant values, so policy_params given to them would be ignored.
+CONFIG_FIELD_POLICIES: dict[str, str] = {
+    "none": "none",
+    "paper-cap": "paper-cap",
+    BUILTIN_POLICIES["none"]: "none",
+    BUILTIN_POLICIES["paper-cap"]: "paper-cap",
+}
+
+
+def _config_field_policy_message(policy: str, params: Mapping[str, Any]) -> str:
+    """The error for policy_params given to 'none' / 'paper-cap': names, per key, the
+    configuration field that sets it (``ego.kp``, ``cap.t_safe_s``, ...)."""
+    ego_fields = {f.name for f in fields(EgoConfig)} - {"policy", "policy_params"}
+    cap_fields = {f.name for f in fields(CAPConfig)}
+    hints = []
+    for key in params:
+        if key in ego_fields:
+            hints.append(f"{key!r}: set ego.{key}")
+        elif key in cap_fields:
+            hints.append(f"{key!r}: set cap.{key}")
+        elif key == "paper_per_step":
+            hints.append("'paper_per_step': set cap.braking_law: paper_per_step")
+        else:
+            hints.append(f"{key!r}: no parameter of {CONFIG_FIELD_POLICIES[policy]!r}")
+    return (
+        f"ego.policy_params given to policy {policy!r}, which takes its parameters from the "
+        f"configuration's fields (ego.kp/ki/kd, cap.*), not from policy_params; " + "; ".join(hints)
+    )
+
+
 def validate_policy_spec(spec: Any) -> str:
     """``spec`` if it has the form of a policy spec (a ConfigError otherwise); loads nothing.
 
@@ -320,6 +352,8 @@ class EgoConfig:
             if self.policy is None:
                 raise ConfigError("policy_params given without a policy (ego.policy)")
             object.__setattr__(self, "policy_params", dict(self.policy_params))
+            if self.policy_params and self.policy in CONFIG_FIELD_POLICIES:
+                raise ConfigError(_config_field_policy_message(self.policy, self.policy_params))
         if isinstance(self.cruise_speed_mps, str):
             _choice("cruise_speed_mps", self.cruise_speed_mps, (MEDIAN_MOVING,))
         else:

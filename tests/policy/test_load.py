@@ -95,3 +95,75 @@ def test_builtin_policies_compare_by_parameters() -> None:
     assert load_policy("aeb") != load_policy("aeb", {"ttc_full_s": 1.0})
     assert load_policy("paper-cap") == load_policy("paper-cap")
     assert load_policy("idm") != load_policy("aeb")
+
+
+@pytest.mark.parametrize(
+    ("policy", "params", "field"),
+    [
+        ("none", {"bogus": 1}, "'bogus': no parameter of 'none'"),
+        ("none", {"kp": 0.1}, "'kp': set ego.kp"),
+        ("paper-cap", {"t_safe_s": 3.0}, "'t_safe_s': set cap.t_safe_s"),
+        ("paper-cap", {"ki": 0.2}, "'ki': set ego.ki"),
+        ("vei.policy.builtin:PIDCruise", {"kd": 0.3}, "'kd': set ego.kd"),
+        ("vei.policy.builtin:PaperCAP", {"paper_per_step": True}, "cap.braking_law"),
+    ],
+)
+def test_policy_params_of_none_and_paper_cap_are_refused(
+    policy: str, params: dict, field: str
+) -> None:
+    """'none' / 'paper-cap' take their gains from ego.* / cap.* (their bind replaces any
+    constructor values with the run's): policy_params given to them would be ignored."""
+    raw = {"preset": "normal", "ego": {"policy": policy, "policy_params": params}}
+    with pytest.raises(ConfigError, match="policy_params given to policy") as exc:
+        load_config(raw, CaseConfig)
+    assert field in str(exc.value)
+    with pytest.raises(ConfigError, match="policy_params given to policy"):
+        EgoConfig(policy=policy, policy_params=params)
+    # empty params, and params of the policies that take them, still load
+    assert EgoConfig(policy=policy, policy_params={}).policy == policy
+    assert load_config(
+        {"preset": "normal", "ego": {"policy": "idm", "policy_params": {"time_headway_s": 1.0}}},
+        CaseConfig,
+    ).ego.policy_params == {"time_headway_s": 1.0}
+
+
+def test_unknown_policy_params_of_aeb_and_idm_are_refused() -> None:
+    with pytest.raises(ConfigError, match="policy 'idm'.*unexpected keyword"):
+        load_policy("idm", {"bogus": 1})
+    case = load_config(
+        {"preset": "normal", "ego": {"policy": "aeb", "policy_params": {"bogus": 1}}}, CaseConfig
+    )
+    from vei.sim.params import _policy_param_values
+
+    with pytest.raises(ConfigError, match="policy_params of 'aeb'.*bogus"):
+        _policy_param_values(case)
+
+
+@pytest.mark.parametrize(
+    ("ego_mode", "policy", "implied"),
+    [("cap", "none", "pid"), ("pid", "paper-cap", "cap"), ("pid", "aeb", "policy"),
+     ("policy", "none", "pid")],
+)  # fmt: skip
+def test_explicit_ego_mode_that_disagrees_with_the_policy_is_refused(
+    ego_mode: str, policy: str, implied: str
+) -> None:
+    raw = {"preset": "normal", "ego_mode": ego_mode, "ego": {"policy": policy}}
+    with pytest.raises(
+        ConfigError,
+        match=rf"ego_mode '{ego_mode}' disagrees with ego.policy '{policy}' .*'{implied}'",
+    ):
+        load_config(raw, CaseConfig)
+    with pytest.raises(ConfigError, match="disagrees"):  # nested in a run config too
+        from vei.config import RunConfig
+
+        load_config({"case": raw}, RunConfig)
+
+
+def test_agreeing_ego_mode_and_written_configs_load() -> None:
+    from vei.config import config_to_dict
+
+    for ego_mode, policy in (("pid", "none"), ("cap", "paper-cap"), ("policy", "aeb")):
+        raw = {"preset": "normal", "ego_mode": ego_mode, "ego": {"policy": policy}}
+        case = load_config(raw, CaseConfig)
+        assert case.ego_mode == ego_mode and case.policy_name == policy
+        assert load_config(config_to_dict(case), CaseConfig) == case
