@@ -1,4 +1,4 @@
-"""Oriented boxes: separating-axis overlap, closest point, gap (hand-computed cases)."""
+"""vei.boxes: oriented boxes, separating-axis overlap, closest point, gap (hand-computed cases)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from vei.models.geometry import box_corners, box_gap, boxes_overlap, closest_point_on_box
+from vei.boxes import box_corners, box_gap, boxes_overlap, closest_point_on_box
 
 
 def test_corners_of_rotated_box() -> None:

@@ -1,5 +1,5 @@
 """The house rules of DESIGN.md, checked on the source: no two modules import each other,
-no module over 600 lines.
+imports point down the layers, no module over 600 lines.
 
 Every module of src/vei is parsed with ast; its imports are collected wherever they stand
 (module level, inside functions, under ``if TYPE_CHECKING``), relative ones resolved, and
@@ -142,6 +142,82 @@ def test_config_imports_nothing_above_it():
     assert not upward, f"{len(upward)} upward import(s) of the config layer:\n" + "\n".join(
         f"  {a} -> {b}" for a, b in upward
     )
+
+
+def _in(module: str, package: str) -> bool:
+    return module == package or module.startswith(package + ".")
+
+
+#: DESIGN.md's direction rules: (who, what it must never import, why).
+FORBIDDEN: tuple[tuple[str, tuple[str, ...], str], ...] = (
+    ("vei.metrics", ("vei.models", "vei.sim", "vei.experiments"), "metrics score any backend"),
+    ("vei.models", ("vei.sim", "vei.metrics", "vei.experiments"), "models never know the engine"),
+    ("vei.export", ("vei.sim",), "export knows no backend"),
+)
+
+#: The bottom floor: imports no vei module but these.
+BOTTOM_FLOOR = ("vei.boxes", "vei.types", "vei.errors")
+
+
+def _direction_violations(graph: dict[str, set[str]]) -> list[str]:
+    """Every edge of ``graph`` against DESIGN.md's direction rules, as readable lines."""
+    bad: list[str] = []
+    for who, never, why in FORBIDDEN:
+        bad += [
+            f"  {a} -> {b} ({who} never imports {n}: {why})"
+            for a in sorted(graph)
+            if _in(a, who)
+            for b in sorted(graph[a])
+            for n in never
+            if _in(b, n)
+        ]
+    bad += [
+        f"  {a} -> {b} (nothing below vei.cli imports it)"
+        for a in sorted(graph)
+        if not _in(a, "vei.cli")
+        for b in sorted(graph[a])
+        if _in(b, "vei.cli")
+    ]
+    bad += [
+        f"  {a} -> {b} (the bottom floor imports only vei.errors / vei.types)"
+        for a in BOTTOM_FLOOR
+        for b in sorted(graph.get(a, ()))
+        if b not in ("vei.errors", "vei.types")
+    ]
+    return bad
+
+
+def test_imports_point_down_the_layers():
+    """DESIGN.md: metrics never import models/sim/experiments; models never sim/metrics/
+    experiments; export never sim; nothing below vei.cli imports vei.cli; the bottom floor
+    (vei.boxes, vei.types, vei.errors) imports nothing of vei but vei.errors/vei.types.
+    Imports anywhere in a file count (inside functions and under TYPE_CHECKING too)."""
+    graph = import_graph()
+    assert all(m in graph for m in BOTTOM_FLOOR)  # guard: the floor exists
+    assert "vei.boxes" in graph["vei.metrics._trace"]  # guard: edges are read
+    bad = _direction_violations(graph)
+    assert not bad, f"{len(bad)} import(s) against DESIGN.md's direction:\n" + "\n".join(bad)
+
+
+def test_direction_rules_catch_each_kind_of_violation():
+    """Hand-made graph with one violation of each rule (and allowed edges around them)."""
+    graph = {
+        "vei.metrics.ttc": {"vei.boxes", "vei.models.geometry", "vei.metrics.geometry"},
+        "vei.models.sfm": {"vei.boxes", "vei.sim.engine"},
+        "vei.export.openscenario": {"vei.io.atomic", "vei.sim"},
+        "vei.experiments.sweep": {"vei.sim.engine", "vei.cli.main"},
+        "vei.cli.main": {"vei.experiments.sweep", "vei.cli.run"},
+        "vei.boxes": {"vei.errors", "vei.types", "vei.config"},
+        "vei.types": {"vei.errors"},
+    }
+    bad = _direction_violations(graph)
+    assert [line.split(" (")[0].strip() for line in bad] == [
+        "vei.metrics.ttc -> vei.models.geometry",
+        "vei.models.sfm -> vei.sim.engine",
+        "vei.export.openscenario -> vei.sim",
+        "vei.experiments.sweep -> vei.cli.main",
+        "vei.boxes -> vei.config",
+    ]
 
 
 def test_no_module_over_600_lines():

@@ -1,9 +1,17 @@
-"""Oriented boxes in the plane: overlap (separating axes), closest point, gap.
+"""Oriented boxes in the plane: corners, overlap (separating axes), closest point, gap,
+time to contact. The bottom floor of DESIGN.md: models, sim, policy and metrics all use
+these; it imports nothing of vei.
 
-Pure NumPy functions that broadcast over any leading shape (the engine uses ``[B]``).
-A box is its centre (x_m, y_m) [m], heading yaw_rad [rad, CCW from +x], length_m along the
-heading and width_m across it [m]. Components are passed as separate arrays (x, y) rather
-than stacked ``[..., 2]`` so that the engine's hot loop avoids reductions over a last axis.
+Pure NumPy functions that broadcast over any leading shape (the engine uses ``[B]``,
+the metrics ``[B, T]``). Two forms of a box:
+
+- components: centre (x_m, y_m) [m], heading yaw_rad [rad, CCW from +x], length_m along
+  the heading and width_m across it [m], passed as separate arrays rather than stacked
+  ``[..., 2]`` so that the engine's hot loop avoids reductions over a last axis
+  (:func:`box_corners`, :func:`boxes_overlap`, :func:`closest_point_on_box`,
+  :func:`box_gap`);
+- corner sets ``[..., 4, 2]`` [m] as :func:`box_corners` returns them, counter-clockwise
+  from rear-right (:func:`corners_overlap`, :func:`time_to_contact`, used by the metrics).
 """
 
 from __future__ import annotations
@@ -13,6 +21,8 @@ import numpy.typing as npt
 
 FloatArray = npt.NDArray[np.float64]
 ArrayLike = npt.ArrayLike
+
+_EPS = 1e-12
 
 
 def box_corners(
@@ -158,3 +168,69 @@ def box_gap(
         ax_m, ay_m, ayaw_rad, alength_m, awidth_m, bx_m, by_m, byaw_rad, blength_m, bwidth_m
     )
     return np.where(inside, 0.0, np.sqrt(best))
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def corners_overlap(corners_a: FloatArray, corners_b: FloatArray) -> npt.NDArray[np.bool_]:
+    """Separating-axis test of two boxes given as corner sets (touching counts as overlap).
+
+    The corner-set form of :func:`boxes_overlap` for any convex quadrilaterals; boxes
+    closer than 1e-9 m on every axis count as touching (projections onto unnormalised
+    edge normals, the tolerance scaled by their length).
+
+    Args:
+        corners_a, corners_b: [..., 4, 2] corners (m), as from :func:`box_corners`.
+    Returns:
+        [...] bool, True where the boxes share at least one point.
+    """
+    result = np.ones(np.broadcast_shapes(corners_a.shape, corners_b.shape)[:-2], dtype=bool)
+    for corners in (corners_a, corners_b):
+        for k in range(2):  # a rectangle has two distinct edge normals
+            edge = corners[..., k + 1, :] - corners[..., k, :]
+            axis = np.stack([-edge[..., 1], edge[..., 0]], axis=-1)[..., None, :]
+            pa = np.sum(corners_a * axis, axis=-1)
+            pb = np.sum(corners_b * axis, axis=-1)
+            scale = np.maximum(np.linalg.norm(axis[..., 0, :], axis=-1), _EPS)
+            tol = 1e-9 * scale
+            separated = (pa.max(axis=-1) < pb.min(axis=-1) - tol) | (
+                pb.max(axis=-1) < pa.min(axis=-1) - tol
+            )
+            result &= ~separated
+    return result
+
+
+def time_to_contact(
+    corners_a: FloatArray, corners_b: FloatArray, vel_rel_mps: FloatArray
+) -> FloatArray:
+    """Time until two boxes first touch if B keeps moving at ``vel_rel_mps`` relative to A.
+
+    Both boxes keep their headings (translation only); the first contact of two
+    translating convex polygons is a vertex of one reaching an edge of the other, so the
+    answer is the smallest ray-edge hit over B's vertices moving by +v and A's vertices
+    moving by -v.
+
+    Args:
+        corners_a, corners_b: [..., 4, 2] corners (m).
+        vel_rel_mps: [..., 2] velocity of B minus velocity of A (m/s).
+    Returns:
+        [...] time (s): 0 where they already overlap, inf where they never touch.
+    """
+    v = np.asarray(vel_rel_mps, dtype=np.float64)
+    best = np.full(np.broadcast_shapes(corners_a.shape, corners_b.shape)[:-2], np.inf)
+    for verts, edges, sign in ((corners_b, corners_a, 1.0), (corners_a, corners_b, -1.0)):
+        p = verts[..., :, None, :]  # [..., 4, 1, 2]
+        a = edges[..., None, :, :]  # [..., 1, 4, 2]
+        e = np.roll(edges, -1, axis=-2)[..., None, :, :] - a
+        vv = sign * v[..., None, None, :]
+        denom = _cross(vv, e)
+        ap = a - p
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = _cross(ap, e) / denom
+            u = _cross(ap, vv) / denom
+        ok = (np.abs(denom) > _EPS) & (s >= 0.0) & (u >= -1e-12) & (u <= 1.0 + 1e-12)
+        hit = np.where(ok, s, np.inf).min(axis=(-1, -2))
+        best = np.minimum(best, hit)
+    return np.where(corners_overlap(corners_a, corners_b), 0.0, best)

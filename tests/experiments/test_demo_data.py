@@ -2,6 +2,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from vei.boxes import box_gap
 from vei.experiments.demo_data import (
     DEMO_TRACK_ID,
     DemoSpec,
@@ -10,7 +11,6 @@ from vei.experiments.demo_data import (
 )
 from vei.geo.frame import LocalFrame
 from vei.io.interaction import read_interaction
-from vei.models.geometry import box_gap
 
 SPEC = DemoSpec()
 FRAME = LocalFrame(SPEC.origin_lat_deg, SPEC.origin_lon_deg)

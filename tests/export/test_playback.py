@@ -12,6 +12,7 @@ import pytest
 from defusedxml import ElementTree as SafeET
 
 from tests.export.conftest import AGENTS, crossing_run
+from vei.boxes import boxes_overlap
 from vei.export.openscenario import OSC_VERSIONS, export_openscenario
 from vei.export.playback import (
     FileEntity,
@@ -20,7 +21,6 @@ from vei.export.playback import (
     play_xosc,
     read_file_entities,
 )
-from vei.models.geometry import boxes_overlap
 from vei.types import AgentInfo
 
 LOG = """esmini GIT REV: N/A

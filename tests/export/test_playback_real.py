@@ -25,10 +25,10 @@ import pandas as pd
 import pytest
 
 from tests.export.conftest import REAL_WITH_RIDER
+from vei.boxes import boxes_overlap
 from vei.config import PAPER_CASES
 from vei.export.openscenario import export_openscenario, timeseries_to_trajectories
 from vei.export.playback import MAX_DEVIATION_M, MAX_MEDIAN_DEVIATION_M, play_xosc
-from vei.models.geometry import boxes_overlap
 from vei.types import EGO_CATEGORY
 
 SCENARIOS = ("demo", *REAL_WITH_RIDER)

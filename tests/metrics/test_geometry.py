@@ -3,8 +3,8 @@ import math
 import numpy as np
 import pytest
 
+from vei.boxes import box_gap as _box_gap
 from vei.metrics.geometry import box_corners, boxes_overlap, time_to_contact
-from vei.models.geometry import box_gap as _box_gap
 
 
 def box_gap(corners_a, corners_b):

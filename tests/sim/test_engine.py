@@ -7,10 +7,10 @@ import dataclasses
 import numpy as np
 import pytest
 
+from vei.boxes import box_gap
 from vei.config import PAPER_CASES, CAPConfig, CaseConfig, EgoConfig, SimConfig, case_preset
 from vei.errors import ConfigError, InputError
 from vei.models.ego import BRAKE
-from vei.models.geometry import box_gap
 from vei.sim.engine import _RECORDED, SimResult, initial_state, run_cases, simulate, step
 from vei.sim.state import VariantParams, prepare_scenario
 from vei.sim.testing import (

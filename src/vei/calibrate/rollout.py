@@ -27,9 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from vei.boxes import closest_point_on_box
 from vei.calibrate.tracks import MOVING_MPS, RiderTrack, SceneTracks
 from vei.models.ego import build_path
-from vei.models.geometry import closest_point_on_box
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]

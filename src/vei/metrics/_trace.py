@@ -8,9 +8,9 @@ from functools import cached_property
 import numpy as np
 import numpy.typing as npt
 
+from vei.boxes import box_gap
 from vei.errors import InputError
 from vei.metrics.geometry import box_corners
-from vei.models.geometry import box_gap
 from vei.types import Trace
 
 FloatArray = npt.NDArray[np.float64]

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from vei.models.geometry import closest_point_on_box
+from vei.boxes import closest_point_on_box
 
 FloatArray = npt.NDArray[np.float64]
 ArrayLike = npt.ArrayLike

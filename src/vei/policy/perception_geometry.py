@@ -2,7 +2,7 @@
 
 Pure NumPy over a batch of variants ``[B]`` and objects ``[B, N]``. A target is sampled at
 ``P = 5`` points of its oriented box: its centre and its four corners
-(:func:`vei.models.geometry.box_corners`). A sample point is *seen* when it lies within the
+(:func:`vei.boxes.box_corners`). A sample point is *seen* when it lies within the
 sensor's range (Euclidean distance from the sensor's mounting point), within its field of
 view (the bearing from the sensor, measured from the ego's heading, within +-fov/2) and,
 with occlusion on, when the straight segment from the sensor to the point crosses the
@@ -24,7 +24,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from vei.models.geometry import box_corners
+from vei.boxes import box_corners
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]

@@ -22,11 +22,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from vei.boxes import boxes_overlap
 from vei.errors import InputError
 from vei.models import sfm as sfm_model
 from vei.models.drivable_path import decimate_standstill, recorded_arc_length
 from vei.models.ego import PathTable, build_path
-from vei.models.geometry import boxes_overlap
 from vei.sim.tables import TimeTable, _uniform_track
 from vei.types import EGO_ID, RIDER_CATEGORIES, Scenario
 

@@ -8,10 +8,10 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from vei.boxes import boxes_overlap
 from vei.errors import ConfigError
 from vei.models import ego as ego_model
 from vei.models import sfm as sfm_model
-from vei.models.geometry import boxes_overlap
 from vei.sim.batch import BatchFlags, Block, batch_flags
 from vei.sim.observe import Demand
 from vei.sim.riders import initial_extra_state, pedestrian_sources, repulsion, step_extras

@@ -39,10 +39,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from vei.boxes import boxes_overlap
 from vei.config import CaseConfig, SimConfig, case_preset
 from vei.errors import BackendError, ConfigError
 from vei.models import ego as ego_model
-from vei.models.geometry import boxes_overlap
 from vei.sim.backends.carla_frame import pure_pursuit_steer
 from vei.types import Scenario
 
