@@ -15,6 +15,12 @@ velocity 0 with variance PRIOR_SPEED_VAR, turn rate 0 with variance PRIOR_TURN_V
 
 Noise (sigma, q, q_omega) is estimated by maximum likelihood of a recording's own keyframes
 (EKF innovations likelihood; :func:`estimate_turn_noise`), never of the ground truth.
+
+Status: measured, not adopted. On the shared TrafficMonitoring recordings it lowers the
+mean RMSE of ``--interp kalman`` by 6 mm, almost all on one track, and is slightly worse on
+the others (docs/reconstruction.md, "Turn-aware motion models"); the reconstruction
+pipeline therefore does not use it. It is kept, with its tests, for the comparison that
+``python -m benchmarks recon_accuracy`` prints (:mod:`vei.recon.turn_compare`).
 """
 
 from __future__ import annotations
