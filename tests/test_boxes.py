@@ -7,7 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from vei.boxes import box_corners, box_gap, boxes_overlap, closest_point_on_box
+from vei.boxes import (
+    box_corners,
+    box_gap,
+    boxes_overlap,
+    closest_point_on_box,
+    corners_overlap,
+    time_to_contact,
+)
 
 
 def test_corners_of_rotated_box() -> None:
@@ -102,3 +109,31 @@ def test_box_gap_equals_the_brute_force_corner_to_edge_distance() -> None:
     ref = _brute_force_gap(a, b)
     assert 0.05 < (ref == 0).mean() < 0.5  # both overlapping and apart cases
     assert box_gap(*a, *b) == pytest.approx(ref, abs=1e-12)
+
+
+def test_the_two_forms_of_the_overlap_test_agree() -> None:
+    """Corner sets (corners_overlap, the metrics' form) and components (boxes_overlap, the
+    engine's form) give the same answer on random boxes, at least 1e-6 m from touching."""
+    rng = np.random.default_rng(7)
+    n = 5000
+    ax, ay, bx, by = rng.uniform(-4, 4, (4, n))
+    ayaw, byaw = rng.uniform(-4, 4, (2, n))
+    a, b = (ax, ay, ayaw, 4.7, 1.85), (bx, by, byaw, 1.2, 0.6)
+    clear = box_gap(*a, *b) > 1e-6
+    touching = ~clear & ~boxes_overlap(*a, *b)  # gap 0 but SAT apart: none expected
+    assert not touching.any()
+    by_corners = corners_overlap(box_corners(*a), box_corners(*b))
+    assert 0.05 < by_corners.mean() < 0.5
+    assert (by_corners == boxes_overlap(*a, *b)).all()
+    assert (by_corners == ~clear).all()
+
+
+def test_time_to_contact_is_the_gap_over_the_closing_speed_head_on() -> None:
+    """B (1 x 1) straight ahead of A (4 x 2), closing at 10 m/s along x: the time is the
+    gap over the speed (hand: gap = 17.5 - 2 - 0.5 = 15 m -> 1.5 s); receding -> inf."""
+    ca = box_corners(0.0, 0.0, 0.0, 4.0, 2.0)
+    cb = box_corners(17.5, 0.0, 0.0, 1.0, 1.0)
+    assert float(box_gap(0.0, 0.0, 0.0, 4.0, 2.0, 17.5, 0.0, 0.0, 1.0, 1.0)) == pytest.approx(15.0)
+    assert float(time_to_contact(ca, cb, np.array([-10.0, 0.0]))) == pytest.approx(1.5)
+    assert math.isinf(float(time_to_contact(ca, cb, np.array([10.0, 0.0]))))
+    assert float(time_to_contact(ca, ca, np.array([1.0, 0.0]))) == 0.0  # overlapping
