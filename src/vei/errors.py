@@ -56,3 +56,9 @@ class DependencyError(VeiError):
 
 class BackendError(VeiError):
     """A simulation backend could not be reached or failed (e.g. no CARLA server)."""
+
+
+class PolicyError(VeiError):
+    """A user's ego policy raised an exception while the engine called it (its bind,
+    init_state or act): names the policy, the step and time, the exception and the last
+    frames of the policy's own file."""

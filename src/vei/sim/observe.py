@@ -17,12 +17,15 @@ on the delayed truth.
 
 from __future__ import annotations
 
+import inspect
+import traceback
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
-from vei.errors import ConfigError
+from vei.errors import ConfigError, PolicyError
 from vei.models import ego as ego_model
 from vei.policy.base import PolicyAction, check_policy
 from vei.policy.observation import Observation, category_code, wrap_angle
@@ -189,6 +192,48 @@ def build_observation(
     )
 
 
+def policy_label(policy: Any) -> str:
+    """How a policy is named in messages: 'path/to/file.py:Class' for a class loaded from a
+    file, else 'module:Class' (the spec the user wrote, up to the path's spelling)."""
+    cls = type(policy)
+    name = getattr(policy, "name", None)
+    if isinstance(name, str) and cls.__module__.startswith("vei.policy."):
+        return name
+    if cls.__module__.startswith("vei_user_policy_"):
+        try:
+            return f"{inspect.getsourcefile(cls)}:{cls.__qualname__}"
+        except (TypeError, OSError):
+            pass
+    return f"{cls.__module__}:{cls.__qualname__}"
+
+
+#: Frames of a policy's traceback shown in a PolicyError.
+_FRAMES = 3
+
+
+def _guarded(policy: Any, what: str, fn: Callable[..., Any], *args: Any, when: str = "") -> Any:
+    """``fn(*args)``; an exception raised by it becomes a PolicyError naming the policy,
+    the call (and step / time), the exception and the last frames of the policy's file."""
+    try:
+        return fn(*args)
+    except Exception as exc:  # noqa: BLE001 - a user's code: report it as a vei error
+        frames = traceback.extract_tb(exc.__traceback__)[1:]  # drop this frame
+        try:
+            own = inspect.getsourcefile(type(policy))
+        except (TypeError, OSError):
+            own = None
+        mine = [f for f in frames if own is not None and f.filename == own]
+        shown = (mine or frames)[-_FRAMES:]
+        where = "".join(
+            f"\n  {f.filename}:{f.lineno} in {f.name}" + (f": {f.line}" if f.line else "")
+            for f in shown
+        )
+        at = f" at {when}" if when else ""
+        raise PolicyError(
+            f"policy {policy_label(policy)}: {what}(){at} raised {type(exc).__name__}: {exc}{where}"
+        ) from None
+
+
 class Demand(NamedTuple):
     """The policies' demands for the whole batch [B] (engine order), input of step().
 
@@ -235,10 +280,10 @@ class PolicyDriver:
         for blk in self.blocks:
             pol = blk.policy
             bind = getattr(pol, "bind", None)
-            bound = bind(blk.params) if callable(bind) else pol
+            bound = _guarded(pol, "bind", bind, blk.params) if callable(bind) else pol
             bound = check_policy(bound, type(pol).__name__)
             self.policies.append(bound)
-            self.states.append(bound.init_state(blk.stop - blk.start))
+            self.states.append(_guarded(pol, "init_state", bound.init_state, blk.stop - blk.start))
         self.delay = [blk.delay_steps.astype(np.int64) for blk in self.blocks]
         h = max((int(d.max()) for d in self.delay), default=0) + 1
         self.hist_len = h
@@ -276,7 +321,20 @@ class PolicyDriver:
             if blk.perception is not None:
                 seen, valid, age = self._perceive(i, st, blk, seen, valid, age)
             obs = build_observation(st, self.arrays, blk, seen, valid, age, self.table)
-            action, self.states[i] = self.policies[i].act(obs, self.states[i])
+            out = _guarded(
+                self.policies[i],
+                "act",
+                self.policies[i].act,
+                obs,
+                self.states[i],
+                when=f"step {st.k} (t = {st.k * self.arrays.dt_s:.3f} s)",
+            )
+            if not (isinstance(out, tuple) and len(out) == 2):
+                raise ConfigError(
+                    f"policy {policy_label(self.policies[i])}: act must return "
+                    f"(PolicyAction, state), got {type(out).__name__}"
+                )
+            action, self.states[i] = out
             if not isinstance(action, PolicyAction):
                 raise ConfigError(
                     f"policy {type(self.policies[i]).__name__}.act must return (PolicyAction, state), "
