@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -104,13 +105,20 @@ def test_single_runs_equal_one_batch_with_noise_and_missed_detections(prepared) 
     assert not np.array_equal(other.ego_speed_mps[0], batch.ego_speed_mps[2])
 
 
-def test_vei_run_of_each_noisy_variant_equals_the_sweep_row(demo_scenario, tmp_path, monkeypatch):
-    # A sweep spec's base is a preset name: register the noisy configuration as one.
-    monkeypatch.setitem(CASE_PRESETS, "noisy-cap", NOISY_CAP)
+def test_vei_run_of_each_noisy_variant_equals_the_sweep_row(demo_scenario, tmp_path):
+    # The spec's perception section switches the noisy sensor on for every variant.
+    assert CASE_PRESETS["normal-cap"] == replace(NOISY_CAP, name="normal-cap", perception=None)
     spec = spec_from_dict(
         {
             "design": "grid",
-            "base": "noisy-cap",
+            "base": "normal-cap",
+            "perception": {
+                "enabled": True,
+                "position_noise_std_m": 0.4,
+                "velocity_noise_std_mps": 0.4,
+                "detection_probability": 0.7,
+                "seed": 11,
+            },
             "parameters": {
                 "time_shift_s": {"min": -1.0, "max": 1.0, "num": 2},
                 "ego.cruise_speed_mps": {"min": 5.0, "max": 7.0, "num": 2},
@@ -120,7 +128,8 @@ def test_vei_run_of_each_noisy_variant_equals_the_sweep_row(demo_scenario, tmp_p
     res = run_sweep(demo_scenario, spec, tmp_path / "sweep", chunk_size=64, progress=False)
     assert (res.n_variants, res.n_run) == (4, 4)
     df = read_results(tmp_path / "sweep")
-    auto = EngineEvaluator(base="noisy-cap").prepare(demo_scenario).auto_shift_s
+    assert spec.perception == NOISY
+    auto = EngineEvaluator(base="normal-cap").prepare(demo_scenario).auto_shift_s
     paths = write_variant_configs(tmp_path / "configs", df, spec, auto)
     runner = CliRunner()
     compared = 0

@@ -441,7 +441,11 @@ def search_boundary(
         )
     fixed = {p.name: p.value for p in spec.parameters if p.name not in (x, y)}
     if evaluator is None:
-        evaluator = EngineEvaluator(time_shift_reference=spec.time_shift_reference, base=spec.base)
+        evaluator = EngineEvaluator(
+            time_shift_reference=spec.time_shift_reference,
+            base=spec.base,
+            perception=spec.perception,
+        )
     prepared = evaluator.prepare(Path(scenario_dir))
     sid = evaluator.scenario_id(prepared)
     counter = [0]

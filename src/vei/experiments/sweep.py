@@ -219,6 +219,7 @@ def run_sweep(
             base=spec.base,
             reconstruction_samples=spec.reconstruction_samples,
             sample_seed=spec.seed,
+            perception=spec.perception,
         )
     if progress is None:
         progress = sys.stderr.isatty()

@@ -117,6 +117,7 @@ def variant_params(
     base: str = "normal-cap",
     time_shift_reference: str = "auto",
     auto_shift_s: float | None = None,
+    perception: Any = None,
 ) -> Any:
     """The engine's per-variant parameters ([B] arrays) of a variants table, vectorised.
 
@@ -131,6 +132,8 @@ def variant_params(
         arrays: the scenario's ``vei.sim.state.ScenarioArrays``.
         base, time_shift_reference: of the sweep spec.
         auto_shift_s: the scenario's automatic shift [s] (reference 'auto').
+        perception: the spec's sensor model (PerceptionConfig) for every variant; None:
+            the base configuration's.
 
     Returns:
         ``vei.sim.state.VariantParams`` with B variants in row order (labels = variant ids).
@@ -145,7 +148,11 @@ def variant_params(
     check_aeb_rows(variants, base)
 
     probe = SweepSpec(
-        design="grid", parameters=(), time_shift_reference=time_shift_reference, base=base
+        design="grid",
+        parameters=(),
+        time_shift_reference=time_shift_reference,
+        base=base,
+        perception=perception,
     )
     b = len(variants)
     cats = [c for c in _CATEGORICAL if c in variants.columns]
@@ -207,6 +214,8 @@ class EngineEvaluator:
         reconstruction_samples: N posterior samples of the primary rider's trajectory
             (:func:`vei.recon.samples.sample_rider`, drawn with ``sample_seed``); variants
             carry the sample they run on in column SAMPLE_COLUMN. None: mean trajectory.
+        perception: the spec's sensor model (PerceptionConfig) for every variant; None:
+            the base configuration's.
     """
 
     def __init__(
@@ -217,10 +226,12 @@ class EngineEvaluator:
         metrics: Sequence[str] = DEFAULT_METRICS,
         reconstruction_samples: int | None = None,
         sample_seed: int = 0,
+        perception: Any = None,
     ) -> None:
         from vei.config import SimConfig
 
         self.reconstruction_samples = reconstruction_samples
+        self.perception = perception
         self.sample_seed = sample_seed
         self.time_shift_reference = time_shift_reference
         self.base = base
@@ -288,6 +299,7 @@ class EngineEvaluator:
             base=self.base,
             time_shift_reference=self.time_shift_reference,
             auto_shift_s=prepared.auto_shift_s,
+            perception=self.perception,
         )
         result = simulate(prepared.arrays, params, record="full", kernel=self.sim.kernel)
         # Scored as a run's time series is (vei run, vei casestudy): bit-identical metrics.

@@ -25,6 +25,7 @@ import numpy as np
 
 from vei.calibrate.population import RIDER_PARAM_COLUMNS
 from vei.config import CASE_PRESETS, SFM_PRESETS, RunConfig
+from vei.config_perception import PerceptionConfig
 from vei.errors import ConfigError
 
 
@@ -36,6 +37,8 @@ class SpecLike(Protocol):
 
     @property
     def time_shift_reference(self) -> str: ...
+
+    # Optional too: ``perception`` (a PerceptionConfig or None), read with getattr.
 
 
 RIDER_MODELS: tuple[str, ...] = ("replay", "normal", "aggressive")
@@ -196,6 +199,40 @@ REPLACED: dict[str, str] = {
 }
 
 
+def parse_perception(raw: Any, where: str) -> PerceptionConfig | None:
+    """A sweep spec's ``perception: {...}`` section -> PerceptionConfig (None when absent).
+
+    The keys are those of the run configuration's ``case: {perception: ...}`` (the fields
+    of :class:`vei.config_perception.PerceptionConfig`, same defaults: ``enabled: true``
+    switches the model on).
+
+    Raises:
+        ConfigError: not a mapping, an unknown key or a bad value (naming ``where`` and
+            the key).
+    """
+    from dataclasses import fields
+
+    if raw is None:
+        return None
+    if not isinstance(raw, Mapping):
+        raise ConfigError(f"{where}: 'perception' must be a mapping like {{enabled: true, ...}}")
+    known = [f.name for f in fields(PerceptionConfig)]
+    unknown = sorted(set(map(str, raw)) - set(known))
+    if unknown:
+        raise ConfigError(
+            f"{where}: perception: unknown key(s) {', '.join(unknown)}; expected some of "
+            f"{', '.join(known)}"
+        )
+    vals = {
+        k: float(v) if isinstance(v, int) and not isinstance(v, bool) and k != "seed" else v
+        for k, v in raw.items()
+    }
+    try:
+        return PerceptionConfig(**vals)
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+
+
 def check_name(name: str, where: str) -> None:
     """Refuse a sweep parameter name of an earlier version, naming the new one.
 
@@ -217,7 +254,8 @@ def variant_config(
 ) -> RunConfig:
     """The full run configuration of one variant (what ``vei run --config`` reads back).
 
-    Starts from ``CASE_PRESETS[spec.base]``; ``rider_model`` picks replay / the SFM Normal /
+    Starts from ``CASE_PRESETS[spec.base]`` (with the spec's ``perception`` section, if
+    any, as its ``perception``); ``rider_model`` picks replay / the SFM Normal /
     Aggressive preset, then ``sfm.*``, ``ego.*`` and ``cap.*`` set the fields of those
     names (:data:`CONFIG_FIELDS`; ``sfm.k_des_nspm`` is the field k_des_nspm, so the
     configuration's ``k_des_factor``, 2 for the Aggressive presets, still multiplies it:
@@ -241,6 +279,9 @@ def variant_config(
         check_name(key, name)
     base = CASE_PRESETS[spec.base]
     case = replace(base, name=name)
+    perception = getattr(spec, "perception", None)
+    if perception is not None:  # the spec's sensor model, for every variant
+        case = replace(case, perception=perception)
     rider = params.get("rider_model")
     if rider == "replay":
         case = replace(case, rider="replay")

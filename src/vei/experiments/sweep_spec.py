@@ -26,6 +26,9 @@ A sweep spec is a YAML (or JSON) mapping loaded into frozen dataclasses at the e
                                      # (vei calibrate riders; keys profile, sample, category,
                                      # seed (default: the spec's); columns rider_sample and
                                      # rider.<parameter>)
+    perception: {enabled: true, fov_deg: 60.0, detection_probability: 0.7}
+                                     # optional: the ego's sensor model for every variant
+                                     # (the run config's case.perception keys)
 
 A parameter's name is the path of its field in the run configuration (``cap.t_safe_s``,
 ``sfm.k_des_nspm``, ``ego.policy_params.ttc_full_s``; :mod:`vei.experiments.sweep_params`);
@@ -44,6 +47,7 @@ stable ``variant_id`` (hash of the scenario id and the parameter values) and a p
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import itertools
 import json
@@ -62,6 +66,7 @@ from vei.calibrate.population import (
     with_population,
 )
 from vei.config import CASE_PRESETS, RiderPopulationConfig
+from vei.config_perception import PerceptionConfig
 from vei.errors import ConfigError, InputError
 from vei.experiments.sweep_params import (  # noqa: F401 - part of this module's API
     CONFIG_FIELDS,
@@ -76,6 +81,7 @@ from vei.experiments.sweep_params import (  # noqa: F401 - part of this module's
     SpecLike,
     check_aeb_rows,
     check_name,
+    parse_perception,
     variant_config,
 )
 
@@ -143,6 +149,8 @@ class SweepSpec:
             riders (their SFM parameters in columns RIDER_PARAM_COLUMNS); None: the base
             configuration's rider. Cannot be combined with sweeping sfm.k_des_nspm /
             a_veh_n / b_veh_per_m / v0_mps / mass_kg (the population sets them).
+        perception: the ego's sensor model for every variant (the run config's
+            ``case.perception``); None: the base configuration's.
         source: file it was loaded from, if any (for messages).
     """
 
@@ -154,6 +162,7 @@ class SweepSpec:
     base: str = "normal-cap"
     reconstruction_samples: int | None = None
     rider: RiderPopulationConfig | None = None
+    perception: PerceptionConfig | None = None
     source: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -205,6 +214,8 @@ class SweepSpec:
         names = [p.name for p in self.parameters]
         if len(set(names)) != len(names):
             raise ConfigError(f"{where}: a parameter is given twice: {names}")
+        if self.perception is not None and not isinstance(self.perception, PerceptionConfig):
+            raise ConfigError(f"{where}: perception must be a PerceptionConfig or None")
         if self.rider is not None:
             if not isinstance(self.rider, RiderPopulationConfig):
                 raise ConfigError(f"{where}: rider must be a mapping {{profile, sample}}")
@@ -256,6 +267,8 @@ class SweepSpec:
                 "category": self.rider.category,
                 "seed": self.rider.seed,
             }
+        if self.perception is not None:
+            out["perception"] = dataclasses.asdict(self.perception)
         return out
 
     def digest(self) -> str:
@@ -282,6 +295,7 @@ _SPEC_KEYS = {
     "parameters",
     "reconstruction",
     "rider",
+    "perception",
 }
 #: Variants-table column of the reconstruction sample a variant runs on.
 SAMPLE_COLUMN = "reconstruction_sample"
@@ -386,6 +400,7 @@ def spec_from_dict(raw: Any, *, source: str | None = None) -> SweepSpec:
         base=raw.get("base", "normal-cap"),
         reconstruction_samples=_parse_reconstruction(raw.get("reconstruction"), where),
         rider=parse_population(raw.get("rider"), where, raw.get("seed", 0)),
+        perception=parse_perception(raw.get("perception"), where),
         source=source,
     )
 
