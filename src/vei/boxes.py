@@ -72,24 +72,51 @@ def boxes_overlap(
     Returns:
         [...] bool, True where A and B share at least one point.
     """
-    ayaw = np.asarray(ayaw_rad, dtype=np.float64)
-    byaw = np.asarray(byaw_rad, dtype=np.float64)
+    return overlap_core(
+        np.asarray(ax_m, dtype=np.float64),
+        np.asarray(ay_m, dtype=np.float64),
+        np.asarray(ayaw_rad, dtype=np.float64),
+        np.asarray(alength_m, dtype=np.float64),
+        np.asarray(awidth_m, dtype=np.float64),
+        np.asarray(bx_m, dtype=np.float64),
+        np.asarray(by_m, dtype=np.float64),
+        np.asarray(byaw_rad, dtype=np.float64),
+        np.asarray(blength_m, dtype=np.float64),
+        np.asarray(bwidth_m, dtype=np.float64),
+    )
+
+
+def overlap_core(ax, ay, ayaw, al, aw, bx, by, byaw, bl, bw):  # type: ignore[no-untyped-def]
+    """The separating-axis test of :func:`boxes_overlap` on float64 arrays or scalars.
+
+    Written with NumPy ufuncs only, so that the same source runs vectorised on arrays
+    (:func:`boxes_overlap`, the NumPy engine) and compiled by numba on scalars (the
+    compiled kernel's ``sat``: one overlap test for both kernels).
+
+    Args:
+        ax, ay, ayaw, al, aw: box A's centre [m], yaw [rad], length and width [m];
+        bx, by, byaw, bl, bw: box B's; float64 arrays (broadcastable) or scalars.
+    Returns:
+        bool (array) True where A and B share at least one point (1e-9 m slack).
+    """
     ca, sa = np.cos(ayaw), np.sin(ayaw)
     cb, sb = np.cos(byaw), np.sin(byaw)
-    dx = np.subtract(bx_m, ax_m, dtype=np.float64)
-    dy = np.subtract(by_m, ay_m, dtype=np.float64)
-    hla, hwa = 0.5 * np.asarray(alength_m), 0.5 * np.asarray(awidth_m)
-    hlb, hwb = 0.5 * np.asarray(blength_m), 0.5 * np.asarray(bwidth_m)
+    dx, dy = bx - ax, by - ay
+    hla, hwa, hlb, hwb = 0.5 * al, 0.5 * aw, 0.5 * bl, 0.5 * bw
     # |cos| and |sin| of the relative heading: dot products of the two boxes' axes.
     cd = np.abs(ca * cb + sa * sb)
     sd = np.abs(sa * cb - ca * sb)
     # Small tolerance so that exactly touching boxes (computed in floating point) overlap.
     eps = 1e-9
-    sep = np.abs(dx * ca + dy * sa) > hla + hlb * cd + hwb * sd + eps
-    sep |= np.abs(-dx * sa + dy * ca) > hwa + hlb * sd + hwb * cd + eps
-    sep |= np.abs(dx * cb + dy * sb) > hlb + hla * cd + hwa * sd + eps
-    sep |= np.abs(-dx * sb + dy * cb) > hwb + hla * sd + hwa * cd + eps
-    return ~sep
+    sep_a = np.logical_or(
+        np.abs(dx * ca + dy * sa) > hla + hlb * cd + hwb * sd + eps,
+        np.abs(-dx * sa + dy * ca) > hwa + hlb * sd + hwb * cd + eps,
+    )
+    sep_b = np.logical_or(
+        np.abs(dx * cb + dy * sb) > hlb + hla * cd + hwa * sd + eps,
+        np.abs(-dx * sb + dy * cb) > hwb + hla * sd + hwa * cd + eps,
+    )
+    return np.logical_not(np.logical_or(sep_a, sep_b))
 
 
 def closest_point_on_box(

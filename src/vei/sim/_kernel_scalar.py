@@ -1,4 +1,5 @@
-"""Scalar numba helpers of the compiled kernel: interpolation index, box overlap, repulsion.
+"""Scalar numba helpers of the compiled kernel: interpolation index, box overlap (vei.boxes),
+repulsion.
 
 Imported only when numba is used (by :mod:`vei.sim._kernel_numba` and the other kernel
 helper modules). Every function is compiled at module level with ``cache=True`` so that
@@ -11,6 +12,8 @@ from __future__ import annotations
 import math
 
 import numba
+
+from vei.boxes import overlap_core
 
 #: Gap [m] beyond which riders / pedestrians do not repel (vei.models.sfm.RIDER_FORCE_CUTOFF_M).
 CUTOFF_M = 10.0
@@ -70,25 +73,7 @@ def idx(t0: float, dt: float, n: int, q: float) -> tuple[int, float]:
     return i, f - i
 
 
-@numba.njit(cache=True)
-def sat(ax, ay, ayaw, al, aw, bx, by, byaw, bl, bw) -> bool:  # type: ignore[no-untyped-def]
-    """True when the oriented boxes a and b overlap (separating-axis test, 1e-9 m slack).
-
-    Args: centres [m], yaws [rad], lengths and widths [m] of the two boxes.
-    """
-    ca, sa = math.cos(ayaw), math.sin(ayaw)
-    cb, sb = math.cos(byaw), math.sin(byaw)
-    dx, dy = bx - ax, by - ay
-    hla, hwa, hlb, hwb = 0.5 * al, 0.5 * aw, 0.5 * bl, 0.5 * bw
-    cd = abs(ca * cb + sa * sb)
-    sd = abs(sa * cb - ca * sb)
-    eps = 1e-9
-    if abs(dx * ca + dy * sa) > hla + hlb * cd + hwb * sd + eps:
-        return False
-    if abs(-dx * sa + dy * ca) > hwa + hlb * sd + hwb * cd + eps:
-        return False
-    if abs(dx * cb + dy * sb) > hlb + hla * cd + hwa * sd + eps:
-        return False
-    if abs(-dx * sb + dy * cb) > hwb + hla * sd + hwa * cd + eps:
-        return False
-    return True
+#: True when the oriented boxes a and b overlap (separating-axis test, 1e-9 m slack): the
+#: NumPy engine's own :func:`vei.boxes.overlap_core`, compiled (args: centres [m], yaws
+#: [rad], lengths and widths [m] of the two boxes).
+sat = numba.njit(cache=True)(overlap_core)

@@ -51,10 +51,11 @@ def _build() -> Any:
     return kernel
 
 
-#: Modules compiled into the kernel (numba's cache checks only the kernel's own file).
+#: Modules compiled into the kernel (numba's cache checks only the kernel's own file);
+#: vei.boxes gives it the box-overlap test.
 _KERNEL_SOURCES = (
     "_kernel_numba.py", "_kernel_scalar.py", "_kernel_ego.py", "_kernel_sfm.py",
-    "_kernel_riders.py", "kernel_layout.py",
+    "_kernel_riders.py", "kernel_layout.py", "../boxes.py",
 )  # fmt: skip
 
 
