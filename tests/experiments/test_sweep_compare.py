@@ -27,10 +27,10 @@ def _results() -> pd.DataFrame:
 def test_verdicts_against_none_at_the_same_design_point():
     out = policy_verdicts(_results(), ["scenario_id", "time_shift_s"])
     assert list(out["verdict"]) == [
-        "not-mitigated",  # none itself, collided
+        "reference",  # none itself (collided): not a verdict against itself
         "avoided",
         "mitigated",  # 3.9 <= 0.8 x 5.0
-        "not-mitigated",
+        "reference",
         "not-mitigated",  # 4.5 > 4.0
         "not-mitigated",  # a collision without approach (speed unknown)
     ]
@@ -38,6 +38,9 @@ def test_verdicts_against_none_at_the_same_design_point():
     assert table.loc["aeb", "collisions"] == 1
     assert table.loc["aeb", "mean_impact_speed_mps"] == pytest.approx(4.5)
     assert table.loc["paper-cap", "mitigated"] == 1
+    # none's own collisions are not counted as not-mitigated
+    assert table.loc["none", "not-mitigated"] == 0 and table.loc["none", "reference"] == 2
+    assert table.loc["none", "collisions"] == 2
     assert table.loc["paper-cap", "mean_injury_risk"] == pytest.approx(0.01)  # NaN left out
 
 

@@ -80,14 +80,62 @@ def test_drac_is_zero_for_a_rider_passing_beside():
     assert max_drac(tr)[0] == pytest.approx(64.0 / 19.0)
 
 
-def test_drac_capped_at_one_g_and_flagged():
+def _approach(brake_from_gap_m: float | None, decel_mps2: float = 0.0):
+    """Ego (4 m) at 10 m/s along +x toward a standing rider (1 m), gap 10 m at t = 0, steps
+    of 0.125 s (exact in binary); braking at ``decel_mps2`` once the gap is
+    ``brake_from_gap_m``, else at constant speed until contact (gap 0 at t = 1 s)."""
+    dt = 0.125
+    t = np.arange(13) * dt
+    if brake_from_gap_m is None:
+        x, v = 10.0 * t, np.full_like(t, 10.0)
+    else:
+        t0 = (10.0 - brake_from_gap_m) / 10.0
+        tb = np.clip(t - t0, 0.0, None)
+        v = np.where(t < t0, 10.0, 10.0 - decel_mps2 * tb)
+        x = np.where(t < t0, 10.0 * t, 10.0 * t0 + 10.0 * tb - 0.5 * decel_mps2 * tb**2)
+    collided = x >= 10.0
+    v = np.where(collided, 0.0, v)
+    return make_trace(
+        ego_xy=np.stack([x, 0 * x], 1), other_xy=(12.5, 0.0), ego_speed=v, dt=dt, collided=collided
+    )
+
+
+def test_drac_unavoidable_only_beyond_the_reaction_time():
     from vei.metrics.conflict import drac_unavoidable
 
-    # 10 m/s towards a standing rider 0.5 m ahead: 100 / 1 = 100 m/s^2 -> 9.81, flagged.
-    tr = make_trace(ego_xy=(0, 0), other_xy=(3.0, 0.0), ego_speed=10.0)
-    assert max_drac(tr)[0] == 9.81 and bool(drac_unavoidable(tr)[0])
-    cfg = MetricsConfig(drac_ceiling_mps2=200.0)
-    assert max_drac(tr, cfg)[0] == pytest.approx(100.0) and not drac_unavoidable(tr, cfg)[0]
+    # Constant 10 m/s into a standing rider: the last step with time to contact >= 0.5 s
+    # has gap 5 m (TTC 0.5 s): DRAC = 100 / 10 = 10 m/s^2 > the car's 8 -> unavoidable,
+    # max capped at 8. The steps closer (gap 3.75, 2.5, 1.25 m: DRAC 13.3, 20, 40) do not
+    # count.
+    tr = _approach(None)
+    assert drac_series(tr, MetricsConfig(drac_ceiling_mps2=1e3))[0, 4:8] == pytest.approx(
+        [10.0, 100 / 7.5, 20.0, 40.0]
+    )
+    assert max_drac(tr)[0] == 8.0 and bool(drac_unavoidable(tr)[0])
+    assert max_drac(tr, MetricsConfig(drac_ceiling_mps2=1e3))[0] == pytest.approx(10.0)
+    # Reaction time 0: every step counts, the gap-1.25 m step gives 40 m/s^2.
+    zero = MetricsConfig(drac_ceiling_mps2=1e3, reaction_time_s=0.0)
+    assert max_drac(tr, zero)[0] == pytest.approx(40.0)
+    # Braking at 6.25 m/s^2 from gap 8 m (TTC 0.8 s): DRAC = 100 / 16 = 6.25 at every step
+    # from then on (constant deceleration = the DRAC): below 8 -> not unavoidable.
+    tr = _approach(8.0, 6.25)
+    assert max_drac(tr)[0] == pytest.approx(6.25) and not drac_unavoidable(tr)[0]
+    # The ceiling is the run's full brake: 6 m/s^2 makes the same run unavoidable.
+    assert bool(drac_unavoidable(_approach(8.0, 6.25), MetricsConfig(drac_ceiling_mps2=6.0))[0])
+
+
+def test_drac_ceiling_from_the_run_params():
+    from vei.metrics._trace import arrays
+    from vei.metrics.conflict import drac_ceiling, drac_unavoidable
+
+    a = arrays(_approach(None), {"ego_max_decel_mps2": 10.5})
+    assert drac_ceiling(a)[0] == 10.5
+    # DRAC 10 at TTC 0.5 s is reachable with a 10.5 m/s^2 brake
+    assert max_drac(a)[0] == pytest.approx(10.0) and not drac_unavoidable(a)[0]
+    assert drac_ceiling(_approach(None))[0] == 8.0  # EgoConfig.max_decel_mps2
+
+
+def test_drac_nan_from_contact_on():
     # From the contact step on: NaN (no deceleration avoids a crash that happened).
     tr = make_trace(
         ego_xy=[(0, 0), (0.4, 0), (0.4, 0)],
@@ -96,7 +144,7 @@ def test_drac_capped_at_one_g_and_flagged():
         collided=[False, True, True],
     )
     d = drac_series(tr)[0]
-    assert d[0] == 9.81 and np.isnan(d[1:]).all()
+    assert d[0] == 8.0 and np.isnan(d[1:]).all()
 
 
 def test_max_drac_equals_the_series_maximum_on_engine_runs():
@@ -112,11 +160,23 @@ def test_max_drac_equals_the_series_maximum_on_engine_runs():
     p = VariantParams.from_case(case_preset("normal"), arr, shifts.size, time_shift_s=shifts)
     tr = simulate(arr, p).to_trace()
     fast = max_drac(tr)  # the course test on the largest candidates only
-    series = drac_series(arrays(tr))  # every step's course test
-    full = np.full(series.shape[0], np.nan)
+    a = arrays(tr)
+    series = drac_series(a)  # every step's course test
+    # the maximum is over the steps with time to contact gap / v_close >= 0.5 s
+    from vei.metrics.conflict import _drac_candidates
+
+    ttc = _drac_candidates(a)[3]
+    assert np.isfinite(ttc).any()
+    eligible = np.where(ttc >= MetricsConfig().reaction_time_s, series, 0.0)
     has = np.isfinite(series).any(axis=1)
-    full[has] = np.nanmax(series[has], axis=1)
+    full = np.where(has, np.max(np.nan_to_num(eligible, nan=0.0), axis=1), np.nan)
     np.testing.assert_array_equal(fast, full)
-    raw_flag = (np.nan_to_num(series, nan=0.0) >= 9.81).any(axis=1)
+    # reaction time 0: the maximum of the whole series (computed fresh, no shared memo)
+    zero = MetricsConfig(reaction_time_s=0.0)
+    full0 = np.full(series.shape[0], np.nan)
+    full0[has] = np.nanmax(series[has], axis=1)
+    np.testing.assert_array_equal(max_drac(tr, zero), full0)
+    raw_flag = (np.nan_to_num(series, nan=0.0) >= 8.0).any(axis=1)
     assert (drac_unavoidable(tr) <= raw_flag).all()  # flagged runs reach the ceiling
+    assert drac_unavoidable(tr, zero).sum() > drac_unavoidable(tr).sum()
     assert 0 < raw_flag.sum() < raw_flag.size  # both kinds in the batch

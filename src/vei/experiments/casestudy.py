@@ -21,7 +21,7 @@ from __future__ import annotations
 import importlib
 import importlib.util
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +30,14 @@ import pandas as pd
 
 from vei.config import PAPER_CASES, CaseConfig, SimConfig, case_preset, config_to_dict
 from vei.errors import BackendError, ConfigError, InputError
-from vei.metrics import MetricsConfig, paper_ttc, summarize, summary_records, trace_from_timeseries
+from vei.metrics import (
+    MetricsConfig,
+    paper_ttc,
+    run_params,
+    summarize,
+    summary_records,
+    trace_from_timeseries,
+)
 from vei.types import EGO_ID, TIMESERIES_COLUMNS, Scenario
 
 #: Signature of a backend: (scenario, cases, time_shift_s, sim) -> long time series with
@@ -129,39 +136,90 @@ def is_no_avoidance(case: CaseConfig) -> bool:
     return policy == "none" or (policy is None and case.ego_mode == "pid")
 
 
+def _scenario_fields(case: CaseConfig) -> dict[str, Any]:
+    """Everything of a case except its name and its controller (ego_mode, ego.policy,
+    ego.policy_params, the CAP's parameters): what a policy run and its no-avoidance
+    reference must share (rider, SFM, the ego's cruise speed / PID / actuator, perception)."""
+    ego = {
+        f.name: getattr(case.ego, f.name)
+        for f in fields(case.ego)
+        if f.name not in ("policy", "policy_params")
+    }
+    return {"rider": case.rider, "sfm": case.sfm, "ego": ego, "perception": case.perception}
+
+
+def _differences(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
+    out = []
+    for key in a:
+        if key == "ego":
+            out += [f"ego.{k}" for k in a["ego"] if a["ego"][k] != b["ego"][k]]
+        elif a[key] != b[key]:
+            out.append(key)
+    return out
+
+
 def add_verdicts(
     summary: pd.DataFrame, cases: Sequence[CaseConfig], cfg: MetricsConfig | None = None
 ) -> pd.DataFrame:
     """``summary`` (one row per case, same order) with columns 'reference' and 'verdict'.
 
     Each case is compared (:func:`vei.metrics.severity.verdict`) with the no-avoidance
-    case (:func:`is_no_avoidance`) of the same rider (same ``rider`` and ``sfm``) in the
-    same case study: 'avoided', 'mitigated' (impact speed at least
-    ``cfg.mitigation_share`` lower) or 'not-mitigated'. A no-avoidance case is its own
-    reference ('avoided' or 'not-mitigated'); a case without one gets '' in both columns.
+    case (:func:`is_no_avoidance`) of the same scenario in the same case study: equal in
+    everything but the name and the controller (:func:`_scenario_fields`: rider, SFM,
+    ego cruise speed / PID / actuator settings, perception). Verdicts: 'avoided',
+    'mitigated' (impact speed at least ``cfg.mitigation_share`` lower), 'not-mitigated';
+    the no-avoidance case itself gets 'reference' (its own name as reference). A case
+    with no no-avoidance case of the same rider model (e.g. the recorded-speed replay, or
+    a study without a 'none' run) gets '' in both columns.
+
+    Raises:
+        ConfigError: a case has a no-avoidance case of its rider model that differs in
+            other settings (e.g. another cruise speed) and none that matches; or two
+            no-avoidance cases match.
+        InputError: the reference's row is not in ``summary`` (names and cases differ).
     """
     from vei.metrics.severity import verdict
 
     cfg = MetricsConfig() if cfg is None else cfg
     out = summary.copy()
+    names = out["name"].astype(str).tolist() if "name" in out else [c.name for c in cases]
+    if len(names) != len(cases):
+        raise InputError(f"summary has {len(names)} rows for {len(cases)} cases")
+    row_of = {n: i for i, n in enumerate(names)}
+    keys = [_scenario_fields(c) for c in cases]
     refs: list[str] = []
-    for case in cases:
-        ref = next(
-            (
-                c.name
-                for c in cases
-                if is_no_avoidance(c) and c.rider == case.rider and c.sfm == case.sfm
-            ),
-            "",
-        )
-        refs.append(case.name if is_no_avoidance(case) else ref)
+    for case, key in zip(cases, keys, strict=True):
+        if is_no_avoidance(case):
+            refs.append(case.name)
+            continue
+        pool = [(c, k) for c, k in zip(cases, keys, strict=True) if is_no_avoidance(c)]
+        match = [c.name for c, k in pool if k == key]
+        if len(match) > 1:
+            raise ConfigError(
+                f"case {case.name!r}: several no-avoidance cases match ({', '.join(match)})"
+            )
+        if not match:
+            near = [(c, k) for c, k in pool if c.rider == case.rider]
+            if near:
+                c, k = near[0]
+                raise ConfigError(
+                    f"case {case.name!r} has no no-avoidance reference: {c.name!r} differs in "
+                    f"{', '.join(_differences(key, k))}; add a 'none' case with the same settings"
+                )
+            refs.append("")
+            continue
+        refs.append(match[0])
+    for r in refs:
+        if r and r not in row_of:
+            raise InputError(f"reference case {r!r} has no row in the summary", field="name")
     out["reference"] = np.asarray(refs, dtype=object)
-    row_of = {n: i for i, n in enumerate(out["name"].astype(str))}
-    has = np.array([r != "" for r in refs])
-    ri = np.array([row_of.get(r, 0) for r in refs])
+    has = np.array([r != "" for r in refs], dtype=bool)
+    ri = np.array([row_of[r] if r else i for i, r in enumerate(refs)], dtype=np.int64)
     hit = out["collision"].to_numpy(bool)
     speed = out["impact_speed_mps"].to_numpy(float)
     v = verdict(hit, speed, hit[ri], speed[ri], cfg.mitigation_share)
+    is_ref = np.array([is_no_avoidance(c) for c in cases], dtype=bool)
+    v = np.where(is_ref, "reference", v)
     out["verdict"] = np.where(has, v, "").astype(object)
     return out
 
@@ -282,7 +340,9 @@ def run_casestudy(
     order = [c.name for c in case_objs]
     if names != order:
         raise BackendError(f"backend {backend_name!r} returned runs {names}, expected {order}")
-    summary = add_verdicts(summarize(trace, mcfg, labels=names), case_objs, mcfg)
+    summary = add_verdicts(
+        summarize(trace, mcfg, labels=names, params=run_params(case_objs)), case_objs, mcfg
+    )
     sfm_ids: tuple[str, ...] = ()
     rider_rows = None
     if sim.sfm_riders != "primary":

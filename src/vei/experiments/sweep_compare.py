@@ -31,8 +31,9 @@ def policy_verdicts(
         reference: the no-avoidance policy (default 'none' = the PID cruise).
         mitigation_share: see :func:`vei.metrics.severity.verdict`.
     Returns:
-        a copy of ``results`` plus 'verdict' ('' where the design point has no
-        ``reference`` row).
+        a copy of ``results`` plus 'verdict': 'reference' on the ``reference`` policy's own
+        rows, else 'avoided' / 'mitigated' / 'not-mitigated'; '' where the design point
+        has no ``reference`` row.
 
     Raises:
         InputError: a needed column is missing, or a design point holds two rows of one
@@ -60,6 +61,7 @@ def policy_verdicts(
         mitigation_share,
     )
     out = merged.drop(columns=["_ref_collision", "_ref_speed"])
+    v = np.where(out["ego.policy"].astype(str).to_numpy() == reference, "reference", v)
     out["verdict"] = np.where(has, v, "").astype(object)
     return out
 
@@ -82,7 +84,7 @@ def policy_summary(with_verdicts: pd.DataFrame) -> pd.DataFrame:
             if "injury_risk" in g
             else float("nan"),
         }
-        for name in VERDICTS:
+        for name in (*VERDICTS, "reference"):
             row[name] = int((g["verdict"] == name).sum())
         rows.append(row)
     return pd.DataFrame(rows)

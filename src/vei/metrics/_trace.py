@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -24,6 +26,9 @@ class TraceArrays:
     trace: Trace
     #: memo of derived series keyed by (name, config), filled by the metric modules
     memo: dict = field(default_factory=dict, compare=False, repr=False)
+    #: per-run settings of the runs [B] (see :func:`arrays`): 'rider_mass_kg',
+    #: 'ego_max_decel_mps2'; a missing key = the config default (95 kg, 8.0 m/s^2)
+    params: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         t = self.t_s
@@ -149,6 +154,51 @@ class TraceArrays:
         return self.active & (self.rel_xy[..., 0] > 0.0)
 
 
-def arrays(trace: Trace | TraceArrays) -> TraceArrays:
-    """Wrap a Trace (idempotent), validating its shapes."""
-    return trace if isinstance(trace, TraceArrays) else TraceArrays(trace)
+RUN_PARAMS: tuple[str, ...] = ("rider_mass_kg", "ego_max_decel_mps2")
+
+
+def arrays(
+    trace: Trace | TraceArrays, params: Mapping[str, npt.ArrayLike] | None = None
+) -> TraceArrays:
+    """Wrap a Trace (idempotent), validating its shapes.
+
+    Args:
+        trace: B runs.
+        params: optional per-run settings, each a scalar or [B]: 'rider_mass_kg' (the
+            rider + e-scooter mass, kg; the case's ``sfm.mass_kg``) and
+            'ego_max_decel_mps2' (the car's full brake, m/s^2; ``ego.max_decel_mps2``).
+            See :func:`run_params`. Given with a TraceArrays, they are added to it.
+    """
+    a = trace if isinstance(trace, TraceArrays) else TraceArrays(trace)
+    for key, value in (params or {}).items():
+        if key not in RUN_PARAMS:
+            raise InputError(f"unknown run parameter {key!r}; known: {', '.join(RUN_PARAMS)}")
+        v = np.broadcast_to(np.asarray(value, dtype=np.float64), a.ego_speed.shape[:1]).copy()
+        if not (np.isfinite(v) & (v > 0)).all():
+            raise InputError(f"run parameter {key} must be finite and > 0, got {v}", field=key)
+        a.params[key] = v
+    return a
+
+
+def run_params(cases: Sequence[Any]) -> dict[str, FloatArray]:
+    """Per-run settings of B cases (``vei.config.CaseConfig``), for :func:`arrays`: the
+    rider mass (``sfm.mass_kg``; also for a replayed rider, which has no SFM of its own)
+    and the car's full brake (``ego.max_decel_mps2``)."""
+    return {
+        "rider_mass_kg": np.array([float(c.sfm.mass_kg) for c in cases]),
+        "ego_max_decel_mps2": np.array([float(c.ego.max_decel_mps2) for c in cases]),
+    }
+
+
+def param_of(a: TraceArrays, key: str, override: float | None) -> FloatArray:
+    """[B] a per-run setting: ``override`` when given (a MetricsConfig field), else the
+    run's own (:func:`arrays` params), else the config default."""
+    n = a.ego_speed.shape[0]
+    if override is not None:
+        return np.full(n, float(override))
+    if key in a.params:
+        return a.params[key]
+    from vei.config_models import EgoConfig, SFMConfig
+
+    default = SFMConfig.mass_kg if key == "rider_mass_kg" else EgoConfig.max_decel_mps2
+    return np.full(n, float(default))

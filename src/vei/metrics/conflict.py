@@ -17,11 +17,18 @@ avoid a crash (DRAC).
   before the first contact. Everywhere else in the interaction span it is 0 (nothing to
   avoid) before contact and NaN from the contact step on (the crash was not avoided; a
   deceleration to avoid it no longer exists), NaN where inactive.
-  A car cannot brake harder than about 1 g: a value above ``MetricsConfig.
-  drac_ceiling_mps2`` means "unavoidable by braking alone". Such values are reported
-  capped at the ceiling, and ``drac_unavoidable`` flags the run (the gap -> 0 on the
-  step before an impact otherwise gives 10^3 - 10^4 m/s^2). Capping instead of NaN
-  keeps the run in means and maps; the flag keeps the information.
+  The car cannot brake harder than its full brake: the ceiling is ``MetricsConfig.
+  drac_ceiling_mps2`` when set, else the run's ``ego.max_decel_mps2`` (8.0 m/s^2 by
+  default). Values above it are reported capped at it (capping instead of NaN keeps
+  the run in means and maps). The maximum (``max_drac_mps2``) and the flag
+  ``drac_unavoidable`` are taken only over steps whose time to contact gap / v_close is
+  at least ``MetricsConfig.reaction_time_s`` (0.5 s): on the step before an impact the
+  gap is below v dt, so DRAC > v_close / (2 dt) = 10 v_close at 20 Hz for *every*
+  collision. With the reaction time, "unavoidable" means: at a moment when an automatic
+  brake still had time to act, braking at the car's full brake from then on could not
+  have avoided contact (both keeping their velocities). A conflict that arises less than
+  the reaction time before contact has no such step: max 0, flag False (the collision
+  columns show it).
 """
 
 from __future__ import annotations
@@ -29,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from vei.metrics._trace import TraceArrays, arrays
+from vei.metrics._trace import TraceArrays, arrays, param_of
 from vei.metrics.config import MetricsConfig
 from vei.types import Trace
 
@@ -50,9 +57,12 @@ def min_gap(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> Flo
     return out
 
 
-def _drac_candidates(a: TraceArrays) -> tuple[np.ndarray, FloatArray, FloatArray]:
+def _drac_candidates(
+    a: TraceArrays,
+) -> tuple[np.ndarray, FloatArray, FloatArray, FloatArray]:
     """([B, T] candidate steps: present, ahead, apart and closing, before contact;
-    [B, T] uncapped v_close^2 / (2 gap) there (-inf elsewhere); [B, T, 2] rider velocity)."""
+    [B, T] uncapped v_close^2 / (2 gap) there (-inf elsewhere); [B, T, 2] rider velocity;
+    [B, T] time to contact gap / v_close there (s; inf elsewhere))."""
     if "drac_candidates" in a.memo:
         return a.memo["drac_candidates"]
     heading = np.stack([np.cos(a.ego_yaw), np.sin(a.ego_yaw)], axis=-1)
@@ -61,9 +71,11 @@ def _drac_candidates(a: TraceArrays) -> tuple[np.ndarray, FloatArray, FloatArray
     gap = np.nan_to_num(a.gap, nan=0.0)
     candidate = a.ahead & (v_close > 0.0) & (gap > 0.0) & ~a.collided
     with np.errstate(divide="ignore", invalid="ignore"):
-        raw = np.where(candidate, v_close**2 / (2.0 * np.where(candidate, gap, 1.0)), -np.inf)
-    a.memo["drac_candidates"] = (candidate, raw, other_vel)
-    return candidate, raw, other_vel
+        safe_gap = np.where(candidate, gap, 1.0)
+        raw = np.where(candidate, v_close**2 / (2.0 * safe_gap), -np.inf)
+        ttc = np.where(candidate, safe_gap / np.where(candidate, v_close, 1.0), np.inf)
+    a.memo["drac_candidates"] = (candidate, raw, other_vel, ttc)
+    return candidate, raw, other_vel, ttc
 
 
 def _on_course(a: TraceArrays, b: np.ndarray, t: np.ndarray, other_vel: FloatArray) -> np.ndarray:
@@ -84,7 +96,7 @@ def _drac_raw(a: TraceArrays) -> FloatArray:
     """[B, T] uncapped DRAC (m/s^2): see the module docstring; NaN inactive or from contact."""
     if "drac_raw" in a.memo:
         return a.memo["drac_raw"]
-    candidate, raw, other_vel = _drac_candidates(a)
+    candidate, raw, other_vel, _ = _drac_candidates(a)
     on_course = np.zeros_like(candidate)
     if candidate.any():
         b, t = np.nonzero(candidate)
@@ -95,20 +107,25 @@ def _drac_raw(a: TraceArrays) -> FloatArray:
     return out
 
 
-def _max_drac_raw(a: TraceArrays) -> FloatArray:
-    """[B] max over steps of :func:`_drac_raw` without evaluating every step's course test:
-    each run's candidates are tested in descending order of DRAC (in blocks of 1, 2, 4, ...)
-    until one is on course. NaN where the road user is never present before contact."""
-    if "max_drac_raw" in a.memo:
-        return a.memo["max_drac_raw"]
+def _max_drac_raw(a: TraceArrays, reaction_time_s: float) -> FloatArray:
+    """[B] max of :func:`_drac_raw` over the steps at least ``reaction_time_s`` before
+    contact (time to contact gap / v_close >= reaction_time_s; other steps count as 0),
+    without evaluating every step's course test: each run's eligible candidates are tested
+    in descending order of DRAC (in blocks of 1, 2, 4, ...) until one is on course. NaN
+    where the road user is never present before contact."""
+    key = ("max_drac_raw", float(reaction_time_s))
+    if key in a.memo:
+        return a.memo[key]
+    candidate, raw, other_vel, ttc = _drac_candidates(a)
+    eligible = ttc >= reaction_time_s
+    present = (a.active & ~a.collided).any(axis=1)
     if "drac_raw" in a.memo:  # the full series is there anyway
-        d = a.memo["drac_raw"]
-        out = np.full(d.shape[0], np.nan)
-        has = np.isfinite(d).any(axis=1)
-        out[has] = np.nanmax(d[has], axis=1)
-        a.memo["max_drac_raw"] = out
+        d = np.where(eligible, a.memo["drac_raw"], 0.0)
+        out = np.where(present, np.max(d, axis=1, initial=0.0), np.nan)
+        a.memo[key] = out
         return out
-    candidate, raw, other_vel = _drac_candidates(a)
+    candidate = candidate & eligible
+    raw = np.where(candidate, raw, -np.inf)
     n_b = raw.shape[0]
     n_cand = candidate.sum(axis=1)
     order = np.argsort(-raw, axis=1, kind="stable")  # candidates first, largest DRAC first
@@ -133,35 +150,46 @@ def _max_drac_raw(a: TraceArrays) -> FloatArray:
         start += width
         width *= 2
         todo = todo[~found[todo] & (n_cand[todo] > start)]
-    present = (a.active & ~a.collided).any(axis=1)
     out = np.where(present, best, np.nan)
-    a.memo["max_drac_raw"] = out
+    a.memo[key] = out
     return out
 
 
-def drac_series(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
-    """[B, T] deceleration rate to avoid a crash (m/s^2), in [0, cfg.drac_ceiling_mps2]
-    (values above the ceiling are capped at it); NaN inactive or from first contact on."""
+def drac_ceiling(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
+    """[B] the DRAC ceiling of each run (m/s^2): cfg.drac_ceiling_mps2 when set, else the
+    run's ``ego.max_decel_mps2`` (trace params; default 8.0 m/s^2)."""
     cfg = MetricsConfig() if cfg is None else cfg
-    return np.minimum(_drac_raw(arrays(trace)), cfg.drac_ceiling_mps2)
+    return param_of(arrays(trace), "ego_max_decel_mps2", cfg.drac_ceiling_mps2)
+
+
+def drac_series(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
+    """[B, T] deceleration rate to avoid a crash (m/s^2), in [0, ceiling] (values above
+    the run's :func:`drac_ceiling` are capped at it); NaN inactive or from first contact
+    on. Every step before contact, also those closer than cfg.reaction_time_s."""
+    a = arrays(trace)
+    return np.minimum(_drac_raw(a), drac_ceiling(a, cfg)[:, None])
 
 
 def max_drac(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> FloatArray:
-    """[B] largest DRAC before first contact (m/s^2), capped at cfg.drac_ceiling_mps2; NaN
-    if the road user is never active before contact. Equals the series' maximum."""
+    """[B] largest DRAC over the steps at least cfg.reaction_time_s before contact (time
+    to contact gap / v_close; m/s^2), capped at the run's :func:`drac_ceiling`; 0 when no
+    such step is on a collision course (e.g. a rider appearing less than the reaction
+    time before contact), NaN if the road user is never active before contact."""
     cfg = MetricsConfig() if cfg is None else cfg
-    return np.minimum(_max_drac_raw(arrays(trace)), cfg.drac_ceiling_mps2)
+    a = arrays(trace)
+    return np.minimum(_max_drac_raw(a, cfg.reaction_time_s), drac_ceiling(a, cfg))
 
 
 def drac_unavoidable(
     trace: Trace | TraceArrays, cfg: MetricsConfig | None = None
 ) -> npt.NDArray[np.bool_]:
-    """[B] the DRAC exceeded cfg.drac_ceiling_mps2 at some step before first contact: had
-    both kept their velocities, braking within the car's limit could not have avoided
-    contact from that step."""
+    """[B] at some step at least cfg.reaction_time_s before contact, the DRAC exceeded the
+    run's :func:`drac_ceiling` (the car's full brake): had both kept their velocities,
+    braking at the full brake from that step on could not have avoided contact."""
     cfg = MetricsConfig() if cfg is None else cfg
+    a = arrays(trace)
     with np.errstate(invalid="ignore"):
-        return _max_drac_raw(arrays(trace)) > cfg.drac_ceiling_mps2
+        return _max_drac_raw(a, cfg.reaction_time_s) > drac_ceiling(a, cfg)
 
 
 def _first_crossing(p: FloatArray, q: FloatArray) -> tuple[int, float, int, float] | None:

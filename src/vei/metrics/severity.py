@@ -16,8 +16,11 @@ Definitions (one value per run; NaN / '' when the run has no collision):
   v_ego = speed * (cos yaw, sin yaw).
 - **Delta-v** of a perfectly plastic impact (both end with the common velocity; momentum
   conserved): dv_car = m_r / (m_c + m_r) |v_rel|, dv_rider = m_c / (m_c + m_r) |v_rel|.
-  Masses: ``MetricsConfig.car_mass_kg`` (1,500 kg) and ``rider_mass_kg`` (95 kg, the SFM
-  rider + e-scooter). Plastic (restitution e = 0) is the usual assumption for a car
+  Masses: ``MetricsConfig.car_mass_kg`` (1,500 kg) and the rider + e-scooter mass:
+  ``MetricsConfig.rider_mass_kg`` when set, else the run's own ``sfm.mass_kg`` (95 kg
+  default; a replayed rider uses its case's ``sfm.mass_kg`` too). The impact is taken
+  as fully plastic over the *whole* relative velocity: for a glancing or side impact the
+  tangential part is counted too, which overstates the delta-v of a graze. Plastic (restitution e = 0) is the usual assumption for a car
   striking a vulnerable road user, who is carried or thrown at about the car's speed; a
   bounce (e > 0) would multiply both delta-v by (1 + e), so these are the lower bound.
 - **Impact side**: the face of the ego box through which the rider came in. In the ego
@@ -62,7 +65,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from vei.metrics._trace import TraceArrays, arrays
+from vei.metrics._trace import TraceArrays, arrays, param_of
 from vei.metrics.config import MetricsConfig
 from vei.types import Trace
 
@@ -121,12 +124,16 @@ def delta_v(
     trace: Trace | TraceArrays, cfg: MetricsConfig | None = None
 ) -> tuple[FloatArray, FloatArray]:
     """([B] rider delta-v, [B] car delta-v) of a perfectly plastic impact (m/s); NaN
-    without collision. dv_rider = m_c / (m_c + m_r) |v_rel|, dv_car = m_r / (...) |v_rel|.
+    without collision. dv_rider = m_c / (m_c + m_r) |v_rel|, dv_car = m_r / (...) |v_rel|;
+    m_r = cfg.rider_mass_kg, or when None each run's rider mass (trace params, see
+    :func:`vei.metrics._trace.arrays`; default 95 kg).
     """
     cfg = MetricsConfig() if cfg is None else cfg
-    v = impact_speed(trace, cfg)
-    total = cfg.car_mass_kg + cfg.rider_mass_kg
-    return cfg.car_mass_kg / total * v, cfg.rider_mass_kg / total * v
+    a = arrays(trace)
+    v = impact_speed(a, cfg)
+    m_r = param_of(a, "rider_mass_kg", cfg.rider_mass_kg)
+    total = cfg.car_mass_kg + m_r
+    return cfg.car_mass_kg / total * v, m_r / total * v
 
 
 def _side_normal(a: TraceArrays) -> tuple[ObjArray, FloatArray]:

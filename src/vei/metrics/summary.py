@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from vei.metrics._trace import TraceArrays, arrays
@@ -19,6 +20,7 @@ def summarize(
     *,
     names: Sequence[str] | None = None,
     labels: Sequence[str] | None = None,
+    params: Mapping[str, npt.ArrayLike] | None = None,
 ) -> pd.DataFrame:
     """Scalar metrics of B runs.
 
@@ -27,11 +29,13 @@ def summarize(
         cfg: metric thresholds (paper defaults when None).
         names: scalar metrics to include (default: all, in SCALAR_METRICS order).
         labels: optional B run names, put in a first column 'name'.
+        params: optional per-run settings (rider mass, the car's full brake; see
+            :func:`vei.metrics._trace.arrays` and :func:`vei.metrics.run_params`).
     Returns:
         DataFrame with B rows; 'collision' is bool, the others float (NaN = undefined,
         inf = never, e.g. a TTC that never becomes finite).
     """
-    a = arrays(trace)
+    a = arrays(trace, params)
     cfg = MetricsConfig() if cfg is None else cfg
     cols: dict[str, np.ndarray] = {}
     b = a.ego_speed.shape[0]
