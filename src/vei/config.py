@@ -21,6 +21,7 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
+from vei.config_metrics import MetricsConfig
 from vei.config_models import (  # noqa: F401 - re-exported: vei.config is the public place
     AGGRESSIVE_K_DES_FACTOR,
     AUTO,
@@ -303,18 +304,24 @@ class RunConfig:
         rider: optional rider population: the run's SFM rider is replaced by N riders
             sampled from a profile (:func:`vei.calibrate.population.population_cases`);
             None = the case's own rider.
+        metrics: the metrics' settings (:class:`vei.config_metrics.MetricsConfig`: TTC
+            zones, DRAC ceiling and reaction time, masses, injury-risk coefficients,
+            mitigation share; docs/metrics.md); ``vei run --config`` scores with it.
     """
 
     case: CaseConfig
     sim: SimConfig = field(default_factory=SimConfig)
     time_shift: float | str = "auto"
     rider: RiderPopulationConfig | None = None
+    metrics: MetricsConfig = field(default_factory=MetricsConfig)
 
     def __post_init__(self) -> None:
         if not isinstance(self.case, CaseConfig):
             raise ConfigError("case must be a CaseConfig")
         if not isinstance(self.sim, SimConfig):
             raise ConfigError("sim must be a SimConfig")
+        if not isinstance(self.metrics, MetricsConfig):
+            raise ConfigError("metrics must be a MetricsConfig (a mapping of its fields)")
         if self.rider is not None and not isinstance(self.rider, RiderPopulationConfig):
             raise ConfigError("rider must be a mapping {profile, sample, category, seed}")
         if isinstance(self.time_shift, str):
@@ -365,6 +372,7 @@ def _build(cls: type[T], raw: Any, where: str) -> T:
         "cap": CAPConfig,
         "case": CaseConfig,
         "sim": SimConfig,
+        "metrics": MetricsConfig,
     }
     if cls is RunConfig:  # CaseConfig.rider is a string; RunConfig.rider a population
         nested["rider"] = RiderPopulationConfig

@@ -259,6 +259,7 @@ def register(app: typer.Typer) -> None:
             sim=sim,
             threat=threat,
             make_critical=make_critical,
+            metrics_config=run_cfg.metrics if run_cfg is not None else None,
         )
         paths = write_casestudy(result, out, figures=figures)
         doc = summary_document(result)
