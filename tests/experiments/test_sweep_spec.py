@@ -135,7 +135,10 @@ def test_random_design_within_bounds_and_duplicates_kept_once():
         ({"design": "grid", "parameters": {"cap.a_min_mps2": 3.0}}, "cap.a_min_mps2 must be < 0"),
         ({"design": "grid", "parameters": {"rider_model": "wild"}}, "rider_model"),
         ({"design": "grid", "parameters": {"sfm.use_vehicle_force": 1}}, "true or false"),
-        ({"design": "grid", "parameters": {"ego.policy": "cap"}}, "ego.policy expects one of"),
+        (
+            {"design": "grid", "parameters": {"ego.policy": "cap"}},
+            "ego.policy: policy 'cap': expected a built-in name",
+        ),
         (
             {"design": "grid", "parameters": {"time_shift_s": {"min": 2.0, "max": 1.0, "num": 2}}},
             "min",

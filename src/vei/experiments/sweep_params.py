@@ -19,12 +19,13 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Literal, Protocol
 
 import numpy as np
 
 from vei.calibrate.population import RIDER_PARAM_COLUMNS
-from vei.config import CASE_PRESETS, SFM_PRESETS, RunConfig
+from vei.config import CASE_PRESETS, SFM_PRESETS, RunConfig, validate_policy_spec
 from vei.config_perception import PerceptionConfig
 from vei.errors import ConfigError
 
@@ -51,7 +52,9 @@ class ParamDef:
     Attributes:
         name: dotted name: the field's path in the run configuration (e.g.
             ``sfm.k_des_nspm``), or a design parameter (``time_shift_s``, ``rider_model``).
-        kind: 'float', 'bool' or 'choice' (a string out of ``allowed``).
+        kind: 'float', 'bool', 'choice' (a string out of ``allowed``) or 'policy' (a
+            built-in name out of ``allowed``, or a user policy 'package.module:Class' /
+            'path/file.py:Class').
         lower, upper: open/closed physical bounds a float must respect (None = unbounded);
             ``lower_open`` / ``upper_open`` say whether the bound itself is excluded.
         allowed: the values a 'choice' parameter takes.
@@ -60,7 +63,7 @@ class ParamDef:
     """
 
     name: str
-    kind: Literal["float", "bool", "choice"]
+    kind: Literal["float", "bool", "choice", "policy"]
     lower: float | None = None
     upper: float | None = None
     lower_open: bool = False
@@ -75,6 +78,13 @@ class ParamDef:
             if not isinstance(value, bool | np.bool_):
                 raise ConfigError(f"{where}: {self.name} expects true or false, got {value!r}")
             return bool(value)
+        if self.kind == "policy":
+            if isinstance(value, str) and value in self.allowed:
+                return value
+            try:
+                return validate_policy_spec(value)
+            except ConfigError as exc:
+                raise ConfigError(f"{where}: {self.name}: {exc}") from None
         if self.kind == "choice":
             if not isinstance(value, str) or value not in self.allowed:
                 raise ConfigError(
@@ -156,9 +166,10 @@ PARAMETERS: dict[str, ParamDef] = {
         _f("cap.perception_delay_s", "s", "perception latency (the policy sees late)", lower=0.0),
         ParamDef(
             "ego.policy",
-            "choice",
+            "policy",
             allowed=("none", "paper-cap", "aeb", "idm"),
-            doc="ego policy (vei.policy): none = PID cruise, paper-cap = PID + CAP, aeb, idm",
+            doc="ego policy (vei.policy): none = PID cruise, paper-cap = PID + CAP, aeb, idm, "
+            "or a user policy 'package.module:Class' / 'path/file.py:Class'",
         ),
         *_POLICY_DEFS,
     )
@@ -233,6 +244,37 @@ def parse_perception(raw: Any, where: str) -> PerceptionConfig | None:
         raise ConfigError(f"{where}: {exc}") from None
 
 
+def resolve_policy(value: Any, where: str, base_dir: Path | None) -> Any:
+    """A sweep's ``ego.policy`` value with a relative file path made absolute.
+
+    ``path/file.py:Class`` with a relative path is taken relative to ``base_dir`` (the
+    spec file's folder; the working directory when None) and written absolute, so the
+    variants' run configurations find the file from anywhere. The class is loaded once
+    here, so a missing file or class stops the spec before anything runs. Built-in names,
+    ``package.module:Class`` and non-strings are returned as they are (checked later).
+
+    Raises:
+        ConfigError: the file or class cannot be loaded (naming ``where`` and the spec).
+    """
+    if not isinstance(value, str) or value in PARAMETERS[POLICY_PARAM].allowed:
+        return value
+    target, sep, cls = value.rpartition(":")
+    if not sep or not target or not cls.isidentifier():
+        return value  # ParamDef.check names the problem
+    if target.endswith(".py") or "/" in target or "\\" in target:
+        path = Path(target)
+        if not path.is_absolute():
+            path = (base_dir if base_dir is not None else Path.cwd()) / path
+        value = f"{path.resolve()}:{cls}"
+    from vei.policy.load import load_policy_class
+
+    try:
+        load_policy_class(value)
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: parameters.{POLICY_PARAM}: {exc}") from None
+    return value
+
+
 def check_name(name: str, where: str) -> None:
     """Refuse a sweep parameter name of an earlier version, naming the new one.
 
@@ -261,7 +303,8 @@ def variant_config(
     configuration's ``k_des_factor``, 2 for the Aggressive presets, still multiplies it:
     the effective gain is value x factor); ``ego.policy`` picks the controller and the swept
     ``ego.policy_params.*`` of that policy go to its ``ego.policy_params`` (those of another
-    policy are left out). The time shift is ``auto_shift_s + time_shift_s`` (reference
+    policy are left out; a user policy ``module:Class`` / ``file.py:Class`` is built with
+    its constructor's defaults). The time shift is ``auto_shift_s + time_shift_s`` (reference
     'auto') or ``time_shift_s`` (reference 'zero'), a missing ``time_shift_s`` counting as 0.
 
     Args:

@@ -82,6 +82,7 @@ from vei.experiments.sweep_params import (  # noqa: F401 - part of this module's
     check_aeb_rows,
     check_name,
     parse_perception,
+    resolve_policy,
     variant_config,
 )
 
@@ -329,11 +330,16 @@ def _flatten_params(raw: Any, where: str) -> dict[str, Any]:
     return flat
 
 
-def _parse_param(name: str, raw: Any, where: str) -> ParamSpec:
+def _parse_param(name: str, raw: Any, where: str, base_dir: Path | None = None) -> ParamSpec:
     check_name(name, where)
     if name not in PARAMETERS:
         raise ConfigError(f"{where}: unknown parameter '{name}'; known: {', '.join(PARAMETERS)}")
     pdef = PARAMETERS[name]
+    if name == POLICY_PARAM:  # a user policy's file: relative to the spec's folder
+        if isinstance(raw, Mapping) and isinstance(raw.get("choices"), list):
+            raw = {**raw, "choices": [resolve_policy(c, where, base_dir) for c in raw["choices"]]}
+        elif not isinstance(raw, Mapping):
+            raw = resolve_policy(raw, where, base_dir)
     loc = f"{where}: parameters.{name}"
     if not isinstance(raw, Mapping):
         return ParamSpec(name=name, value=pdef.check(raw, where))
@@ -389,7 +395,8 @@ def spec_from_dict(raw: Any, *, source: str | None = None) -> SweepSpec:
         if req not in raw:
             raise ConfigError(f"{where}: missing required key '{req}'")
     flat = _flatten_params(raw["parameters"], where)
-    parsed = {name: _parse_param(name, val, where) for name, val in flat.items()}
+    base_dir = Path(source).parent if source and Path(source).is_file() else None
+    parsed = {name: _parse_param(name, val, where, base_dir) for name, val in flat.items()}
     ordered = tuple(parsed[n] for n in PARAMETERS if n in parsed)
     return SweepSpec(
         design=raw["design"],
