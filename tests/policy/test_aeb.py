@@ -14,13 +14,20 @@ from vei.policy.aeb import (
     AEB_FULL,
     AEB_OFF,
     AEB_PARTIAL,
+    HOLD_SPEED_MPS,
     AEBConfig,
     aeb_stage,
     path_ttc,
 )
 from vei.sim.engine import prepare_scenario, simulate
 from vei.sim.params import VariantParams
-from vei.sim.testing import standing_rider_scenario
+from vei.sim.testing import (
+    EGO_ID,
+    TrackSpec,
+    ego_straight,
+    make_scenario,
+    standing_rider_scenario,
+)
 
 
 def test_stage_thresholds_on_ttc() -> None:
@@ -39,12 +46,21 @@ def test_ttc_ignores_receding_and_out_of_corridor_objects() -> None:
     assert path_ttc(gap, rvx, np.ones((1, 3), dtype=bool))[0] == pytest.approx(2.0)
 
 
-def test_braking_is_latched_while_the_object_stays_in_the_path() -> None:
-    prev = np.array([AEB_PARTIAL, AEB_PARTIAL, AEB_FCW], dtype=np.int8)
-    ttc = np.array([np.inf, np.inf, np.inf])  # standing still: nothing closes in
-    in_path = np.array([True, False, True])
-    got = aeb_stage(prev, ttc, in_path, 2.6, 1.6, 0.9)
-    np.testing.assert_array_equal(got, [AEB_PARTIAL, AEB_OFF, AEB_OFF])
+def test_braking_holds_while_closing_in_or_stopped_behind_an_object() -> None:
+    p, f, w = AEB_PARTIAL, AEB_FULL, AEB_FCW
+    prev = np.array([p, p, w, p, f, p], dtype=np.int8)
+    # 0-2 stopped (v = 0: nothing closes in); 3 rolling, object receding (TTC inf);
+    # 4 rolling, still closing but TTC above every threshold; 5 rolling, path clear
+    ttc = np.array([np.inf, np.inf, np.inf, np.inf, 5.0, np.inf])
+    in_path = np.array([True, False, True, True, True, False])
+    v = np.array([0.0, 0.0, 0.0, 6.0, 6.0, 6.0])
+    got = aeb_stage(prev, ttc, in_path, 2.6, 1.6, 0.9, v)
+    np.testing.assert_array_equal(got, [p, AEB_OFF, AEB_OFF, AEB_OFF, f, AEB_OFF])
+    # just below / at the hold speed
+    got = aeb_stage(prev[:1], ttc[:1], in_path[:1], 2.6, 1.6, 0.9, np.array([HOLD_SPEED_MPS]))
+    assert got[0] == AEB_OFF
+    got = aeb_stage(prev[:1], ttc[:1], in_path[:1], 2.6, 1.6, 0.9, np.array([0.49]))
+    assert got[0] == AEB_PARTIAL
 
 
 def _run(v0: float, **params: float):
@@ -111,3 +127,35 @@ def test_defaults_match_the_variant_params_defaults() -> None:
     for cfg, fields in ((AEBConfig(), AEB_PARAM_FIELDS), (IDMConfig(), IDM_PARAM_FIELDS)):
         for f, vp in fields.items():
             assert POLICY_PARAM_DEFAULTS[vp] == getattr(cfg, f)
+
+
+def test_brake_releases_when_the_rider_pulls_away_and_the_car_returns_to_cruise() -> None:
+    """A rider standing 16 m ahead of the bumper (TTC 1.6 s at 10 m/s: partial braking)
+    rides off along the ego's path at 12 m/s from t = 1 s, faster than the car: nothing
+    closes in any more (TTC = inf) although it stays in the corridor, so the AEB releases
+    and the PID brings the car back to its 10 m/s (a latched brake stopped the car)."""
+    v0, rate = 10.0, 20.0
+    ego = ego_straight(v0, 12.0, rate)
+    t = ego.t_s
+    x0 = 16.0 + 2.35 + 0.6  # rider along x (yaw 0): half-length 0.6 m
+    x = x0 + 12.0 * np.clip(t - 1.0, 0.0, None)
+    rider = TrackSpec("escooter", t, x, np.zeros_like(t), np.zeros_like(t),
+                      np.where(t >= 1.0, 12.0, 0.0))  # fmt: skip
+    scen = make_scenario({EGO_ID: ego, "rider1": rider}, primary_threat="rider1", rate_hz=rate)
+    arrays = prepare_scenario(scen, SimConfig(kernel="numpy"))
+    ego_cfg = EgoConfig(cruise_speed_mps=v0, run_up_m=0.0, policy="aeb")
+    r = simulate(
+        arrays,
+        VariantParams.from_case(CaseConfig(name="a", rider="replay", ego=ego_cfg), arrays, 1),
+    )
+    st, v = r.cap_state[0], r.ego_speed_mps[0]
+    assert np.isnan(r.collision_time_s[0])
+    k_brake = int(np.argmax(st >= AEB_PARTIAL))
+    assert 0.0 < r.t_s[k_brake] <= 0.2  # braking at once (TTC 1.6 s at the start)
+    k_rel = k_brake + int(np.argmax(st[k_brake:] < AEB_PARTIAL))
+    assert k_rel > k_brake and 1.0 < r.t_s[k_rel] < 1.3  # released soon after the rider leaves
+    assert (st[k_rel:] < AEB_PARTIAL).all()  # and stays released
+    assert 5.0 < v.min() < v0  # slowed (partial braking ~1 s), never stopped
+    # back toward cruise: the PID (time constant ~4.5 s) climbs monotonically from ~2.5 s
+    k3 = int(np.searchsorted(r.t_s, 2.5))
+    assert (np.diff(v[k3:]) >= -1e-9).all() and 9.3 < v[-1] <= v0 + 1e-9

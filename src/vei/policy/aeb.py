@@ -8,9 +8,12 @@ partial braking, then full braking as the time to collision shrinks):
     stage 2 partial brake when TTC <= ttc_partial_s   (demand -partial_decel_mps2)
     stage 3 full brake    when TTC <= ttc_full_s      (demand -full_decel_mps2)
 
-Once braking (stage >= 2) the stage never drops while an object stays in the path
-corridor, so the car brakes to a standstill and holds there (as AEB systems do); when
-the path clears it returns to PID cruise. Otherwise the ego drives the ``none`` PID.
+Once braking (stage >= 2) the stage does not drop while an object in the path corridor
+still closes in (finite TTC) or the car is (nearly) stopped (v < HOLD_SPEED_MPS) behind
+one, so the car brakes to a standstill and holds there (as AEB systems do); when the path
+clears, or every object in it moves away (TTC = inf, e.g. a rider pulling away ahead)
+while the car still rolls, the brake releases and the ego returns to PID cruise.
+Otherwise the ego drives the ``none`` PID.
 fsm_state records the stage (0 off, 1 FCW, 2 partial, 3 full).
 
 Defaults and sources (see docs/policy.md):
@@ -48,6 +51,9 @@ FloatArray = npt.NDArray[np.float64]
 AEB_OFF, AEB_FCW, AEB_PARTIAL, AEB_FULL = 0, 1, 2, 3
 #: Closing speeds below this [m/s] give TTC = +inf (nothing approaches).
 MIN_CLOSING_SPEED_MPS = 0.1
+#: Below this ego speed [m/s] a braking stage holds behind an object in the path even
+#: though nothing closes in (the car has stopped; stand-still hold).
+HOLD_SPEED_MPS = 0.5
 
 
 @dataclass(frozen=True)
@@ -165,12 +171,16 @@ def aeb_stage(
     ttc_warning_s: Any,
     ttc_partial_s: Any,
     ttc_full_s: Any,
+    v_mps: Any = 0.0,
 ) -> npt.NDArray[np.int8]:
-    """The new AEB stage [B] (pure): thresholds on TTC, braking latched while in path.
+    """The new AEB stage [B] (pure): thresholds on TTC; a braking stage holds while an
+    object is in the path and either closes in (finite TTC) or the ego is (nearly)
+    stopped (``v_mps < HOLD_SPEED_MPS``).
 
     Args:
         prev_stage: [B] int8 stage of the previous step. ttc_s: [B] from :func:`path_ttc`.
         in_path: [B] some valid object ahead in the corridor. ttc_*: [B] or scalars [s].
+        v_mps: [B] or scalar ego speed [m/s].
     """
     raw = np.where(
         ttc_s <= ttc_full_s,
@@ -179,7 +189,11 @@ def aeb_stage(
             ttc_s <= ttc_partial_s, AEB_PARTIAL, np.where(ttc_s <= ttc_warning_s, AEB_FCW, AEB_OFF)
         ),
     ).astype(np.int8)
-    hold = (prev_stage >= AEB_PARTIAL) & in_path
+    hold = (
+        (prev_stage >= AEB_PARTIAL)
+        & in_path
+        & (np.isfinite(ttc_s) | (np.asarray(v_mps) < HOLD_SPEED_MPS))
+    )
     return np.where(hold, np.maximum(prev_stage, raw), raw).astype(np.int8)
 
 
@@ -235,8 +249,9 @@ class AEB(_ParamEq):
         in_path = (obs.valid & np.isfinite(obs.path_gap_m)).any(axis=1)
         prev = state["stage"]
         stage = aeb_stage(
-            prev, ttc, in_path, p["ttc_warning_s"], p["ttc_partial_s"], p["ttc_full_s"]
-        )
+            prev, ttc, in_path, p["ttc_warning_s"], p["ttc_partial_s"], p["ttc_full_s"],
+            obs.ego_speed_mps,
+        )  # fmt: skip
         u, pid = self.pid.command(obs, state["pid"])
         released = (prev >= AEB_PARTIAL) & (stage < AEB_PARTIAL)
         if released.any():  # back to cruise: restart the PID from the current error
@@ -264,6 +279,7 @@ __all__ = [
     "AEB_FULL",
     "AEB_OFF",
     "AEB_PARAM_FIELDS",
+    "HOLD_SPEED_MPS",
     "AEB_ORDER",
     "AEB_PARTIAL",
     "check_aeb_order",
