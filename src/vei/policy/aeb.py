@@ -42,8 +42,9 @@ import numpy as np
 import numpy.typing as npt
 
 from vei.errors import ConfigError
+from vei.models import ego as ego_model
 from vei.policy.base import PolicyAction
-from vei.policy.builtin import PIDCruise, _ParamEq
+from vei.policy.builtin import ConfiguredPolicy, PIDCruise
 from vei.policy.observation import Observation
 
 FloatArray = npt.NDArray[np.float64]
@@ -208,7 +209,7 @@ def aeb_decel(
     )
 
 
-class AEB(_ParamEq):
+class AEB(ConfiguredPolicy):
     """TTC-based AEB with FCW and staged braking over PID cruise (see the module docstring).
 
     Args:
@@ -217,24 +218,17 @@ class AEB(_ParamEq):
     """
 
     name = "aeb"
+    CONFIG = AEBConfig
+    PARAM_FIELDS = AEB_PARAM_FIELDS
     _EQ_FIELDS = ("p", "pid")
 
     def __init__(self, config: AEBConfig | None = None, **params: float) -> None:
-        if config is not None and params:
-            raise ConfigError("AEB: give an AEBConfig or keyword parameters, not both")
-        try:
-            cfg = config or AEBConfig(**params)
-        except TypeError as exc:
-            raise ConfigError(f"aeb: {exc}") from None
-        self.config = cfg
-        self.p = {f: np.asarray(getattr(cfg, f), dtype=np.float64) for f in AEB_PARAM_FIELDS}
+        super().__init__(config, **params)
         self.pid = PIDCruise()
 
     def bind(self, params: Any) -> AEB:
         """A copy with the per-variant AEB / PID parameters of ``params`` (VariantParams)."""
-        out = AEB.__new__(AEB)
-        out.config = self.config
-        out.p = {f: np.asarray(getattr(params, vp)) for f, vp in AEB_PARAM_FIELDS.items()}
+        out = super().bind(params)
         out.pid = self.pid.bind(params)
         return out
 
@@ -256,20 +250,13 @@ class AEB(_ParamEq):
         released = (prev >= AEB_PARTIAL) & (stage < AEB_PARTIAL)
         if released.any():  # back to cruise: restart the PID from the current error
             err = obs.cruise_speed_mps - obs.ego_speed_mps
-            pid = ego_pid_reset(pid, released, err)
+            pid = ego_model.pid_reset_where(pid, released, err)
         braking = stage >= AEB_PARTIAL
-        a_pid = np.where(u >= 0.0, u * obs.max_accel_mps2, u * obs.max_decel_mps2)
+        a_pid = ego_model.command_to_accel(u, obs.max_accel_mps2, obs.max_decel_mps2)
         acc = np.where(
             braking, aeb_decel(stage, p["partial_decel_mps2"], p["full_decel_mps2"]), a_pid
         )
         return PolicyAction(accel_mps2=acc, fsm_state=stage), {"stage": stage, "pid": pid}
-
-
-def ego_pid_reset(pid: Any, mask: Any, err: Any) -> Any:
-    """:func:`vei.models.ego.pid_reset_where` (zero integral, previous error = err at mask)."""
-    from vei.models.ego import pid_reset_where
-
-    return pid_reset_where(pid, mask, err)
 
 
 __all__ = [

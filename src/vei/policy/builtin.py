@@ -41,18 +41,79 @@ def same_params(a: Any, b: Any) -> bool:
     return bool(np.array_equal(np.asarray(a), np.asarray(b)))
 
 
+def _frozen(value: Any) -> Any:
+    """A hashable image of a parameter value: dicts as sorted (key, value) tuples, arrays
+    as (shape, values) (so that equal parameters - :func:`same_params` - hash equal)."""
+    if isinstance(value, dict):
+        return tuple(sorted((k, _frozen(v)) for k, v in value.items()))
+    if isinstance(value, _ParamEq):
+        return value._key()
+    arr = np.asarray(value)
+    return (arr.shape, tuple(arr.ravel().tolist()))
+
+
 class _ParamEq:
-    """Built-in policies compare equal when of the same class with equal parameters
-    (instances stay distinct blocks in the engine, which groups by identity)."""
+    """Built-in policies compare equal when of the same class with equal parameters, and
+    equal ones hash equal (class + frozen parameters; the parameters are not changed after
+    construction / bind). The engine does not rely on either: it groups variants into
+    blocks by the identity of their policy instance (vei.sim.batch)."""
 
     _EQ_FIELDS: tuple[str, ...] = ()
+
+    def _key(self) -> tuple[Any, ...]:
+        return (type(self), tuple(_frozen(getattr(self, f)) for f in self._EQ_FIELDS))
 
     def __eq__(self, other: object) -> bool:
         if type(other) is not type(self):
             return NotImplemented
         return all(same_params(getattr(self, f), getattr(other, f)) for f in self._EQ_FIELDS)
 
-    __hash__ = object.__hash__
+    def __hash__(self) -> int:
+        return hash(self._key())
+
+
+class ConfiguredPolicy(_ParamEq):
+    """Base of the built-in policies with a frozen parameter dataclass (``aeb``, ``idm``):
+    built from that dataclass or its fields as keyword arguments; :meth:`bind` takes the
+    per-variant values of the same fields from the engine's VariantParams (so that sweeps
+    vary them).
+
+    Subclasses set ``name``, ``CONFIG`` (the dataclass) and ``PARAM_FIELDS`` (dataclass
+    field -> VariantParams field). ``self.p`` maps each dataclass field to its value
+    (a scalar array; [b] after bind).
+
+    Args:
+        config: an instance of ``CONFIG``, or its fields as keyword arguments.
+    """
+
+    name = ""
+    CONFIG: type = object
+    PARAM_FIELDS: dict[str, str] = {}
+    _EQ_FIELDS = ("p",)
+
+    def __init__(self, config: Any = None, **params: float) -> None:
+        from vei.errors import ConfigError
+
+        kind = self.CONFIG.__name__
+        if config is not None and params:
+            raise ConfigError(
+                f"{type(self).__name__}: give an {kind} or keyword parameters, not both"
+            )
+        if config is not None and not isinstance(config, self.CONFIG):
+            raise ConfigError(f"{type(self).__name__}: config must be an {kind}")
+        try:
+            cfg = config or self.CONFIG(**params)
+        except TypeError as exc:
+            raise ConfigError(f"{self.name}: {exc}") from None
+        self.config = cfg
+        self.p = {f: np.asarray(getattr(cfg, f), dtype=np.float64) for f in self.PARAM_FIELDS}
+
+    def bind(self, params: Any) -> Any:
+        """A copy with the per-variant parameters of ``params`` (VariantParams [b])."""
+        out = type(self).__new__(type(self))
+        out.config = self.config
+        out.p = {f: np.asarray(getattr(params, vp)) for f, vp in self.PARAM_FIELDS.items()}
+        return out
 
 
 class PIDCruise(_ParamEq):
@@ -193,4 +254,11 @@ class PaperCAP(_ParamEq):
         return PolicyAction(command=u, fsm_state=cap_state), {"cap": cap_state, "pid": pid}
 
 
-__all__ = ["CAP_FIELDS", "PID_FIELDS", "PIDCruise", "PaperCAP", "same_params"]
+__all__ = [
+    "CAP_FIELDS",
+    "PID_FIELDS",
+    "ConfiguredPolicy",
+    "PIDCruise",
+    "PaperCAP",
+    "same_params",
+]

@@ -29,7 +29,7 @@ import numpy.typing as npt
 
 from vei.errors import ConfigError
 from vei.policy.base import PolicyAction
-from vei.policy.builtin import _ParamEq
+from vei.policy.builtin import ConfiguredPolicy
 from vei.policy.observation import Observation
 
 FloatArray = npt.NDArray[np.float64]
@@ -39,7 +39,11 @@ MIN_GAP_M = 0.01
 
 @dataclass(frozen=True)
 class IDMConfig:
-    """Parameters of the ``idm`` policy (sweepable as ``idm.<name>``).
+    """Parameters of the ``idm`` policy (sweepable as ``ego.policy_params.<name>``).
+
+    ``max_accel_mps2`` is the IDM's own acceleration parameter a (its comfortable
+    acceleration, 1.0 m/s^2), not the car's full-throttle ``ego.max_accel_mps2``
+    (3.0 m/s^2), which still clips every demand.
 
     Attributes:
         max_accel_mps2: a, maximum acceleration [m/s^2] (> 0).
@@ -110,7 +114,7 @@ def idm_accel(
     return a * (free - inter)
 
 
-class IDM(_ParamEq):
+class IDM(ConfiguredPolicy):
     """Intelligent Driver Model on the nearest object ahead in the path (module docstring).
 
     Args:
@@ -118,24 +122,8 @@ class IDM(_ParamEq):
     """
 
     name = "idm"
-    _EQ_FIELDS = ("p",)
-
-    def __init__(self, config: IDMConfig | None = None, **params: float) -> None:
-        if config is not None and params:
-            raise ConfigError("IDM: give an IDMConfig or keyword parameters, not both")
-        try:
-            cfg = config or IDMConfig(**params)
-        except TypeError as exc:
-            raise ConfigError(f"idm: {exc}") from None
-        self.config = cfg
-        self.p = {f: np.asarray(getattr(cfg, f), dtype=np.float64) for f in IDM_PARAM_FIELDS}
-
-    def bind(self, params: Any) -> IDM:
-        """A copy with the per-variant IDM parameters of ``params`` (VariantParams)."""
-        out = IDM.__new__(IDM)
-        out.config = self.config
-        out.p = {f: np.asarray(getattr(params, vp)) for f, vp in IDM_PARAM_FIELDS.items()}
-        return out
+    CONFIG = IDMConfig
+    PARAM_FIELDS = IDM_PARAM_FIELDS
 
     def init_state(self, batch_size: int) -> None:
         """Stateless."""
