@@ -65,6 +65,29 @@ def test_head_on_by_hand():
     assert striking(tr)[0] == "car-hits-rider"
 
 
+def test_delta_v_uses_the_runs_rider_mass():
+    from vei.metrics import run_params
+    from vei.metrics._trace import arrays
+
+    tr = _two_step((0, 0), 10.0, (2.9, 0.0), (-5.0, 0.0))
+    from dataclasses import replace
+
+    base = case_preset("normal")
+    heavy = replace(base, sfm=replace(base.sfm, mass_kg=150.0))
+    params = run_params([heavy])
+    assert params["rider_mass_kg"][0] == 150.0 and params["ego_max_decel_mps2"][0] == 8.0
+    dv_r, dv_c = delta_v(arrays(tr, params))
+    assert dv_c[0] == pytest.approx(150.0 / 1650.0 * 15.0)  # m_r / (m_c + m_r) |v_rel|
+    assert dv_r[0] == pytest.approx(1500.0 / 1650.0 * 15.0)
+    # a number in the config overrides the run's mass; summarize takes the params too
+    assert delta_v(arrays(tr), MetricsConfig(rider_mass_kg=500.0))[1][0] == pytest.approx(
+        500.0 / 2000.0 * 15.0
+    )
+    row = summarize(tr, params=params).iloc[0]
+    assert row["delta_v_car_mps"] == pytest.approx(150.0 / 1650.0 * 15.0)
+    assert delta_v(tr)[1][0] == pytest.approx(M_R / (M_C + M_R) * 15.0)  # default 95 kg
+
+
 def test_side_impact_by_hand():
     tr = _two_step((0, 0), 2.0, (0.3, 1.5), (0.0, -4.0))
     assert impact_speed(tr)[0] == pytest.approx(math.hypot(2.0, 4.0))
@@ -114,6 +137,11 @@ def test_config_validation():
         MetricsConfig(drac_ceiling_mps2=-1.0)
     with pytest.raises(ConfigError):
         MetricsConfig(rider_mass_kg=float("nan"))
+    with pytest.raises(ConfigError):
+        MetricsConfig(reaction_time_s=-0.1)
+    assert MetricsConfig().rider_mass_kg is None and MetricsConfig().drac_ceiling_mps2 is None
+    with pytest.raises(ConfigError, match="reaction_tme_s"):
+        MetricsConfig.from_dict({"reaction_tme_s": 1.0})
 
 
 def test_verdict():
