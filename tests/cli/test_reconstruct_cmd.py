@@ -47,6 +47,8 @@ def test_without_ground_truth_no_error_columns(tmp_path, capsys):
     [
         ["--interp", "quadratic"],
         ["--rate-hz", "0"],
+        ["--posterior-std-inflation", "0"],
+        ["--posterior-std-inflation", "wide"],
     ],
 )
 def test_bad_options_exit_2(tmp_path, args):
@@ -95,3 +97,15 @@ def test_bad_map_source_is_a_clean_error(tmp_path, capsys):
     rc = main(["reconstruct", str(src), "--out", str(tmp_path / "s"), "--map", str(bad)])
     assert rc == 2
     assert not (tmp_path / "s").exists()
+
+
+def test_kalman_coverage_is_labelled_in_sample_with_the_factor_used(tmp_path, capsys):
+    src = make_interaction(tmp_path)
+    out = tmp_path / "scen"
+    args = ["reconstruct", str(src), "--out", str(out), "--interp", "kalman", "--no-figure"]
+    assert main([*args, "--posterior-std-inflation", "2"]) == 0
+    text = " ".join(capsys.readouterr().out.split())  # rich wraps long lines
+    assert "95 % interval coverage in-sample" in text
+    assert "python -m benchmarks recon_accuracy" in text and "posterior std x 2.000" in text
+    noise = read_scenario(out).extra["reconstruction"]["noise"]
+    assert noise["std_inflation"] == 2.0

@@ -16,6 +16,8 @@ from typing import Annotated
 
 import typer
 
+from vei.errors import ConfigError
+
 
 def register(app: typer.Typer) -> None:
     """Add ``vei reconstruct`` to the app."""
@@ -64,6 +66,16 @@ def register(app: typer.Typer) -> None:
                 "lateral acceleration before/after is reported).",
             ),
         ] = "spline",
+        posterior_std_inflation: Annotated[
+            str,
+            typer.Option(
+                "--posterior-std-inflation",
+                help="--interp kalman: factor on the rider posterior's std (band, samples): "
+                "'calibrated' (1.461, fitted on the shared recordings' camera; 1 with a fixed "
+                "noise) or a number > 0 (1 = the model's own covariance; fit one for another "
+                "sensor: docs/reconstruction.md).",
+            ),
+        ] = "calibrated",
         margin_m: Annotated[
             float,
             typer.Option("--margin-m", help="Margin around the trajectories' bounds, in metres."),
@@ -100,8 +112,22 @@ def register(app: typer.Typer) -> None:
         from vei.recon.pipeline import ReconstructionConfig
         from vei.recon.pipeline import reconstruct as run_reconstruct
 
+        inflation: float | str = posterior_std_inflation
+        if posterior_std_inflation != "calibrated":
+            try:
+                inflation = float(posterior_std_inflation)
+            except ValueError:
+                raise ConfigError(
+                    "--posterior-std-inflation must be 'calibrated' or a number > 0, "
+                    f"got {posterior_std_inflation!r}"
+                ) from None
         config = ReconstructionConfig(
-            rate_hz=rate_hz, interp=interp, noise_m=noise_m, margin_m=margin_m, ego_path=ego_path
+            rate_hz=rate_hz,
+            interp=interp,
+            noise_m=noise_m,
+            margin_m=margin_m,
+            ego_path=ego_path,
+            posterior_std_inflation=inflation,
         )
         data = read_interaction(interaction)
         scenario = run_reconstruct(data, config, threat=threat)
@@ -230,15 +256,18 @@ def print_report(scenario, out: Path) -> None:
             line = f"  vs ground truth denoised (1 s Savitzky-Golay): mean RMSE {s['mean_rmse_sg_m']:.3f} m"
             if s.get("coverage_sg") is not None:
                 line += (
-                    f"; 95 % interval coverage {100 * s['coverage_sg']:.1f} % (denoised), "
-                    f"{100 * s['coverage_raw']:.1f} % (raw, with the keyframe noise)"
+                    "; 95 % interval coverage in-sample (noise estimated and coverage "
+                    f"scored on this recording) {100 * s['coverage_sg']:.1f} % (denoised), "
+                    f"{100 * s['coverage_raw']:.1f} % (raw, with the keyframe noise); held-out "
+                    "figure: docs/reconstruction.md, python -m benchmarks recon_accuracy"
                 )
             console.print(line)
     noise = rec.get("noise")
     if noise:
         console.print(
             f"kalman noise ({noise['method']}, {noise['n_keyframes']} keyframes of {noise['n_tracks']} "
-            f"tracks): sigma {noise['noise_m']:.3f} m, q {noise['accel_psd_m2ps3']:.3f} m^2/s^3"
+            f"tracks): sigma {noise['noise_m']:.3f} m, q {noise['accel_psd_m2ps3']:.3f} m^2/s^3, "
+            f"posterior std x {noise.get('std_inflation', 1.0):.3f}"
         )
     ego_path = rec.get("ego_path")
     if ego_path:

@@ -35,6 +35,7 @@ from vei.geo.frame import Bounds, LocalFrame
 from vei.recon import smoother as smoother_mod
 from vei.recon import threat as threat_mod
 from vei.recon.accuracy import evaluate as _evaluate_accuracy
+from vei.recon.calibration import POSTERIOR_STD_INFLATION
 from vei.recon.interpolate import (
     INTERP_METHODS,
     KinematicLimits,
@@ -93,6 +94,15 @@ class ReconstructionConfig:
             trusted (yaw held from a neighbour) [m].
         corridor_half_width_m: half-width of the ego's path corridor for the primary
             threat [m] (ego half width 0.93 + rider half width 0.3 + 0.77 m of slack).
+        posterior_std_inflation: 'kalman' only: factor c on the rider posterior's standard
+            deviation (its covariance times c^2): the reported std, the 95 % band and the
+            spread of posterior samples (vei.recon.samples) scale with it, the mean does
+            not. 'calibrated' (default): POSTERIOR_STD_INFLATION (1.461, fitted on the
+            shared recordings' camera, vei.recon.calibration) with noise_estimate 'ml',
+            and 1.0 with 'fixed' (no fitted factor for a hand-set noise) or when no track
+            has enough keyframes to estimate the noise. A number > 0 (finite) is used as
+            it is in both cases: 1.0 = the model's own covariance; for data from another
+            sensor, fit one with vei.recon.calibration.fit_inflation on its ground truth.
     """
 
     rate_hz: float = 20.0
@@ -107,6 +117,7 @@ class ReconstructionConfig:
     max_gap_s: float = 2.5
     min_move_m: float = 0.5
     corridor_half_width_m: float = 2.0
+    posterior_std_inflation: float | str = "calibrated"
 
     def __post_init__(self) -> None:
         if self.interp not in INTERP_METHODS:
@@ -137,6 +148,22 @@ class ReconstructionConfig:
                 raise ConfigError(f"{name} must be a finite number >= 0; got {v!r}")
         if self.rate_hz > 1000:
             raise ConfigError(f"rate_hz must be <= 1000; got {self.rate_hz}")
+        c = self.posterior_std_inflation
+        if c != "calibrated" and (
+            isinstance(c, bool) or not isinstance(c, int | float) or not math.isfinite(c) or c <= 0
+        ):
+            raise ConfigError(
+                f"posterior_std_inflation must be 'calibrated' or a finite number > 0; got {c!r}"
+            )
+
+    def std_inflation(self, noise_estimate: str) -> float:
+        """The factor on the rider posterior's std for a noise of kind ``noise_estimate``
+        ('ml' or 'fixed'): the configured number, or for 'calibrated'
+        POSTERIOR_STD_INFLATION ('ml') / 1.0 ('fixed')."""
+        c = self.posterior_std_inflation
+        if c != "calibrated":
+            return float(c)
+        return POSTERIOR_STD_INFLATION if noise_estimate == "ml" else 1.0
 
     @property
     def smoothing(self) -> SmoothingParams:
@@ -435,14 +462,16 @@ KALMAN_YAW_MIN_SPEED_MPS = 0.5
 
 def _rider_noise(keyframes: pd.DataFrame, cfg: ReconstructionConfig) -> smoother_mod.NoiseEstimate:
     """The 'kalman' noise: ML over every track's keyframes, or the configured values."""
-    fixed = smoother_mod.NoiseEstimate(cfg.noise_m, cfg.accel_psd_m2ps3)
+    fixed = smoother_mod.NoiseEstimate(
+        cfg.noise_m, cfg.accel_psd_m2ps3, std_inflation=cfg.std_inflation("fixed")
+    )
     if cfg.noise_estimate == "fixed":
         return fixed
     tracks = [
         (g["t_s"].to_numpy(np.float64), g[["x_m", "y_m"]].to_numpy(np.float64))
         for _, g in keyframes.groupby("agent_id", sort=True)
     ]
-    return smoother_mod.estimate_noise(tracks, default=fixed)
+    return smoother_mod.estimate_noise(tracks, default=fixed, std_inflation=cfg.std_inflation("ml"))
 
 
 def _primed_kalman(keyframes: pd.DataFrame, cfg: ReconstructionConfig, noise) -> dict:
