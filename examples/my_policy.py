@@ -35,9 +35,38 @@ class MyPolicy:
         self.stop_gap_m = stop_gap_m
 
     def init_state(self, batch_size: int) -> None:
+        """The policy's own memory at t = 0 for ``batch_size`` variants (B).
+
+        Return anything (e.g. a dict of [B] arrays: an FSM state, a filter's memory); the
+        engine passes it to the first :meth:`act` and each later act the state the
+        previous one returned. This policy remembers nothing: None.
+        """
         return None  # stateless
 
     def act(self, obs, state):
+        """One engine step for B variants at once: the demanded acceleration.
+
+        Args:
+            obs: a :class:`vei.policy.observation.Observation` (docs/policy.md), all
+                numpy arrays over B variants and N road-user slots:
+                ``ego_speed_mps`` [B] (m/s, >= 0), ``ego_accel_mps2`` [B] (m/s^2),
+                ``ego_s_m`` [B] (m along the path), ``cruise_speed_mps`` [B] (the
+                configured v_d), ``max_accel_mps2`` / ``max_decel_mps2`` [B] (the car's
+                limits, both > 0), ``t_s`` [B] (s), ``dt_s`` (float, s); per road user
+                [B, N]: ``valid`` (perceived now), ``rel_x_m`` / ``rel_y_m`` (centre in
+                the ego frame, x forward, y left, m), ``rel_vx_mps`` / ``rel_vy_mps``
+                (relative velocity in the ego frame: < 0 in x = coming closer),
+                ``length_m`` / ``width_m``, ``age_s`` (age of the detection, s),
+                ``category``, ``path_gap_m`` (free distance from the ego's front along
+                its path to the object, m; +inf when not ahead in the path corridor)
+                and ``path_lateral_m``. Slots with ``valid`` False hold no information.
+            state: what :meth:`init_state` or the previous call returned.
+        Returns:
+            ``(PolicyAction, new_state)``: ``PolicyAction(accel_mps2=[B] m/s^2)``
+            (positive = speed up; the engine clips it to [-max_decel, max_accel]) or
+            ``PolicyAction(command=[B] in [-1, 1])`` (throttle / brake), optionally
+            ``fsm_state=[B] int8`` (recorded for the figures); and the new state.
+        """
         closing = -obs.rel_vx_mps  # [B, N] m/s, > 0 when the object comes closer
         in_path = obs.valid & np.isfinite(obs.path_gap_m) & (closing > 0.1)
         ttc = np.where(in_path, obs.path_gap_m / np.where(in_path, closing, 1.0), np.inf)
@@ -64,6 +93,19 @@ class MyLoopPolicy(PerVariantPolicy):
         self.stop_gap_m = stop_gap_m
 
     def act_one(self, obs) -> float:
+        """One variant at one step: its demanded acceleration [m/s^2] (a float).
+
+        Args:
+            obs: the variant's observation (``Observation.variant(i)``): the same names
+                as in :meth:`MyPolicy.act`, the ego quantities as floats
+                (``obs.ego_speed_mps``, ``obs.cruise_speed_mps`` in m/s, ...) and the road
+                users as [N] arrays (``obs.valid[j]``, ``obs.path_gap_m[j]`` in m,
+                ``obs.rel_vx_mps[j]`` in m/s, ...).
+        Returns:
+            The acceleration [m/s^2] (negative = brake; clipped by the engine to the
+            car's limits). A stateful policy (``stateful = True``) takes a second
+            argument, its memory (from ``init_one``), and returns ``(accel, memory)``.
+        """
         ttc_min = np.inf
         gap_min = np.inf
         for j in range(len(obs.valid)):

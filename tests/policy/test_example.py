@@ -104,3 +104,21 @@ def test_bad_policy_spec_exits_2(demo_folder, tmp_path, capsys) -> None:
     cap = capsys.readouterr()
     assert code == 2
     assert "nosuch.module:X" in cap.out + cap.err
+
+
+def test_the_example_documents_what_users_copy() -> None:
+    """Users copy the example: its methods say what obs holds (shapes, units) and what
+    to return."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("my_policy_doc", EXAMPLE)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    for meth, words in (
+        (mod.MyPolicy.init_state, ("batch_size", "act")),
+        (mod.MyPolicy.act, ("[B]", "[B, N]", "m/s", "path_gap_m", "PolicyAction", "Returns")),
+        (mod.MyLoopPolicy.act_one, ("[N]", "m/s^2", "Returns", "stateful")),
+    ):
+        doc = meth.__doc__ or ""
+        missing = [w for w in words if w not in doc]
+        assert not missing, f"{meth.__qualname__}: docstring lacks {missing}"
