@@ -143,15 +143,17 @@ _ALL: tuple[Metric, ...] = (
         "max_drac_mps2",
         "scalar",
         "m/s^2",
-        "largest deceleration rate to avoid a crash",
+        "largest deceleration rate to avoid a crash at >= reaction_time_s before contact, "
+        "capped at the car's full brake",
         lambda a, c: conflict.max_drac(a, c),
     ),
     Metric(
         "drac_unavoidable",
         "scalar",
         "bool",
-        "DRAC exceeded the braking ceiling before contact: had both kept their velocities, "
-        "braking alone could not have avoided contact (the rider may still have escaped)",
+        "DRAC exceeded the car's full brake (ego.max_decel_mps2) at a step >= reaction_time_s "
+        "before contact: had both kept their velocities, full braking from then on could "
+        "not have avoided contact (the rider may still have escaped)",
         lambda a, c: conflict.drac_unavoidable(a, c),
     ),
     Metric(
