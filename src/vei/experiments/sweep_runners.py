@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import contextlib
-import os
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -130,27 +129,11 @@ def _runner(engine: str, workers: int, evaluator: Evaluator) -> Iterator[Any]:
     """The executor of a sweep: serial, a process pool, or a Ray session (started and shut
     down here unless Ray is already initialised)."""
     if engine == "ray":
-        try:
-            import ray
-        except ImportError as exc:  # pragma: no cover - ray is in the 'distributed' extra
-            from vei.errors import DependencyError
+        from vei.experiments.workers import ray_session
 
-            raise DependencyError("engine 'ray' needs Ray: pip install 'vei[distributed]'") from exc
-        started = False
-        if not ray.is_initialized():
-            os.environ.setdefault("RAY_DISABLE_IMPORT_WARNING", "1")
-            ray.init(
-                num_cpus=workers,
-                include_dashboard=False,
-                log_to_driver=False,
-                configure_logging=False,
-            )
-            started = True
-        try:
+        # The session of this process, the cluster at $RAY_ADDRESS, or a local Ray.
+        with ray_session(workers) as ray:
             yield _RayRunner(evaluator, ray, workers)
-        finally:
-            if started:
-                ray.shutdown()
         return
     if workers == 1:
         yield _SerialRunner(evaluator)
