@@ -65,3 +65,25 @@ def test_run_config_metrics_typo_is_an_error(scenario_dir, tmp_path, capsys):
     assert code == 2
     text = captured.out + captured.err
     assert "injury_intercpt" in text and "Traceback" not in text
+
+
+def test_a_sweep_over_the_rider_mass_changes_the_delta_v(scenario_dir, tmp_path):
+    """A sweep scores each variant with its own sfm.mass_kg (as vei run does)."""
+    from vei.experiments.sweep import read_results, run_sweep
+    from vei.experiments.sweep_spec import spec_from_dict
+
+    spec = spec_from_dict(
+        {
+            "design": "grid",
+            "base": "normal",
+            "parameters": {"sfm.mass_kg": {"choices": [95.0, 150.0]}},
+        }
+    )
+    run_sweep(scenario_dir, spec, tmp_path / "sweep", chunk_size=8, progress=False)
+    df = read_results(tmp_path / "sweep").set_index("sfm.mass_kg")
+    for m in (95.0, 150.0):
+        row = df.loc[m]
+        assert bool(row["collision"]) and row["impact_speed_mps"] > 0
+        v = row["impact_speed_mps"]
+        assert row["delta_v_car_mps"] == pytest.approx(m / (1500.0 + m) * v, rel=1e-12)
+        assert row["delta_v_rider_mps"] == pytest.approx(1500.0 / (1500.0 + m) * v, rel=1e-12)

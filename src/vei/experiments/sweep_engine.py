@@ -304,7 +304,12 @@ class EngineEvaluator:
         result = simulate(prepared.arrays, params, record="full", kernel=self.sim.kernel)
         # Scored as a run's time series is (vei run, vei casestudy): bit-identical metrics.
         trace = as_timeseries_trace(result.to_trace())
-        summary = summarize(trace, names=self.metrics)
+        # the variant's rider mass and full brake (delta-v, DRAC ceiling), as in vei run
+        run_params = {
+            "rider_mass_kg": params.mass_kg,
+            "ego_max_decel_mps2": params.max_decel_mps2_ego,
+        }
+        summary = summarize(trace, names=self.metrics, params=run_params)
         summary.insert(0, "time_shift_applied_s", params.time_shift_s)
         summary.insert(0, "variant_id", variants["variant_id"].to_numpy())
         return summary.reset_index(drop=True)
