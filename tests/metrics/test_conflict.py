@@ -124,6 +124,20 @@ def test_drac_unavoidable_only_beyond_the_reaction_time():
     assert bool(drac_unavoidable(_approach(8.0, 6.25), MetricsConfig(drac_ceiling_mps2=6.0))[0])
 
 
+def test_max_drac_from_the_memoised_series_equals_the_fresh_search():
+    from vei.metrics._trace import arrays
+    from vei.metrics.conflict import drac_unavoidable
+
+    for tr in (_approach(None), _approach(8.0, 6.25)):  # collision (NaN steps) and not
+        for cfg in (MetricsConfig(), MetricsConfig(reaction_time_s=0.0, drac_ceiling_mps2=1e3)):
+            fresh = max_drac(tr, cfg), drac_unavoidable(tr, cfg)
+            a = arrays(tr)
+            drac_series(a)  # the full series in the memo: max_drac takes it from there
+            assert np.isnan(drac_series(a)[0]).any() == bool(a.collided.any())
+            np.testing.assert_array_equal(max_drac(a, cfg), fresh[0])
+            np.testing.assert_array_equal(drac_unavoidable(a, cfg), fresh[1])
+
+
 def test_drac_ceiling_from_the_run_params():
     from vei.metrics._trace import arrays
     from vei.metrics.conflict import drac_ceiling, drac_unavoidable

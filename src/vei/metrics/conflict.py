@@ -117,7 +117,7 @@ def _max_drac_raw(a: TraceArrays, reaction_time_s: float) -> FloatArray:
     if key in a.memo:
         return a.memo[key]
     candidate, raw, other_vel, ttc = _drac_candidates(a)
-    eligible = ttc >= reaction_time_s
+    eligible = candidate & (ttc >= reaction_time_s)  # ttc is finite on candidates
     present = (a.active & ~a.collided).any(axis=1)
     if "drac_raw" in a.memo:  # the full series is there anyway
         d = np.where(eligible, a.memo["drac_raw"], 0.0)
