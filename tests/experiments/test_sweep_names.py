@@ -221,9 +221,9 @@ def test_a_sweep_refuses_aeb_thresholds_that_vei_run_refuses(demo_scenario):
 
     with pytest.raises(ConfigError, match="ttc_warning_s >= ttc_partial_s"):
         AEB(**case.ego.policy_params)
-    # the policy 'none' ignores the AEB's parameters: no error
-    ok = spec_from_dict({**raw, "parameters": {**raw["parameters"], "ego.policy": "none"}})
-    assert len(variants_table(ok, "demo")) == 2
+    # with no variant running aeb, its parameters would change nothing: refused
+    with pytest.raises(ConfigError, match="belongs to policy 'aeb', which no variant runs"):
+        spec_from_dict({**raw, "parameters": {**raw["parameters"], "ego.policy": "none"}})
     # the evaluator checks a table it is given directly (not made by variants_table)
     from vei.experiments.sweep_engine import EngineEvaluator, variant_params
 
@@ -255,3 +255,21 @@ def test_every_sweep_spec_in_the_docs_and_examples_uses_todays_names():
             spec_from_dict(raw, source=str(path.relative_to(root)))
             found += 1
     assert found >= 4  # sweeps.md, policy.md, catalogue.md, examples/sweep.yaml
+
+
+@pytest.mark.parametrize(
+    ("policy", "ok"),
+    [(None, False), ({"choices": ["none", "idm"]}, False), ({"choices": ["none", "aeb"]}, True),
+     ("aeb", True)],
+)  # fmt: skip
+def test_a_policy_parameter_needs_its_policy_among_the_swept_ones(policy, ok):
+    # Swept without any variant running aeb, ttc_full_s would change nothing.
+    ego: dict = {"policy_params": {"ttc_full_s": {"choices": [0.6, 0.9]}}}
+    if policy is not None:
+        ego["policy"] = policy
+    raw = {"design": "grid", "base": "normal-cap", "parameters": {"ego": ego}}
+    if ok:
+        assert spec_from_dict(raw).parameters
+    else:
+        with pytest.raises(ConfigError, match="belongs to policy 'aeb', which no variant runs"):
+            spec_from_dict(raw)

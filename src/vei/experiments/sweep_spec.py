@@ -166,6 +166,21 @@ class SweepSpec:
     perception: PerceptionConfig | None = None
     source: str | None = field(default=None, compare=False)
 
+    def _check_policy_params(self, where: str) -> None:
+        """A swept ``ego.policy_params.<f>`` needs its policy among the ``ego.policy`` values
+        (the base presets run none / paper-cap, which take no policy_params): else it would
+        change nothing."""
+        by_name = {p.name: p for p in self.parameters}
+        pol = by_name.get(POLICY_PARAM)
+        run = set() if pol is None else set(map(str, pol.choices or (pol.value,)))
+        for name, (owner, _) in POLICY_PARAMS.items():
+            if name in by_name and owner not in run:
+                raise ConfigError(
+                    f"{where}: parameters.{name} belongs to policy '{owner}', which no variant "
+                    f"runs (ego.policy: {', '.join(sorted(run)) or 'not swept'}): add "
+                    f"'{owner}' to ego.policy or remove the parameter"
+                )
+
     def __post_init__(self) -> None:
         where = self.source or "sweep spec"
         if self.design not in DESIGNS:
@@ -182,6 +197,7 @@ class SweepSpec:
             )
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ConfigError(f"{where}: seed must be an integer >= 0, got {self.seed!r}")
+        self._check_policy_params(where)
         n_rec = self.reconstruction_samples
         if n_rec is not None and (
             isinstance(n_rec, bool) or not isinstance(n_rec, int) or n_rec < 1
