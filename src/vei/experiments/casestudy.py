@@ -148,16 +148,6 @@ def _scenario_fields(case: CaseConfig) -> dict[str, Any]:
     return {"rider": case.rider, "sfm": case.sfm, "ego": ego, "perception": case.perception}
 
 
-def _differences(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
-    out = []
-    for key in a:
-        if key == "ego":
-            out += [f"ego.{k}" for k in a["ego"] if a["ego"][k] != b["ego"][k]]
-        elif a[key] != b[key]:
-            out.append(key)
-    return out
-
-
 def add_verdicts(
     summary: pd.DataFrame, cases: Sequence[CaseConfig], cfg: MetricsConfig | None = None
 ) -> pd.DataFrame:
@@ -169,13 +159,12 @@ def add_verdicts(
     ego cruise speed / PID / actuator settings, perception). Verdicts: 'avoided',
     'mitigated' (impact speed at least ``cfg.mitigation_share`` lower), 'not-mitigated';
     the no-avoidance case itself gets 'reference' (its own name as reference). A case
-    with no no-avoidance case of the same rider model (e.g. the recorded-speed replay, or
-    a study without a 'none' run) gets '' in both columns.
+    without a matching no-avoidance case (e.g. the recorded-speed replay, a study without a
+    'none' run, or ``--configs normal,aggressive-cap`` whose only no-avoidance case has
+    another rider) gets '' in both columns: no verdict rather than a misleading one.
 
     Raises:
-        ConfigError: a case has a no-avoidance case of its rider model that differs in
-            other settings (e.g. another cruise speed) and none that matches; or two
-            no-avoidance cases match.
+        ConfigError: two no-avoidance cases match.
         InputError: the reference's row is not in ``summary`` (names and cases differ).
     """
     from vei.metrics.severity import verdict
@@ -198,14 +187,7 @@ def add_verdicts(
             raise ConfigError(
                 f"case {case.name!r}: several no-avoidance cases match ({', '.join(match)})"
             )
-        if not match:
-            near = [(c, k) for c, k in pool if c.rider == case.rider]
-            if near:
-                c, k = near[0]
-                raise ConfigError(
-                    f"case {case.name!r} has no no-avoidance reference: {c.name!r} differs in "
-                    f"{', '.join(_differences(key, k))}; add a 'none' case with the same settings"
-                )
+        if not match:  # no verdict: comparing with another rider or cruise speed would mislead
             refs.append("")
             continue
         refs.append(match[0])
