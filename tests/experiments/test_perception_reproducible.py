@@ -10,16 +10,13 @@ combined with ``PerceptionConfig.seed``.
 
 from __future__ import annotations
 
-import json
-import math
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
-from vei.cli.main import app
+from tests.experiments.rerun import assert_runs_equal_sweep
 from vei.config import CASE_PRESETS, SFM_PRESETS, CaseConfig
 from vei.config_perception import PerceptionConfig
 from vei.experiments.sweep import (
@@ -60,13 +57,6 @@ def demo_scenario(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def prepared(demo_scenario):
     return EngineEvaluator(base="normal-cap").prepare(demo_scenario)
-
-
-def _same(a, b) -> bool:
-    """Bit-identical; a non-finite sweep value equals JSON null."""
-    if a is None or (isinstance(a, float) and not math.isfinite(a)):
-        return b is None or (isinstance(b, float) and math.isnan(b))
-    return a == b
 
 
 def test_label_keys_stable_distinct_and_position_free() -> None:
@@ -131,22 +121,8 @@ def test_vei_run_of_each_noisy_variant_equals_the_sweep_row(demo_scenario, tmp_p
     assert spec.perception == NOISY
     auto = EngineEvaluator(base="normal-cap").prepare(demo_scenario).auto_shift_s
     paths = write_variant_configs(tmp_path / "configs", df, spec, auto)
-    runner = CliRunner()
-    compared = 0
     for path in paths:
         doc = path.read_text()
         assert "detection_probability: 0.7" in doc and "seed: 11" in doc
-        out = tmp_path / "runs" / path.stem
-        r = runner.invoke(
-            app,
-            ["run", str(demo_scenario), "--config", str(path), "--out", str(out), "--no-figures"],
-        )
-        assert r.exit_code == 0, r.output
-        metrics = json.loads((out / "metrics.json").read_text())["metrics"]
-        row = df[df["variant_id"] == path.stem].iloc[0]
-        for name in DEFAULT_METRICS:
-            sweep_value = row[name]
-            sweep_value = sweep_value.item() if hasattr(sweep_value, "item") else sweep_value
-            assert _same(sweep_value, metrics[name]), (path.stem, name, sweep_value, metrics[name])
-            compared += 1
+    compared = assert_runs_equal_sweep(demo_scenario, paths, df, tmp_path / "runs")
     assert compared == 4 * len(DEFAULT_METRICS)

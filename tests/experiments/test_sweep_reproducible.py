@@ -8,15 +8,12 @@ reconciled (vei.metrics.timeseries.as_timeseries_trace) DRAC differed (e.g. 0.09
 
 from __future__ import annotations
 
-import json
-import math
 from pathlib import Path
 
 import pandas as pd
 import pytest
-from typer.testing import CliRunner
 
-from vei.cli.main import app
+from tests.experiments.rerun import assert_runs_equal_sweep
 from vei.experiments.sweep import (
     DEFAULT_METRICS,
     EngineEvaluator,
@@ -36,14 +33,6 @@ def demo_scenario(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("demo") / "scenario"
     write_scenario(reconstruct(demo_interaction()), folder)
     return folder
-
-
-def _same(a, b) -> bool:
-    """Bit-identical; a non-finite sweep value equals JSON null (metrics.json writes NaN
-    and inf as null)."""
-    if a is None or (isinstance(a, float) and not math.isfinite(a)):
-        return b is None or (isinstance(b, float) and math.isnan(b))
-    return a == b
 
 
 @pytest.mark.parametrize(
@@ -80,20 +69,5 @@ def test_vei_run_of_each_variant_equals_the_sweep_row(demo_scenario, tmp_path, c
     auto = EngineEvaluator().prepare(demo_scenario).auto_shift_s
     paths = write_variant_configs(tmp_path / "configs", df, spec, auto)
     assert df["collision"].any() and not df["collision"].all()  # both outcomes compared
-    runner = CliRunner()
-    compared = 0
-    for path in paths:
-        out = tmp_path / "runs" / path.stem
-        res = runner.invoke(
-            app,
-            ["run", str(demo_scenario), "--config", str(path), "--out", str(out), "--no-figures"],
-        )
-        assert res.exit_code == 0, res.output
-        metrics = json.loads((out / "metrics.json").read_text())["metrics"]
-        row = df[df["variant_id"] == path.stem].iloc[0]
-        for name in DEFAULT_METRICS:
-            sweep_value = row[name]
-            sweep_value = sweep_value.item() if hasattr(sweep_value, "item") else sweep_value
-            assert _same(sweep_value, metrics[name]), (path.stem, name, sweep_value, metrics[name])
-            compared += 1
+    compared = assert_runs_equal_sweep(demo_scenario, paths, df, tmp_path / "runs")
     assert compared == 12 * len(DEFAULT_METRICS)

@@ -5,7 +5,6 @@ constructor's defaults, and its rows equal ``vei run --policy`` of the same vari
 from __future__ import annotations
 
 import json
-import math
 import os
 from pathlib import Path
 
@@ -13,6 +12,7 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
+from tests.experiments.rerun import same_value
 from vei.cli.main import app
 from vei.errors import ConfigError
 from vei.experiments.sweep import (
@@ -55,12 +55,6 @@ def _spec_file(folder: Path, policy_choices: list) -> Path:
         )
     )
     return path
-
-
-def _same(a, b) -> bool:
-    if a is None or (isinstance(a, float) and not math.isfinite(a)):
-        return b is None or (isinstance(b, float) and math.isnan(b))
-    return a == b
 
 
 def test_relative_policy_path_is_resolved_against_the_spec_folder(tmp_path) -> None:
@@ -125,6 +119,4 @@ def test_user_policy_rows_differ_from_none_and_equal_vei_run(
         assert r.exit_code == 0, r.output
         metrics = json.loads((out / "metrics.json").read_text())["metrics"]
         for name in DEFAULT_METRICS:
-            v = row[name]
-            v = v.item() if hasattr(v, "item") else v
-            assert _same(v, metrics[name]), (args, name, v, metrics[name])
+            assert same_value(row[name], metrics[name]), (args, name, row[name], metrics[name])
