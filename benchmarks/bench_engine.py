@@ -28,7 +28,7 @@ Columns (one row per batch size B):
 Targets on 2 cores: >= 1e7 agent-steps/s at B = 1e4; >= 1000x PySocialForce per agent-step.
 
 Second table, several riders (``SimConfig.sfm_riders``, vei.sim.riders): the 25 s
-synthetic crossing scene (vei.sim.testing.crossing_scenario, 500 steps) with three more
+synthetic crossing scene (vei.sim.testing.four_rider_scenario, 500 steps) with three more
 e-scooters (two crossing the ego's lane at x = 45 and 75 m, one riding towards the first
 along y = 8); ``normal-cap``, B = ``RIDER_BATCH`` variants over time shifts. R = 1: the
 one-rider engine (``sfm_riders='primary'``, the three others replayed); R = 2: one of them
@@ -254,30 +254,14 @@ def main() -> None:
     )
 
 
-def _rider_scene():
-    """The crossing scene with three more e-scooters (see the module docstring)."""
-    from vei.sim.testing import TrackSpec, crossing_scenario
-
-    def crossing(x: float, t0: float, speed: float) -> TrackSpec:
-        t = np.arange(round(t0 * 20), round((t0 + 30.0 / speed) * 20) + 1) / 20.0
-        y = -15.0 + speed * (t - t0)
-        return TrackSpec("escooter", t, np.full_like(t, x), y, np.full_like(t, np.pi / 2),
-                         np.full_like(t, speed))  # fmt: skip
-
-    t = np.arange(40, 301) / 20.0
-    along = TrackSpec("escooter", t, 75.0 - 1.8 * (t - 2.0), np.full_like(t, 8.0),
-                      np.full_like(t, np.pi), np.full_like(t, 1.8))  # fmt: skip
-    others = [("e2", crossing(45.0, 1.0, 3.0)), ("e3", crossing(75.0, 4.0, 4.0)), ("e4", along)]
-    return crossing_scenario(others=others)
-
-
 def riders_rows(batch: int = RIDER_BATCH, batch_numpy: int = RIDER_BATCH_NUMPY) -> list[tuple]:
     """(R, agents/variant, B, wall s, agent-steps/s, numpy agent-steps/s) for R in RIDER_COUNTS."""
     from vei.config import SimConfig, case_preset
     from vei.sim.engine import simulate
     from vei.sim.state import VariantParams, prepare_scenario
+    from vei.sim.testing import four_rider_scenario
 
-    scenario = _rider_scene()
+    scenario = four_rider_scenario()
     select = {1: "primary", 2: ("e2",), 4: "all"}
     rows = []
     for r in RIDER_COUNTS:

@@ -25,7 +25,7 @@ import pytest
 from vei.config import PAPER_CASES, SimConfig, case_preset
 from vei.sim.engine import _RECORDED, simulate
 from vei.sim.state import VariantParams, prepare_scenario
-from vei.sim.testing import TrackSpec, crossing_scenario
+from vei.sim.testing import TrackSpec, crossing_scenario, four_rider_scenario
 
 numba = pytest.importorskip("numba")
 
@@ -80,22 +80,6 @@ def _mixed(arrays, base: float) -> VariantParams:
     )
 
 
-def _riders_scene():
-    """The crossing scene with three more e-scooters (benchmarks/bench_engine.py)."""
-
-    def crossing(x: float, t0: float, speed: float) -> TrackSpec:
-        t = np.arange(round(t0 * 20), round((t0 + 30.0 / speed) * 20) + 1) / 20.0
-        y = -15.0 + speed * (t - t0)
-        return TrackSpec("escooter", t, np.full_like(t, x), y, np.full_like(t, np.pi / 2),
-                         np.full_like(t, speed))  # fmt: skip
-
-    t = np.arange(40, 301) / 20.0
-    along = TrackSpec("escooter", t, 75.0 - 1.8 * (t - 2.0), np.full_like(t, 8.0),
-                      np.full_like(t, np.pi), np.full_like(t, 1.8))  # fmt: skip
-    others = [("e2", crossing(45.0, 1.0, 3.0)), ("e3", crossing(75.0, 4.0, 4.0)), ("e4", along)]
-    return crossing_scenario(others=others)
-
-
 def _scenes():
     from vei.experiments.demo_data import demo_interaction
     from vei.experiments.timeshift import find_time_shift
@@ -109,7 +93,7 @@ def _scenes():
     return (
         ("demo", prepare_scenario(demo, SimConfig()), float(find_time_shift(demo))),
         ("cross", prepare_scenario(crossing_scenario(others=[("c2", cyclist)])), shift),
-        ("riders", prepare_scenario(_riders_scene(), SimConfig(sfm_riders="all")), 4.9),
+        ("riders", prepare_scenario(four_rider_scenario(), SimConfig(sfm_riders="all")), 4.9),
     )
 
 

@@ -220,3 +220,22 @@ def standing_rider_scenario(
         rate_hz=rate_hz,
         scenario_id="synthetic-standing",
     )
+
+
+def four_rider_scenario() -> Scenario:
+    """:func:`crossing_scenario` with three more e-scooters (several-rider benchmarks and
+    the kernel's regression digests): e2 crosses the ego's lane at x = 45 m from t = 1 s at
+    3 m/s, e3 at x = 75 m from t = 4 s at 4 m/s (both from y = -15 m over 30 m), and e4
+    rides along y = 8 m towards -x at 1.8 m/s from x = 75 m at t = 2 s."""
+
+    def crossing(x_m: float, t0_s: float, speed_mps: float) -> TrackSpec:
+        t = np.arange(round(t0_s * 20), round((t0_s + 30.0 / speed_mps) * 20) + 1) / 20.0
+        y = -15.0 + speed_mps * (t - t0_s)
+        return TrackSpec("escooter", t, np.full_like(t, x_m), y, np.full_like(t, np.pi / 2),
+                         np.full_like(t, speed_mps))  # fmt: skip
+
+    t = np.arange(40, 301) / 20.0
+    along = TrackSpec("escooter", t, 75.0 - 1.8 * (t - 2.0), np.full_like(t, 8.0),
+                      np.full_like(t, np.pi), np.full_like(t, 1.8))  # fmt: skip
+    others = [("e2", crossing(45.0, 1.0, 3.0)), ("e3", crossing(75.0, 4.0, 4.0)), ("e4", along)]
+    return crossing_scenario(others=others)
