@@ -1,0 +1,555 @@
+"""Per-run scalar metrics compiled with numba, bit-identical to :func:`vei.metrics.summarize`.
+
+The sweep's metrics (collision, TTC zones and safety index, minimum gap and TTC, DRAC,
+impact severity, ego speed statistics) of ONE run, from its [T] channels, in one pass
+over the steps and without any [B, T] array: what the compiled engine kernel calls at the
+end of each variant (``vei.sim.engine.simulate_metrics``), and what :func:`fused_summary`
+runs over the rows of a recorded Trace.
+
+Every formula mirrors the NumPy code of :mod:`vei.metrics.ttc`, :mod:`.conflict`,
+:mod:`.severity`, :mod:`.kinematics` and :mod:`vei.boxes` operation by operation (same
+operands, same order, NaN rules of np.maximum / np.fmin, NumPy's pairwise summation for
+the mean and standard deviation), so that the results equal
+``summarize(as_timeseries_trace(trace), names=..., params=...)`` bit for bit (==, NaN ==
+NaN; tests/metrics/test_fused.py). The run is scored as :func:`vei.metrics.timeseries.
+as_timeseries_trace` scores it: the rider's velocity is speed * (cos yaw, sin yaw) with a
+NaN yaw / speed read as 0, its position is NaN while inactive, the collision flag is
+latched and a non-finite ego acceleration is replaced as np.nan_to_num does.
+
+Needs numba (the optional extra ``fast``); ``import vei.metrics`` never imports this module.
+
+Layout:
+    channels ``ch [N_CH, T]`` float64 (rows CH_*): ego x, y [m], yaw [rad], speed [m/s],
+    acceleration [m/s^2]; rider x, y [m], yaw [rad], speed [m/s], active (0/1), collided
+    (0/1, latched here). ``cfg [N_CFG]`` (rows C_*, :func:`config_vector`). Output row
+    ``out [N_FUSED]`` in :data:`FUSED_METRICS` order; collision and drac_unavoidable as
+    0/1, impact_side as an index of ``severity.SIDES`` and striking of
+    ``severity.STRIKING`` (-1 = '').
+"""
+
+# ruff: noqa: N803, N806
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import numba
+import numpy as np
+import numpy.typing as npt
+import pandas as pd
+
+from vei.boxes import overlap_core
+from vei.errors import ConfigError
+from vei.metrics._trace import TraceArrays, arrays, param_of
+from vei.metrics.config import MetricsConfig
+from vei.metrics.severity import SIDES, STRIKING
+from vei.types import Trace
+
+#: The scalar metrics computed here, in the order of a fused output row.
+FUSED_METRICS: tuple[str, ...] = (
+    "collision", "collision_time_s", "safety_index", "t_safe_s", "t_attention_s",
+    "t_alert_s", "t_collision_s", "t_interaction_s", "min_gap_m", "min_ttc_s",
+    "max_drac_mps2", "drac_unavoidable", "impact_speed_mps", "delta_v_rider_mps",
+    "delta_v_car_mps", "impact_side", "striking", "injury_risk", "peak_decel_mps2",
+    "ego_speed_std_mps", "ego_speed_mean_mps", "ego_speed_min_mps",
+)  # fmt: skip
+N_FUSED = len(FUSED_METRICS)
+(
+    M_COLL, M_COLL_T, M_SI, M_SAFE, M_ATT, M_ALERT, M_TCOLL, M_ALL, M_GAP, M_TTC, M_DRAC,
+    M_UNAV, M_IMPACT, M_DVR, M_DVC, M_SIDE, M_STRIKE, M_INJ, M_PEAK, M_STD, M_MEAN, M_MIN,
+) = range(N_FUSED)  # fmt: skip
+#: Columns holding a bool (0/1) and a label (index of SIDES / STRIKING, -1 = '').
+_BOOL_COLUMNS = ("collision", "drac_unavoidable")
+_LABEL_COLUMNS = {"impact_side": SIDES, "striking": STRIKING}
+
+#: Rows of the channel matrix ch [N_CH, T].
+CH_EX, CH_EY, CH_EYAW, CH_EV, CH_EA, CH_RX, CH_RY, CH_RYAW, CH_RSP, CH_RACT, CH_RCOL = range(11)
+N_CH = 11
+#: Rows of the config vector (NaN ceiling / rider mass = each run's own).
+C_SAFE, C_ALERT, C_AHEAD, C_MINV, C_CEIL, C_REACT, C_CAR, C_RIDER, C_B0, C_B1 = range(10)
+N_CFG = 10
+
+_DBL_MAX = np.finfo(np.float64).max
+_EPS = 1e-12
+
+_overlap = numba.njit(cache=True, error_model="numpy")(overlap_core)
+
+
+def config_vector(cfg: MetricsConfig | None = None) -> npt.NDArray[np.float64]:
+    """[N_CFG] the MetricsConfig values the compiled metrics read (NaN = per-run value)."""
+    cfg = MetricsConfig() if cfg is None else cfg
+    nan = float("nan")
+    return np.array(
+        [
+            cfg.safe_ttc_s,
+            cfg.alert_ttc_s,
+            1.0 if cfg.ttc_scope == "ahead" else 0.0,
+            cfg.min_speed_mps,
+            nan if cfg.drac_ceiling_mps2 is None else cfg.drac_ceiling_mps2,
+            cfg.reaction_time_s,
+            cfg.car_mass_kg,
+            nan if cfg.rider_mass_kg is None else cfg.rider_mass_kg,
+            cfg.injury_intercept,
+            cfg.injury_slope_per_kmh,
+        ],
+        dtype=np.float64,
+    )
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _nan_to_num(x):  # type: ignore[no-untyped-def]
+    """np.nan_to_num of a scalar: NaN -> 0, +-inf -> +-max float."""
+    if math.isnan(x):
+        return 0.0
+    if math.isinf(x):
+        return _DBL_MAX if x > 0 else -_DBL_MAX
+    return x
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _maximum(a, b):  # type: ignore[no-untyped-def]
+    """np.maximum of two floats (NaN propagates, ties give the first)."""
+    return a if (a >= b or math.isnan(a)) else b
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _minimum(a, b):  # type: ignore[no-untyped-def]
+    """np.minimum of two floats (NaN propagates, ties give the first)."""
+    return a if (a <= b or math.isnan(a)) else b
+
+
+@numba.njit(cache=True, error_model="numpy")
+def pairwise_sum(x, lo, n):  # type: ignore[no-untyped-def]
+    """NumPy's pairwise summation of x[lo:lo + n] (numpy/_core/src/umath/loops_utils.h):
+    n < 8 a plain loop from 0; n <= 128 eight accumulators; else split at a multiple of 8.
+    A row reduction (``arr.sum(axis=1)`` of a C-contiguous array) is 0 + this."""
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += x[lo + i]
+        return res
+    if n <= 128:
+        r0 = x[lo]
+        r1 = x[lo + 1]
+        r2 = x[lo + 2]
+        r3 = x[lo + 3]
+        r4 = x[lo + 4]
+        r5 = x[lo + 5]
+        r6 = x[lo + 6]
+        r7 = x[lo + 7]
+        i = 8
+        stop = n - (n % 8)
+        while i < stop:
+            r0 += x[lo + i]
+            r1 += x[lo + i + 1]
+            r2 += x[lo + i + 2]
+            r3 += x[lo + i + 3]
+            r4 += x[lo + i + 4]
+            r5 += x[lo + i + 5]
+            r6 += x[lo + i + 6]
+            r7 += x[lo + i + 7]
+            i += 8
+        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        while i < n:
+            res += x[lo + i]
+            i += 1
+        return res
+    n2 = n // 2
+    n2 -= n2 % 8
+    return pairwise_sum(x, lo, n2) + pairwise_sum(x, lo + n2, n - n2)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def box_gap(ax, ay, ayaw, al, aw, bx, by, byaw, bl, bw):  # type: ignore[no-untyped-def]
+    """:func:`vei.boxes.box_gap` of two scalar boxes (the same operations in order) [m]."""
+    ca, sa, cb, sb = np.cos(ayaw), np.sin(ayaw), np.cos(byaw), np.sin(byaw)
+    dx = bx - ax
+    dy = by - ay
+    ha, wa = 0.5 * al, 0.5 * aw
+    hb, wb = 0.5 * bl, 0.5 * bw
+    best = np.inf
+    for pair in range(2):
+        if pair == 0:
+            c1, s1, h1, w1, c2, s2, h2, w2, sign = ca, sa, ha, wa, cb, sb, hb, wb, 1.0
+        else:
+            c1, s1, h1, w1, c2, s2, h2, w2, sign = cb, sb, hb, wb, ca, sa, ha, wa, -1.0
+        ru = sign * (dx * c1 + dy * s1)
+        rv = sign * (-dx * s1 + dy * c1)
+        cu, cv = c2 * c1 + s2 * s1, -c2 * s1 + s2 * c1
+        for corner in range(4):
+            el = h2 if corner < 2 else -h2
+            ew = w2 if corner % 2 == 0 else -w2
+            pu = _maximum(np.abs(ru + (el * cu - ew * cv)) - h1, 0.0)
+            pv = _maximum(np.abs(rv + (el * cv + ew * cu)) - w1, 0.0)
+            best = _minimum(best, pu * pu + pv * pv)
+    if _overlap(ax, ay, ayaw, al, aw, bx, by, byaw, bl, bw):
+        return 0.0
+    return np.sqrt(best)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _corners(x, y, yaw, length, width, out):  # type: ignore[no-untyped-def]
+    """:func:`vei.boxes.box_corners` of one box into out [4, 2]."""
+    hl, hw = 0.5 * length, 0.5 * width
+    c, s = np.cos(yaw), np.sin(yaw)
+    for i in range(4):
+        lx = -hl if (i == 0 or i == 3) else hl
+        ly = -hw if i < 2 else hw
+        out[i, 0] = x + c * lx - s * ly
+        out[i, 1] = y + s * lx + c * ly
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _corners_overlap(A, Bc):  # type: ignore[no-untyped-def]
+    """:func:`vei.boxes.corners_overlap` of two corner sets [4, 2]."""
+    for which in range(2):
+        C = A if which == 0 else Bc
+        for k in range(2):
+            e0 = C[k + 1, 0] - C[k, 0]
+            e1 = C[k + 1, 1] - C[k, 1]
+            x0, x1 = -e1, e0
+            amax = -np.inf
+            amin = np.inf
+            bmax = -np.inf
+            bmin = np.inf
+            for i in range(4):
+                pa = A[i, 0] * x0 + A[i, 1] * x1
+                pb = Bc[i, 0] * x0 + Bc[i, 1] * x1
+                amax = max(amax, pa)
+                amin = min(amin, pa)
+                bmax = max(bmax, pb)
+                bmin = min(bmin, pb)
+            scale = max(np.sqrt(x0 * x0 + x1 * x1), _EPS)
+            tol = 1e-9 * scale
+            if amax < bmin - tol or bmax < amin - tol:
+                return False
+    return True
+
+
+@numba.njit(cache=True, error_model="numpy")
+def time_to_contact(A, Bc, v0, v1):  # type: ignore[no-untyped-def]
+    """:func:`vei.boxes.time_to_contact` of corner sets A, B [4, 2] with B moving at
+    (v0, v1) relative to A [s]: 0 overlapping, inf never."""
+    best = np.inf
+    for which in range(2):
+        if which == 0:
+            V, E, sign = Bc, A, 1.0
+        else:
+            V, E, sign = A, Bc, -1.0
+        w0 = sign * v0
+        w1 = sign * v1
+        hit = np.inf
+        for i in range(4):
+            for j in range(4):
+                jn = (j + 1) % 4
+                e0 = E[jn, 0] - E[j, 0]
+                e1 = E[jn, 1] - E[j, 1]
+                denom = w0 * e1 - w1 * e0
+                if not np.abs(denom) > _EPS:
+                    continue
+                ap0 = E[j, 0] - V[i, 0]
+                ap1 = E[j, 1] - V[i, 1]
+                s = (ap0 * e1 - ap1 * e0) / denom
+                u = (ap0 * w1 - ap1 * w0) / denom
+                if s >= 0.0 and u >= -1e-12 and u <= 1.0 + 1e-12:
+                    hit = _minimum(hit, s)
+        best = _minimum(best, hit)
+    if _corners_overlap(A, Bc):
+        return 0.0
+    return best
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _on_course(ex, ey, eyaw, Le, We, ox, oy, oyaw, Lr, Wr, rv0, rv1, A, Bc):  # type: ignore[no-untyped-def]
+    """conflict._on_course of one step: the boxes meet if both keep their velocities."""
+    _corners(ex, ey, eyaw, Le, We, A)
+    _corners(ox, oy, oyaw, Lr, Wr, Bc)
+    return np.isfinite(time_to_contact(A, Bc, rv0, rv1))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # type: ignore[no-untyped-def]
+    """The fused metrics of one run into out [N_FUSED] (see the module docstring).
+
+    Args:
+        t: [T] step times [s]; dt: the step [s] (t[1] - t[0], 0 when T = 1).
+        ch: [N_CH, >= T] channels (only the first T = t.size columns are read).
+        Le, We, Lr, Wr: ego / rider box length and width [m].
+        cfg: [N_CFG] :func:`config_vector`.
+        mass_kg: the run's rider mass [kg]; brake_mps2: its car's full brake [m/s^2].
+        out: [N_FUSED] float64, written.
+    """
+    n = t.size
+    safe, alert, ahead_only, min_v = cfg[C_SAFE], cfg[C_ALERT], cfg[C_AHEAD] > 0.5, cfg[C_MINV]
+    react = cfg[C_REACT]
+    A = np.empty((4, 2))
+    Bc = np.empty((4, 2))
+    n_safe = 0
+    n_att = 0
+    n_alert = 0
+    n_coll = 0
+    n_all = 0
+    latched = False
+    first = -1
+    gap_finite = False
+    min_gap = np.nan
+    ttc_any = False
+    min_ttc = np.nan
+    present = False
+    best = 0.0
+    peak = 0.0
+    v_min = 0.0
+    for k in range(n):
+        ex, ey, eyaw, v = ch[CH_EX, k], ch[CH_EY, k], ch[CH_EYAW, k], ch[CH_EV, k]
+        act = ch[CH_RACT, k] != 0.0
+        if ch[CH_RCOL, k] != 0.0 and not latched:
+            latched = True
+            first = k
+        decel = 0.0 if latched else -_nan_to_num(ch[CH_EA, k])
+        peak = decel if k == 0 else _maximum(peak, decel)
+        v_min = v if k == 0 else _minimum(v_min, v)
+        if not act:
+            continue  # zone inactive; gap, TTC and DRAC are NaN / no candidate
+        n_all += 1
+        present = present or not latched
+        ryaw, rsp = ch[CH_RYAW, k], ch[CH_RSP, k]
+        oyaw = ryaw if np.isfinite(ryaw) else 0.0
+        osp = rsp if np.isfinite(rsp) else 0.0
+        ox, oy = ch[CH_RX, k], ch[CH_RY, k]
+        ok = np.isfinite(ox) and np.isfinite(oy)
+        g = box_gap(
+            ex, ey, eyaw, Le, We, ox if ok else 1e9, oy if ok else 1e9, oyaw, Lr, Wr
+        )  # fmt: skip
+        if np.isfinite(g):
+            gap_finite = True
+        if not math.isnan(g) and (math.isnan(min_gap) or g < min_gap):
+            min_gap = g
+        ce, se = np.cos(eyaw), np.sin(eyaw)
+        dx = ox - ex
+        dy = oy - ey
+        ahead = ce * dx + se * dy > 0.0
+        # the paper's TTC and its zone
+        ttc = g / v if v > min_v else np.inf
+        if ahead_only and not ahead:
+            ttc = np.inf
+        if latched:
+            ttc = 0.0
+        if not math.isnan(ttc):
+            ttc_any = True
+            if math.isnan(min_ttc) or ttc < min_ttc:
+                min_ttc = ttc
+        if latched:
+            n_coll += 1
+        elif ttc > safe:
+            n_safe += 1
+        elif ttc > alert:
+            n_att += 1
+        else:
+            n_alert += 1
+        # DRAC candidates: ahead, closing, apart, before contact; the largest eligible
+        # one on a collision course
+        if not ahead or latched:
+            continue
+        ovx = _nan_to_num(osp * np.cos(oyaw))
+        ovy = _nan_to_num(osp * np.sin(oyaw))
+        v_close = v - (ovx * ce + ovy * se)
+        gd = _nan_to_num(g)
+        if v_close > 0.0 and gd > 0.0:
+            raw = v_close * v_close / (2.0 * gd)  # numpy's x**2 is x * x
+            if gd / v_close >= react and raw > best:
+                if _on_course(
+                    ex, ey, eyaw, Le, We, ox, oy, oyaw, Lr, Wr,
+                    ovx - v * ce, ovy - v * se, A, Bc,
+                ):  # fmt: skip
+                    best = raw
+    for j in range(N_FUSED):
+        out[j] = np.nan
+    hit = first >= 0
+    out[M_COLL] = 1.0 if hit else 0.0
+    out[M_COLL_T] = t[first] if hit else np.nan
+    out[M_SAFE] = float(n_safe) * dt
+    out[M_ATT] = float(n_att) * dt
+    out[M_ALERT] = float(n_alert) * dt
+    out[M_TCOLL] = float(n_coll) * dt
+    out[M_ALL] = float(n_all) * dt
+    if hit:
+        out[M_SI] = 0.0
+    elif n_all > 0:
+        out[M_SI] = float(n_safe + n_att) / float(n_all)
+    out[M_GAP] = min_gap if gap_finite else np.nan
+    out[M_TTC] = min_ttc if ttc_any else np.nan
+    ceiling = cfg[C_CEIL] if not math.isnan(cfg[C_CEIL]) else brake_mps2
+    drac = best if present else np.nan
+    out[M_DRAC] = _minimum(drac, ceiling)
+    out[M_UNAV] = 1.0 if drac > ceiling else 0.0
+    out[M_PEAK] = _maximum(peak, 0.0)
+    out[M_MIN] = v_min
+    mean = pairwise_sum(ch[CH_EV], 0, n) / float(n)
+    sq = np.empty(n)
+    for k in range(n):
+        d = ch[CH_EV, k] - mean
+        sq[k] = d * d
+    out[M_MEAN] = mean
+    out[M_STD] = np.sqrt(pairwise_sum(sq, 0, n) / float(n))
+    _severity(ch, hit, first, Le, We, cfg, mass_kg, out)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _severity(ch, hit, first, Le, We, cfg, mass_kg, out):  # type: ignore[no-untyped-def]
+    """Impact speed, delta-v, side, striking and injury risk (vei.metrics.severity)."""
+    k = first if hit else 0
+    pre = max(k - 1, 0)
+    act_pre = ch[CH_RACT, pre] != 0.0
+    ryaw, rsp = ch[CH_RYAW, pre], ch[CH_RSP, pre]
+    oyaw = ryaw if np.isfinite(ryaw) else 0.0
+    osp = rsp if np.isfinite(rsp) else 0.0
+    ovx, ovy = osp * np.cos(oyaw), osp * np.sin(oyaw)
+    pv, pyaw = ch[CH_EV, pre], ch[CH_EYAW, pre]
+    evx, evy = pv * np.cos(pyaw), pv * np.sin(pyaw)
+    approach = (
+        hit and k > 0 and act_pre and np.isfinite(ovx) and np.isfinite(ovy)
+        and np.isfinite(evx) and np.isfinite(evy)
+    )  # fmt: skip
+    ovx, ovy = _nan_to_num(ovx), _nan_to_num(ovy)
+    vr0, vr1 = np.nan, np.nan
+    if approach:
+        vr0, vr1 = evx - ovx, evy - ovy
+    speed = np.sqrt(vr0 * vr0 + vr1 * vr1)
+    m_r = cfg[C_RIDER] if not math.isnan(cfg[C_RIDER]) else mass_kg
+    car_m = cfg[C_CAR]
+    total = car_m + m_r
+    out[M_IMPACT] = speed
+    out[M_DVR] = car_m / total * speed
+    out[M_DVC] = m_r / total * speed
+    out[M_INJ] = 1.0 / (1.0 + np.exp(cfg[C_B0] - cfg[C_B1] * (speed * 3.6))) if hit else 0.0
+    # the hit face, from the rider's centre in the ego frame at contact
+    act_k = ch[CH_RACT, k] != 0.0
+    dx = (ch[CH_RX, k] if act_k else np.nan) - ch[CH_EX, k]
+    dy = (ch[CH_RY, k] if act_k else np.nan) - ch[CH_EY, k]
+    c, s = np.cos(ch[CH_EYAW, k]), np.sin(ch[CH_EYAW, k])
+    rel0 = c * dx + s * dy
+    rel1 = -s * dx + c * dy
+    hl, hw = 0.5 * Le, 0.5 * We
+    vx = c * vr0 + s * vr1
+    vy = -s * vr0 + c * vr1
+    face = -1
+    best = -np.inf
+    for f in range(4):
+        if f == 0:
+            beyond, ap = rel0 > hl, vx
+        elif f == 1:
+            beyond, ap = rel0 < -hl, -vx
+        elif f == 2:
+            beyond, ap = rel1 > hw, vy
+        else:
+            beyond, ap = rel1 < -hw, -vy
+        score = ap if (beyond and np.isfinite(ap)) else -np.inf
+        if face < 0 or score > best:
+            face, best = f, score
+    if not np.isfinite(best):
+        if np.abs(rel0) / hl >= np.abs(rel1) / hw:
+            face = 0 if rel0 >= 0.0 else 1
+        else:
+            face = 2 if rel1 > 0.0 else 3
+    if face == 0:
+        n0, n1 = c, s
+    elif face == 1:
+        n0, n1 = -c, -s
+    elif face == 2:
+        n0, n1 = -s, c
+    else:
+        n0, n1 = s, -c  # -left = (-(-s), -c), negation is exact
+    out[M_SIDE] = float(face) if hit else -1.0
+    car = evx * n0 + evy * n1
+    rider = -(ovx * n0 + ovy * n1)
+    if not approach or math.isnan(car):
+        out[M_STRIKE] = -1.0
+    else:
+        out[M_STRIKE] = 0.0 if car >= rider else 1.0
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def rows_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # type: ignore[no-untyped-def]
+    """:func:`run_metrics` of B runs: ch [B, N_CH, T], mass_kg / brake_mps2 [B],
+    out [B, N_FUSED]."""
+    for b in numba.prange(ch.shape[0]):
+        run_metrics(t, dt, ch[b], Le, We, Lr, Wr, cfg, mass_kg[b], brake_mps2[b], out[b])
+
+
+def metrics_frame(rows: npt.NDArray[np.float64], names: Sequence[str]) -> pd.DataFrame:
+    """The fused rows [B, N_FUSED] as :func:`vei.metrics.summarize` returns them: one
+    column per name (bool for collision / drac_unavoidable, the labels as strings with ''
+    for none, float otherwise)."""
+    check_names(names)
+    cols: dict[str, np.ndarray] = {}
+    for name in names:
+        v = rows[:, FUSED_METRICS.index(name)]
+        if name in _BOOL_COLUMNS:
+            cols[name] = v != 0.0
+        elif name in _LABEL_COLUMNS:
+            labels = np.asarray(("", *_LABEL_COLUMNS[name]), dtype=object)
+            cols[name] = labels[v.astype(np.intp) + 1]
+        else:
+            cols[name] = v.copy()
+    return pd.DataFrame(cols)
+
+
+def check_names(names: Sequence[str]) -> None:
+    """ConfigError unless every name is one of :data:`FUSED_METRICS`."""
+    bad = [n for n in names if n not in FUSED_METRICS]
+    if bad:
+        raise ConfigError(
+            f"metric(s) {', '.join(bad)} have no fused implementation; fused: "
+            f"{', '.join(FUSED_METRICS)}"
+        )
+
+
+def trace_channels(a: TraceArrays) -> npt.NDArray[np.float64]:
+    """[B, N_CH, T] the channels of a trace's runs (C-contiguous float64)."""
+    b, n = a.ego_speed.shape
+    ch = np.empty((b, N_CH, n))
+    ch[:, CH_EX], ch[:, CH_EY] = a.ego_xy[..., 0], a.ego_xy[..., 1]
+    ch[:, CH_EYAW], ch[:, CH_EV], ch[:, CH_EA] = a.ego_yaw, a.ego_speed, a.ego_accel
+    ch[:, CH_RX], ch[:, CH_RY] = a.other_xy[..., 0], a.other_xy[..., 1]
+    ch[:, CH_RYAW] = np.asarray(a.trace.other_yaw_rad, dtype=np.float64)
+    ch[:, CH_RSP] = np.asarray(a.trace.other_speed_mps, dtype=np.float64)
+    ch[:, CH_RACT], ch[:, CH_RCOL] = a.active, a.collided
+    return ch
+
+
+def fused_summary(
+    trace: Trace | TraceArrays,
+    cfg: MetricsConfig | None = None,
+    *,
+    names: Sequence[str] | None = None,
+    params: Mapping[str, npt.ArrayLike] | None = None,
+) -> pd.DataFrame:
+    """The compiled metrics of every run of a recorded trace.
+
+    Equals ``summarize(as_timeseries_trace(trace), cfg, names=names, params=params)`` bit
+    for bit (for a trace read from a time series, as_timeseries_trace changes nothing).
+
+    Args:
+        trace: B runs. cfg: thresholds (paper defaults when None).
+        names: metrics of :data:`FUSED_METRICS` (default: all of them, in that order).
+        params: per-run rider mass / full brake as for :func:`vei.metrics.summarize`.
+    Returns:
+        DataFrame of B rows, one column per name (dtypes as summarize's).
+    """
+    names = FUSED_METRICS if names is None else tuple(names)
+    check_names(names)
+    cfg = MetricsConfig() if cfg is None else cfg
+    a = arrays(trace, params)
+    ch = trace_channels(a)
+    b = ch.shape[0]
+    mass = np.ascontiguousarray(param_of(a, "rider_mass_kg", None), dtype=np.float64)
+    brake = np.ascontiguousarray(param_of(a, "ego_max_decel_mps2", None), dtype=np.float64)
+    out = np.empty((b, N_FUSED))
+    tr = a.trace
+    rows_metrics(
+        np.ascontiguousarray(a.t_s), float(a.dt_s), ch,
+        float(tr.ego_length_m), float(tr.ego_width_m),
+        float(tr.other_length_m), float(tr.other_width_m),
+        config_vector(cfg), mass, brake, out,
+    )  # fmt: skip
+    return metrics_frame(out, names)
