@@ -12,6 +12,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 from typing import Any, Literal
 
+from vei.config_settings import check_section
 from vei.errors import ConfigError
 
 DesiredVelocityForm = Literal["normalised", "paper"]
@@ -127,26 +128,10 @@ class SFMConfig:
     use_rider_force: bool = True
 
     def __post_init__(self) -> None:
-        _finite("a_rider_n", self.a_rider_n, nonneg=True)
-        _finite("b_rider_per_m", self.b_rider_per_m, nonneg=True)
-        _bool("use_rider_force", self.use_rider_force)
-        _finite("k_des_nspm", self.k_des_nspm, positive=True)
+        check_section(self, "sfm")  # the declared settings (vei.config_settings)
         _finite("k_des_factor", self.k_des_factor, positive=True)
-        _finite("a_veh_n", self.a_veh_n, nonneg=True)
-        _finite("b_veh_per_m", self.b_veh_per_m, nonneg=True)
-        _finite("v0_mps", self.v0_mps, nonneg=True)
-        _finite("mass_kg", self.mass_kg, positive=True)
-        _finite("sigma_m", self.sigma_m, positive=True)
         _choice("desired_velocity", self.desired_velocity, ("normalised", "paper"))
-        _finite("lookahead_m", self.lookahead_m, positive=True)
-        _finite("arrive_radius_m", self.arrive_radius_m, positive=True)
         _choice("influential_point", self.influential_point, ("closest_box_point", "front_bumper"))
-        _bool("use_vehicle_force", self.use_vehicle_force)
-        if self.max_speed_mps is not None:
-            _finite("max_speed_mps", self.max_speed_mps, positive=True)
-        if self.max_accel_mps2 is not None:
-            _finite("max_accel_mps2", self.max_accel_mps2, positive=True)
-        _bool("speed_from_recording", self.speed_from_recording)
 
     @property
     def k_des_effective_nspm(self) -> float:
@@ -354,10 +339,9 @@ class EgoConfig:
             object.__setattr__(self, "policy_params", dict(self.policy_params))
             if self.policy_params and self.policy in CONFIG_FIELD_POLICIES:
                 raise ConfigError(_config_field_policy_message(self.policy, self.policy_params))
+        check_section(self, "ego")  # the declared settings (vei.config_settings)
         if isinstance(self.cruise_speed_mps, str):
             _choice("cruise_speed_mps", self.cruise_speed_mps, (MEDIAN_MOVING,))
-        else:
-            _finite("cruise_speed_mps", self.cruise_speed_mps, positive=True)
         _finite("moving_threshold_mps", self.moving_threshold_mps, nonneg=True)
         _choice("initial_speed", self.initial_speed, ("cruise", "recorded"))
         if isinstance(self.run_up_m, str):
@@ -367,14 +351,6 @@ class EgoConfig:
             if self.run_up_m > MAX_RUN_UP_M:
                 raise ConfigError(f"run_up_m must be <= {MAX_RUN_UP_M:g} m, got {self.run_up_m}")
         _finite("approach_time_s", self.approach_time_s, nonneg=True)
-        for name in ("kp", "ki", "kd"):
-            _finite(name, getattr(self, name), nonneg=True)
-        if self.integral_window_s is not None:
-            _finite("integral_window_s", self.integral_window_s, positive=True)
-        _finite("integral_limit", self.integral_limit, positive=True)
-        _finite("max_accel_mps2", self.max_accel_mps2, positive=True)
-        _finite("max_decel_mps2", self.max_decel_mps2, positive=True)
-        _finite("actuator_lag_s", self.actuator_lag_s, nonneg=True)
 
 
 # --------------------------------------------------------------------------------------
@@ -430,14 +406,5 @@ class CAPConfig:
     perception_delay_s: float = 0.0
 
     def __post_init__(self) -> None:
-        _finite("t_safe_s", self.t_safe_s, nonneg=True)
-        _finite("d_buf_m", self.d_buf_m, nonneg=True)
-        _finite("a_min_mps2", self.a_min_mps2)
-        if self.a_min_mps2 >= 0:
-            raise ConfigError(f"a_min_mps2 must be < 0 (a deceleration), got {self.a_min_mps2}")
-        _finite("corridor_half_width_m", self.corridor_half_width_m, positive=True)
-        _finite("detection_range_m", self.detection_range_m, positive=True)
+        check_section(self, "cap")  # the declared settings (vei.config_settings)
         _choice("braking_law", self.braking_law, ("gap", "paper_per_step"))
-        _finite("release_margin_m", self.release_margin_m, nonneg=True)
-        _finite("recover_tolerance_mps", self.recover_tolerance_mps, positive=True)
-        _finite("perception_delay_s", self.perception_delay_s, nonneg=True)

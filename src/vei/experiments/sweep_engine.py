@@ -13,13 +13,7 @@ import pandas as pd
 
 from vei.calibrate.population import RIDER_PARAM_COLUMNS
 from vei.errors import ConfigError
-from vei.experiments.sweep_params import (
-    CONFIG_FIELDS,
-    PARAMETERS,
-    POLICY_PARAM,
-    POLICY_PARAMS,
-    check_aeb_rows,
-)
+from vei.experiments.sweep_params import POLICY_PARAM, SWEEP_FIELDS, check_aeb_rows
 from vei.experiments.sweep_spec import SAMPLE_COLUMN
 
 
@@ -71,21 +65,11 @@ DEFAULT_METRICS: tuple[str, ...] = (
 _CATEGORICAL = ("rider_model", "sfm.use_vehicle_force", POLICY_PARAM)
 
 
-def _policy_field(policy: str, fname: str) -> str:
-    from vei.policy.aeb import AEB_PARAM_FIELDS
-    from vei.policy.idm import IDM_PARAM_FIELDS
-
-    return (AEB_PARAM_FIELDS if policy == "aeb" else IDM_PARAM_FIELDS)[fname]
-
-
-#: Float sweep parameter (results column) -> VariantParams field: the run-config field of
-#: that name (sfm.k_des_nspm is scaled by k_des_factor), a built-in policy's parameter
-#: (vei.policy.aeb / idm), a population rider's (RIDER_PARAM_COLUMNS).
-_PARAM_FIELDS: dict[str, str] = {
-    **{n: f for n, (_, f) in CONFIG_FIELDS.items() if PARAMETERS[n].kind == "float"},
-    **{n: _policy_field(pol, f) for n, (pol, f) in POLICY_PARAMS.items()},
-    **RIDER_PARAM_COLUMNS,
-}
+#: Float sweep parameter (results column) -> VariantParams field: the sweepable settings
+#: (vei.config_settings, via sweep_params.SWEEP_FIELDS; sfm.k_des_nspm is scaled by
+#: k_des_factor) and a population rider's (RIDER_PARAM_COLUMNS). [H4: derived from the
+#: settings' declarations, was spelled out from CONFIG_FIELDS / POLICY_PARAMS here]
+_PARAM_FIELDS: dict[str, str] = {**SWEEP_FIELDS, **RIDER_PARAM_COLUMNS}
 
 
 #: Columns of a destination gain (scaled by the configuration's k_des_factor).

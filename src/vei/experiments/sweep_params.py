@@ -27,6 +27,7 @@ import numpy as np
 from vei.calibrate.population import RIDER_PARAM_COLUMNS
 from vei.config import CASE_PRESETS, SFM_PRESETS, RunConfig, validate_policy_spec
 from vei.config_perception import PerceptionConfig
+from vei.config_settings import SECTIONS, SETTINGS, Setting
 from vei.errors import ConfigError
 
 
@@ -105,105 +106,109 @@ class ParamDef:
         return v
 
 
-def _f(name: str, unit: str, doc: str, **kw: Any) -> ParamDef:
-    return ParamDef(name=name, kind="float", unit=unit, doc=doc, **kw)
-
-
 #: Run-config path of a policy's own parameters (``ego: {policy: aeb, policy_params: {..}}``).
 POLICY_PARAMS_PREFIX = "ego.policy_params."
-
-#: (policy, field of its config (vei.policy.aeb.AEBConfig / idm.IDMConfig), unit, doc, bounds).
-_POLICY_FIELDS: tuple[tuple[Any, ...], ...] = (
-    ("aeb", "ttc_warning_s", "s", "AEB forward collision warning TTC", {"lower_open": True}),
-    ("aeb", "ttc_partial_s", "s", "AEB partial braking TTC", {"lower_open": True}),
-    ("aeb", "ttc_full_s", "s", "AEB full braking TTC", {"lower_open": True}),
-    (
-        "aeb",
-        "partial_decel_mps2",
-        "m/s^2",
-        "AEB partial braking deceleration",
-        {"lower_open": True},
-    ),
-    ("aeb", "full_decel_mps2", "m/s^2", "AEB full braking deceleration", {"lower_open": True}),
-    ("idm", "max_accel_mps2", "m/s^2", "IDM maximum acceleration a", {"lower_open": True}),
-    ("idm", "comfort_decel_mps2", "m/s^2", "IDM comfortable deceleration b", {"lower_open": True}),
-    ("idm", "time_headway_s", "s", "IDM desired time headway T", {}),
-    ("idm", "min_gap_m", "m", "IDM jam distance s0", {}),
-)
-_POLICY_DEFS = tuple(
-    _f(f"{POLICY_PARAMS_PREFIX}{f}", unit, f"{doc} ({pol} only)", lower=0.0, **kw)
-    for pol, f, unit, doc, kw in _POLICY_FIELDS
-)
-
-
-#: Every parameter a sweep can vary, in the column order of the variants table.
-PARAMETERS: dict[str, ParamDef] = {
-    p.name: p
-    for p in (
-        _f("time_shift_s", "s", "time shift of the primary rider (see time_shift_reference)"),
-        ParamDef(
-            "rider_model",
-            "choice",
-            allowed=RIDER_MODELS,
-            doc="primary rider: kinematic replay, SFM normal or SFM aggressive",
-        ),
-        _f(
-            "sfm.k_des_nspm",
-            "N s/m",
-            "desired-velocity gain k_des (before the configuration's k_des_factor)",
-            lower=0.0,
-            lower_open=True,
-        ),
-        _f("sfm.a_veh_n", "N", "vehicle repulsion amplitude A", lower=0.0),
-        _f("sfm.b_veh_per_m", "1/m", "vehicle repulsion decay rate b", lower=0.0, lower_open=True),
-        _f("sfm.v0_mps", "m/s", "rider's nominal desired speed v0", lower=0.0, lower_open=True),
-        _f("sfm.mass_kg", "kg", "rider + e-scooter mass", lower=0.0, lower_open=True),
-        ParamDef("sfm.use_vehicle_force", "bool", doc="apply the vehicle repulsion force f_veh"),
-        _f("ego.cruise_speed_mps", "m/s", "ego PID cruise speed v_d", lower=0.0, lower_open=True),
-        _f("cap.t_safe_s", "s", "CAP time headway T_safe", lower=0.0, lower_open=True),
-        _f("cap.d_buf_m", "m", "CAP standstill buffer d_buf", lower=0.0),
-        _f("cap.a_min_mps2", "m/s^2", "CAP maximum braking (negative)", upper=0.0, upper_open=True),
-        _f("cap.perception_delay_s", "s", "perception latency (the policy sees late)", lower=0.0),
-        ParamDef(
-            "ego.policy",
-            "policy",
-            allowed=("none", "paper-cap", "aeb", "idm"),
-            doc="ego policy (vei.policy): none = PID cruise, paper-cap = PID + CAP, aeb, idm, "
-            "or a user policy 'package.module:Class' / 'path/file.py:Class'",
-        ),
-        *_POLICY_DEFS,
-    )
-}
-
-#: Sweep parameters of the built-in policies' configurations: name -> (policy, field).
-POLICY_PARAMS: dict[str, tuple[str, str]] = {
-    f"{POLICY_PARAMS_PREFIX}{f}": (pol, f) for pol, f, *_ in _POLICY_FIELDS
-}
 
 #: The sweep parameter that picks the ego's controller (a results column too).
 POLICY_PARAM = "ego.policy"
 
+
+def _param(s: Setting) -> ParamDef:
+    """The sweep parameter of a sweepable setting: named by its run-config path, with its
+    declared unit, bounds and description."""
+    if s.field == "policy":
+        from vei.config import BUILTIN_POLICIES
+
+        return ParamDef(str(s.path), "policy", allowed=tuple(BUILTIN_POLICIES), doc=s.doc)
+    if s.kind == "bool":
+        return ParamDef(str(s.path), "bool", doc=s.doc)
+    doc = f"{s.doc} ({s.policy} only)" if s.policy else s.doc
+    return ParamDef(
+        str(s.path), "float", lower=s.lower, upper=s.upper, lower_open=s.lower_open,
+        upper_open=s.upper_open, unit=s.unit, doc=doc,
+    )  # fmt: skip
+
+
+#: Every parameter a sweep can vary, in the column order of the variants table: the two
+#: design parameters, then the sweepable settings (vei.config_settings.SETTINGS) in their
+#: declared order.
+PARAMETERS: dict[str, ParamDef] = {
+    p.name: p
+    for p in (
+        ParamDef(
+            "time_shift_s",
+            "float",
+            unit="s",
+            doc="design parameter: the run's `time_shift` is the automatic shift + this "
+            "offset (`time_shift_reference: auto`) or this value (`zero`)",
+        ),
+        ParamDef(
+            "rider_model",
+            "choice",
+            allowed=RIDER_MODELS,
+            doc="design parameter: `rider: replay`, or `rider: sfm` with `sfm: normal` / "
+            "`aggressive` (SFM_PRESETS, the calibrated riders; the paper's: `base: "
+            "paper-normal-cap` without `rider_model`)",
+        ),
+        *(_param(s) for s in SETTINGS if s.sweep),
+    )
+}
+
+#: Sweep parameter -> the VariantParams field its value sets (float parameters; the value
+#: x k_des_factor for sfm.k_des_nspm, as the setting's conversion says).
+SWEEP_FIELDS: dict[str, str] = {
+    str(s.path): s.field for s in SETTINGS if s.sweep and s.kind == "float"
+}
+
+#: Sweep parameters of the built-in policies' configurations: name -> (policy, field).
+POLICY_PARAMS: dict[str, tuple[str, str]] = {
+    str(s.path): (str(s.policy), str(s.config_field))
+    for s in SETTINGS
+    if s.sweep and s.convert == "policy_param"
+}
+
 #: Sweep parameter -> (config section, field) of the run configuration's CaseConfig: the
 #: name is the path (time shift, rider model and the policy aside).
 CONFIG_FIELDS: dict[str, tuple[str, str]] = {
-    name: (name.split(".")[0], name.split(".", 1)[1])
-    for name in PARAMETERS
-    if name.startswith(("sfm.", "ego.", "cap.")) and name.count(".") == 1 and name != POLICY_PARAM
+    str(s.path): (str(s.section), str(s.config_field))
+    for s in SETTINGS
+    if s.sweep and s.section in SECTIONS and s.convert != "policy_param" and s.kind != "object"
 }
 
-#: Spellings of earlier versions -> the parameter's name now (a spec using one is refused).
-RENAMED: dict[str, str] = {
-    "sfm.k_des": "sfm.k_des_nspm",
-    "sfm.A": "sfm.a_veh_n",
-    "sfm.b": "sfm.b_veh_per_m",
-    "sfm.v0": "sfm.v0_mps",
-    "sfm.mass": "sfm.mass_kg",
-    "sfm.vehicle_force": "sfm.use_vehicle_force",
-    "cap.T_safe_s": "cap.t_safe_s",
-    "perception_delay_s": "cap.perception_delay_s",
-    "policy": POLICY_PARAM,
-    **{f"{pol}.{f}": f"{POLICY_PARAMS_PREFIX}{f}" for pol, f, *_ in _POLICY_FIELDS},
-}
+#: Spellings of earlier versions -> the parameter's name now (a spec using one is refused):
+#: the settings' declared former names.
+RENAMED: dict[str, str] = {old: str(s.path) for s in SETTINGS if s.sweep for old in s.former}
+#: The markers around the generated parameter table of docs/sweeps.md.
+TABLE_BEGIN = "<!-- parameters: generated by vei.experiments.sweep_params.parameter_table -->"
+TABLE_END = "<!-- end of the generated parameter table -->"
+
+
+def parameter_table() -> str:
+    """The sweep parameters as a Markdown table (docs/sweeps.md holds it between
+    :data:`TABLE_BEGIN` and :data:`TABLE_END`; a test checks that it is today's).
+
+    One row per :data:`PARAMETERS` entry: name (= run-config path), unit, the values it
+    takes (bounds or choices), the engine's VariantParams field and the description.
+    """
+    fields = {str(s.path): s for s in SETTINGS if s.sweep}
+    lines = [
+        "| parameter | unit | values | engine field | what it is |",
+        "|---|---|---|---|---|",
+    ]
+    for name, p in PARAMETERS.items():
+        s = fields.get(name)
+        if p.kind == "float":
+            values = s.bounds_text() if s is not None else "any"
+        elif p.kind == "bool":
+            values = "true / false"
+        else:
+            values = " / ".join(p.allowed) + (" / a user policy" if p.kind == "policy" else "")
+        field = f"`{s.field}`" if s is not None else "(design parameter)"
+        unit = p.unit or ("-" if p.kind != "bool" else "bool")
+        lines.append(f"| `{name}` | {unit} | {values} | {field} | {p.doc} |")
+    return "\n".join(lines) + "\n"
+
+
 #: Earlier parameters whose setting is now another parameter: old name -> how to write it.
 REPLACED: dict[str, str] = {
     "cap.enabled": "'ego.policy' (cap.enabled true = paper-cap, false = none)",

@@ -52,10 +52,11 @@ def _build() -> Any:
 
 
 #: Modules compiled into the kernel (numba's cache checks only the kernel's own file);
-#: vei.boxes gives it the box-overlap test.
+#: vei.boxes gives it the box-overlap test, vei.config_settings the order of P's rows
+#: (kernel_layout's P_* constants).
 _KERNEL_SOURCES = (
     "_kernel_numba.py", "_kernel_scalar.py", "_kernel_ego.py", "_kernel_sfm.py",
-    "_kernel_riders.py", "kernel_layout.py", "../boxes.py",
+    "_kernel_riders.py", "kernel_layout.py", "../boxes.py", "../config_settings.py",
 )  # fmt: skip
 
 

@@ -9,14 +9,59 @@ helpers) both import these names from here, so neither imports the other's modul
 
 from __future__ import annotations
 
-# Rows of the packed parameter matrix P [N_PARAMS, B].
-(
-    P_SHIFT, P_SFM, P_KDES, P_AVEH, P_BVEH, P_V0, P_MASS, P_SIGMA, P_LOOK, P_ARRIVE, P_USEVF, P_PAPERV,
-    P_FRONTB, P_VMAX, P_AMAX_R, P_MODE, P_VD, P_KP, P_KI, P_KD, P_ILIM, P_IWIN, P_AMAX, P_DMAX, P_LAG,
-    P_TSAFE, P_DBUF, P_AMIN, P_HALFW, P_RANGE, P_RELEASE, P_RECTOL, P_PAPERLAW, P_DELAY,
-    P_SFR, P_ARR, P_BRR, P_USERF,
-) = range(38)  # fmt: skip
-N_PARAMS = 38
+from vei.config_settings import SETTINGS
+
+#: VariantParams fields in the order of the rows of P: the settings declared as kernel rows
+#: (vei.config_settings.SETTINGS, in their order).
+PARAM_FIELDS: tuple[str, ...] = tuple(s.field for s in SETTINGS if s.kernel)
+N_PARAMS = len(PARAM_FIELDS)
+
+
+def row(field: str) -> int:
+    """The row of P holding the VariantParams field ``field`` (a plain int: numba reads the
+    P_* names below as compile-time constants)."""
+    return PARAM_FIELDS.index(field)
+
+
+# Rows of the packed parameter matrix P [N_PARAMS, B] (names the compiled kernel imports).
+P_SHIFT = row("time_shift_s")
+P_SFM = row("rider_sfm")
+P_KDES = row("k_des_nspm")
+P_AVEH = row("a_veh_n")
+P_BVEH = row("b_veh_per_m")
+P_V0 = row("v0_mps")
+P_MASS = row("mass_kg")
+P_SIGMA = row("sigma_m")
+P_LOOK = row("lookahead_m")
+P_ARRIVE = row("arrive_radius_m")
+P_USEVF = row("use_vehicle_force")
+P_PAPERV = row("paper_vdes")
+P_FRONTB = row("front_bumper")
+P_VMAX = row("max_speed_mps")
+P_AMAX_R = row("max_accel_mps2")
+P_MODE = row("ego_mode")
+P_VD = row("cruise_speed_mps")
+P_KP = row("kp")
+P_KI = row("ki")
+P_KD = row("kd")
+P_ILIM = row("integral_limit")
+P_IWIN = row("integral_window_s")
+P_AMAX = row("max_accel_mps2_ego")
+P_DMAX = row("max_decel_mps2_ego")
+P_LAG = row("actuator_lag_s")
+P_TSAFE = row("t_safe_s")
+P_DBUF = row("d_buf_m")
+P_AMIN = row("a_min_mps2")
+P_HALFW = row("corridor_half_width_m")
+P_RANGE = row("detection_range_m")
+P_RELEASE = row("release_margin_m")
+P_RECTOL = row("recover_tolerance_mps")
+P_PAPERLAW = row("paper_per_step")
+P_DELAY = row("perception_delay_s")
+P_SFR = row("speed_from_recording")
+P_ARR = row("a_rider_n")
+P_BRR = row("b_rider_per_m")
+P_USERF = row("use_rider_force")
 
 # Rows of the float output O [N_OUT, T, B] (same order as vei.sim.result._RECORDED floats).
 O_S, O_X, O_Y, O_YAW, O_V, O_A, O_U, O_RX, O_RY, O_RYAW, O_RSP, O_RVX, O_RVY, O_RA = range(14)
@@ -30,14 +75,3 @@ FLOAT_FIELDS = (
 )  # fmt: skip
 #: SimState bool fields in the order of B0 / FB rows.
 BOOL_FIELDS = ("rider_active", "rider_started", "collided", "rider_done")
-#: VariantParams fields in the order of the rows of P.
-PARAM_FIELDS = (
-    "time_shift_s", "rider_sfm", "k_des_nspm", "a_veh_n", "b_veh_per_m", "v0_mps", "mass_kg", "sigma_m",
-    "lookahead_m", "arrive_radius_m", "use_vehicle_force", "paper_vdes", "front_bumper", "max_speed_mps",
-    "max_accel_mps2", "ego_mode", "cruise_speed_mps", "kp", "ki", "kd", "integral_limit", "integral_window_s",
-    "max_accel_mps2_ego", "max_decel_mps2_ego", "actuator_lag_s", "t_safe_s", "d_buf_m", "a_min_mps2",
-    "corridor_half_width_m", "detection_range_m", "release_margin_m", "recover_tolerance_mps",
-    "paper_per_step", "perception_delay_s", "speed_from_recording", "a_rider_n", "b_rider_per_m",
-    "use_rider_force",
-)  # fmt: skip
-assert len(PARAM_FIELDS) == N_PARAMS

@@ -12,6 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from vei.config import AUTO, MAX_RUN_UP_M, MEDIAN_MOVING, CaseConfig
+from vei.config_settings import BY_FIELD, SETTINGS, config_value
 from vei.errors import ConfigError, InputError
 from vei.sim.tables import TimeTable
 
@@ -55,34 +56,13 @@ EGO_MODE_CODES: dict[str, int] = {
     "cap": EGO_CAP,
     "policy": EGO_POLICY,
 }
-#: Per-variant parameters of the built-in API policies (sweepable): field -> default.
-POLICY_PARAM_DEFAULTS: dict[str, float] = {
-    "aeb_ttc_warning_s": 2.6,
-    "aeb_ttc_partial_s": 1.6,
-    "aeb_ttc_full_s": 0.9,
-    "aeb_partial_decel_mps2": 4.0,
-    "aeb_full_decel_mps2": 8.0,
-    "idm_max_accel_mps2": 1.0,
-    "idm_comfort_decel_mps2": 1.5,
-    "idm_time_headway_s": 1.0,
-    "idm_min_gap_m": 2.0,
-    "idm_delta": 4.0,
-}
-
 
 # --------------------------------------------------------------------------------------
 # Per-variant parameters
 # --------------------------------------------------------------------------------------
-_BOOL_FIELDS = (
-    "rider_sfm",
-    "use_vehicle_force",
-    "paper_vdes",
-    "front_bumper",
-    "paper_per_step",
-    "speed_from_recording",
-    "use_rider_force",
-)
-_INT_FIELDS = ("ego_mode",)
+_BOOL_FIELDS = tuple(s.field for s in SETTINGS if s.kind == "bool")
+_INT_FIELDS = tuple(s.field for s in SETTINGS if s.kind == "int")
+_OBJECT_FIELDS = tuple(s.field for s in SETTINGS if s.kind == "object")
 
 
 @dataclass(frozen=True)
@@ -93,40 +73,14 @@ class VariantParams:
     per-variant overrides), :meth:`concat` (stack several) or directly.
 
     Attributes:
-        time_shift_s: shift of the primary rider's timing [s]; the rider at engine time t
-            is the recording at t - time_shift_s (positive = the rider comes later).
-        rider_sfm: bool; False = kinematic replay, True = social-force rider.
-        k_des_nspm: effective destination gain (k_des * k_des_factor) [N s/m].
-        a_veh_n, b_veh_per_m, v0_mps, mass_kg, sigma_m, lookahead_m, arrive_radius_m:
-            SFM parameters (SFMConfig).
-        use_vehicle_force, paper_vdes, front_bumper: bool switches (SFMConfig:
-            use_vehicle_force, desired_velocity == 'paper', influential_point ==
-            'front_bumper').
-        max_speed_mps, max_accel_mps2: rider limits; +inf = none.
-        ego_mode: int8, 0 replay-speed, 1 pid, 2 cap.
-        cruise_speed_mps: v_d [m/s]. initial_speed_mps: ego speed at t = 0 [m/s].
-        ego_start_s_m: ego arc length at t = 0 [m] (-run_up_m; 0 for replay-speed),
-            in [-250, 0].
-        kp, ki, kd, integral_limit: PID. integral_window_s: the integral's memory [s]
-            (+inf = plain integral). max_accel_mps2_ego, max_decel_mps2_ego,
-            actuator_lag_s: actuator (EgoConfig).
-        t_safe_s, d_buf_m, a_min_mps2, corridor_half_width_m, detection_range_m,
-            release_margin_m, recover_tolerance_mps: CAP (CAPConfig).
-        paper_per_step: bool, CAP braking law 'paper_per_step'.
-        perception_delay_s: CAP perception delay [s] (rounded to whole steps).
-        policy: object array; the ego policy instance of each variant (vei.policy) where
-            ego_mode == 3 (policy), else None. Variants sharing one instance share one
-            block; the engine calls its ``bind`` with the block's parameters.
-        perception: object array; the enabled PerceptionConfig (vei.policy.perception)
-            of each policy variant, else None (ideal perception).
-        aeb_*, idm_*: the built-in 'aeb' / 'idm' policies' parameters (AEBConfig,
-            IDMConfig; sweepable as aeb.<name> / idm.<name>); unused by other policies.
-        speed_from_recording: bool; the extra SFM riders (vei.sim.riders) take v0 and
-            their speed limit from their own recordings (the primary's are resolved into
-            v0_mps / max_speed_mps by :meth:`from_case`).
-        a_rider_n, b_rider_per_m, use_rider_force: rider-rider / rider-pedestrian
-            repulsion (SFMConfig; acts only in the several-rider mode).
-        labels: [B] object array of configuration names (for outputs).
+        One per engine setting, declared in :data:`vei.config_settings.SETTINGS` (same
+        names, same order): its unit, bounds (checked here, messages naming the run-config
+        path), the run-config field it comes from and how (:meth:`from_case`), and what it
+        is. Bools are bool arrays, ``ego_mode`` int8 (:data:`EGO_MODE_CODES`), ``policy``
+        (the vei.policy instance of each variant where ego_mode == 3, else None; variants
+        sharing one instance share one block, the engine calls its ``bind`` with the
+        block's parameters), ``perception`` (the enabled PerceptionConfig of each policy
+        variant, else None) and ``labels`` (configuration names) object arrays.
     """
 
     time_shift_s: FloatArray
@@ -197,51 +151,13 @@ class VariantParams:
                 raise ConfigError(f"VariantParams.{f.name} has NaN or -inf values")
         if b == 0:
             raise ConfigError("VariantParams needs at least one variant")
-        for name in (
-            "mass_kg",
-            "sigma_m",
-            "lookahead_m",
-            "arrive_radius_m",
-            "k_des_nspm",
-            "max_accel_mps2_ego",
-            "max_decel_mps2_ego",
-            "corridor_half_width_m",
-            "detection_range_m",
-            "recover_tolerance_mps",
-            "max_speed_mps",
-            "max_accel_mps2",
-            "integral_window_s",
-        ):
-            if np.any(getattr(self, name) <= 0):
-                raise ConfigError(f"VariantParams.{name} must be > 0")
-        for name in (
-            "a_veh_n",
-            "b_veh_per_m",
-            "v0_mps",
-            "cruise_speed_mps",
-            "initial_speed_mps",
-            "kp",
-            "ki",
-            "kd",
-            "actuator_lag_s",
-            "t_safe_s",
-            "d_buf_m",
-            "release_margin_m",
-            "perception_delay_s",
-            "integral_limit",
-            "a_rider_n",
-            "b_rider_per_m",
-        ):
-            if np.any(getattr(self, name) < 0):
-                raise ConfigError(f"VariantParams.{name} must be >= 0")
-        if np.any((self.ego_start_s_m > 0) | (self.ego_start_s_m < -250.0)):
-            raise ConfigError("VariantParams.ego_start_s_m must lie in [-250, 0] m")
-        if np.any(self.a_min_mps2 >= 0):
-            raise ConfigError("VariantParams.a_min_mps2 must be < 0")
-        if np.any((self.ego_mode < 0) | (self.ego_mode > 3)):
-            raise ConfigError(
-                "VariantParams.ego_mode must be 0 (replay-speed), 1 (pid), 2 (cap) or 3 (policy)"
-            )
+        for s in SETTINGS:  # the declared bounds (vei.config_settings)
+            v = getattr(self, s.field)
+            where = f"VariantParams.{s.field}" + (f" ({s.path})" if s.path else "")
+            if s.kind == "float" and not s.allows_inf and np.any(np.isposinf(v)):
+                raise ConfigError(f"{where} must be finite")
+            if s.bounds_text() and np.any(s.outside(v)):
+                raise ConfigError(f"{where} must be {s.bounds_text()}")
         has_policy = np.array([p is not None for p in self.policy], dtype=bool)
         if np.any(has_policy != (self.ego_mode == EGO_POLICY)):
             raise ConfigError(
@@ -254,9 +170,6 @@ class VariantParams:
             raise ConfigError(
                 "VariantParams.perception applies to policy variants (ego_mode 3) only"
             )
-        for name in POLICY_PARAM_DEFAULTS:
-            if np.any(~(getattr(self, name) >= 0)) or not np.all(np.isfinite(getattr(self, name))):
-                raise ConfigError(f"VariantParams.{name} must be finite and >= 0")
 
     @property
     def batch_size(self) -> int:
@@ -289,7 +202,7 @@ class VariantParams:
         Returns:
             VariantParams with B variants.
         """
-        sfm, ego, cap = case.sfm, case.ego, case.cap
+        sfm, ego = case.sfm, case.ego
         # An enabled sensor model runs every closed-loop controller on the policy API.
         perceived = (
             case.perception is not None
@@ -328,52 +241,30 @@ class VariantParams:
             v0, vmax = speed_from_recording(
                 tr.data[:, tr.col("speed_mps")], sfm.lookahead_m, sfm.sigma_m, v0, vmax
             )
+        # Every declared setting read from the configuration (vei.config_settings), then
+        # those derived from the scenario, the run or the policy.
         base: dict[str, Any] = {
-            "time_shift_s": time_shift_s,
-            "rider_sfm": case.rider == "sfm",
-            "k_des_nspm": sfm.k_des_effective_nspm,
-            "a_veh_n": sfm.a_veh_n,
-            "b_veh_per_m": sfm.b_veh_per_m,
-            "v0_mps": v0,
-            "mass_kg": sfm.mass_kg,
-            "sigma_m": sfm.sigma_m,
-            "lookahead_m": sfm.lookahead_m,
-            "arrive_radius_m": sfm.arrive_radius_m,
-            "use_vehicle_force": sfm.use_vehicle_force,
-            "paper_vdes": sfm.desired_velocity == "paper",
-            "front_bumper": sfm.influential_point == "front_bumper",
-            "max_speed_mps": inf if vmax is None else vmax,
-            "max_accel_mps2": inf if sfm.max_accel_mps2 is None else sfm.max_accel_mps2,
-            "ego_mode": EGO_MODE_CODES["policy" if perceived else case.ego_mode],
-            "cruise_speed_mps": vd,
-            "initial_speed_mps": v_init,
-            "ego_start_s_m": 0.0 if case.ego_mode == "replay-speed" else -run_up_m,
-            "kp": ego.kp,
-            "ki": ego.ki,
-            "kd": ego.kd,
-            "integral_limit": ego.integral_limit,
-            "integral_window_s": inf if ego.integral_window_s is None else ego.integral_window_s,
-            "max_accel_mps2_ego": ego.max_accel_mps2,
-            "max_decel_mps2_ego": ego.max_decel_mps2,
-            "actuator_lag_s": ego.actuator_lag_s,
-            "t_safe_s": cap.t_safe_s,
-            "d_buf_m": cap.d_buf_m,
-            "a_min_mps2": cap.a_min_mps2,
-            "corridor_half_width_m": cap.corridor_half_width_m,
-            "detection_range_m": cap.detection_range_m,
-            "release_margin_m": cap.release_margin_m,
-            "recover_tolerance_mps": cap.recover_tolerance_mps,
-            "paper_per_step": cap.braking_law == "paper_per_step",
-            "perception_delay_s": cap.perception_delay_s,
-            "speed_from_recording": sfm.speed_from_recording,
-            "a_rider_n": sfm.a_rider_n,
-            "b_rider_per_m": sfm.b_rider_per_m,
-            "use_rider_force": sfm.use_rider_force,
-            "policy": _case_policy(case, perceived),
-            "perception": case.perception if perceived else None,
-            **_policy_param_values(case),
-            "labels": case.name,
+            s.field: config_value(s, case)
+            for s in SETTINGS
+            if s.convert not in ("derived", "policy_param")
         }
+        base.update(
+            {
+                "time_shift_s": time_shift_s,
+                "v0_mps": v0,
+                "max_speed_mps": inf if vmax is None else vmax,
+                "ego_mode": EGO_MODE_CODES["policy" if perceived else case.ego_mode],
+                "cruise_speed_mps": vd,
+                "initial_speed_mps": v_init,
+                "ego_start_s_m": 0.0 if case.ego_mode == "replay-speed" else -run_up_m,
+                "policy": _case_policy(case, perceived),
+                "perception": case.perception if perceived else None,
+                **_policy_param_values(case),
+            }
+        )
+        missing = set(BY_FIELD) - set(base)
+        if missing:  # pragma: no cover - a setting declared without its conversion here
+            raise ConfigError(f"from_case sets no value for {', '.join(sorted(missing))}")
         unknown = set(overrides) - set(base)
         if unknown:
             raise ConfigError(f"unknown VariantParams field(s): {', '.join(sorted(unknown))}")
@@ -385,7 +276,7 @@ class VariantParams:
         out: dict[str, Any] = {}
         for f in dataclasses.fields(cls):
             v = values[f.name]
-            if f.name in ("labels", "policy", "perception"):
+            if f.name in _OBJECT_FIELDS:
                 arr = np.empty(batch_size, dtype=object)
                 if isinstance(v, np.ndarray) and v.ndim == 1:
                     arr[:] = list(v)
@@ -449,22 +340,35 @@ def _case_policy(case: CaseConfig, perceived: bool = False) -> Any:
     return load_policy(case.policy_name, case.ego.policy_params)
 
 
-def _policy_param_values(case: CaseConfig) -> dict[str, float]:
-    """The aeb_* / idm_* VariantParams values of a configuration (defaults, or its
-    policy_params for the built-in 'aeb' / 'idm')."""
-    out = dict(POLICY_PARAM_DEFAULTS)
-    name = case.policy_name
-    if name in ("aeb", "idm"):
-        from vei.policy.aeb import AEB_PARAM_FIELDS, AEBConfig
-        from vei.policy.idm import IDM_PARAM_FIELDS, IDMConfig
+def _policy_configs() -> dict[str, type]:
+    """The built-in policies' parameter classes: name -> AEBConfig / IDMConfig."""
+    from vei.policy.aeb import AEBConfig
+    from vei.policy.idm import IDMConfig
 
-        cls, mapping = (
-            (AEBConfig, AEB_PARAM_FIELDS) if name == "aeb" else (IDMConfig, IDM_PARAM_FIELDS)
-        )
+    return {"aeb": AEBConfig, "idm": IDMConfig}
+
+
+def _policy_param_values(case: CaseConfig) -> dict[str, float]:
+    """The aeb_* / idm_* VariantParams values of a configuration (the declared
+    'policy_param' settings): its ego.policy_params for the built-in 'aeb' / 'idm' it runs,
+    the policy configuration's defaults for the others."""
+    name = case.policy_name
+    cfgs: dict[str, Any] = {}
+    for pol, cls in _policy_configs().items():
         try:
-            cfg = cls(**(case.ego.policy_params or {}))
+            cfgs[pol] = cls(**(case.ego.policy_params or {})) if pol == name else cls()
         except TypeError as exc:
             raise ConfigError(f"ego.policy_params of {name!r}: {exc}") from None
-        for f, vp in mapping.items():
-            out[vp] = float(getattr(cfg, f))
-    return out
+    return {
+        s.field: float(getattr(cfgs[str(s.policy)], str(s.config_field)))
+        for s in SETTINGS
+        if s.convert == "policy_param"
+    }
+
+
+def __getattr__(name: str) -> Any:
+    """``POLICY_PARAM_DEFAULTS``: VariantParams field -> default of every built-in
+    policy's parameter (from AEBConfig / IDMConfig, read when asked)."""
+    if name == "POLICY_PARAM_DEFAULTS":
+        return _policy_param_values(CaseConfig(name="defaults"))
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
