@@ -57,6 +57,7 @@ def _build() -> Any:
 _KERNEL_SOURCES = (
     "_kernel_numba.py", "_kernel_scalar.py", "_kernel_ego.py", "_kernel_sfm.py",
     "_kernel_riders.py", "kernel_layout.py", "../boxes.py", "../config_settings.py",
+    "../metrics/fused.py",
 )  # fmt: skip
 
 
@@ -131,19 +132,31 @@ def _extra_args(arrays: Any) -> tuple[Any, ...]:
     )  # fmt: skip
 
 
-def run(arrays: Any, params: Any, state0: Any, hist_len: int, record: bool) -> dict[str, Any]:
+def run(
+    arrays: Any,
+    params: Any,
+    state0: Any,
+    hist_len: int,
+    record: bool,
+    metrics_cfg: np.ndarray | None = None,
+) -> dict[str, Any]:
     """Run the compiled kernel from ``state0`` over all steps of ``arrays``.
 
     Args:
         arrays: ScenarioArrays. params: VariantParams [B]. state0: SimState at k = 0 (from
         :func:`vei.sim.engine.initial_state`). hist_len: perception ring length H.
         record: keep the time series.
+        metrics_cfg: [N_CFG] :func:`vei.metrics.fused.config_vector`: also score every
+            variant with the fused metrics (per-variant [T] scratch channels inside the
+            kernel, no [B, T] buffer); None: no metrics.
     Returns:
         dict with 'series' (name -> [B, T] arrays of vei.sim.result._RECORDED (views of a
         variant-major buffer), or None), 'hit' ([B, T, n_o] or None), 'final' (SimState
-        fields), 'collision_time_s',
-        'min_center_distance_m'.
+        fields), 'collision_time_s', 'min_center_distance_m', 'metrics' ([B, N_FUSED]
+        rows of vei.metrics.fused.FUSED_METRICS, or None).
     """
+    from vei.metrics.fused import N_CFG, N_FUSED
+
     kernel = _build()
     t_n = arrays.n_steps
     b = params.batch_size
@@ -202,6 +215,11 @@ def run(arrays: Any, params: Any, state0: Any, hist_len: int, record: bool) -> d
         outxb[:, 1, 0, :] = state0.extra_hit
     xfs = np.empty((8, b, n_x))
     xfb = np.empty((4, b, n_x), dtype=np.uint8)
+    scored = metrics_cfg is not None
+    mcfg = np.ascontiguousarray(metrics_cfg if scored else np.zeros(N_CFG), dtype=np.float64)
+    m_out = np.empty((b if scored else 1, N_FUSED))
+    t_m = np.ascontiguousarray(arrays.t_s, dtype=np.float64)
+    dt_m = float(t_m[1] - t_m[0]) if t_m.size > 1 else 0.0  # as vei.types.Trace.dt_s
     kernel(
         t_n, float(arrays.dt_s), int(hist_len), bool(record),
         _path_rows(arrays.ego_path), float(arrays.ego_path.s_start_m), float(arrays.ego_path.ds_m),
@@ -216,6 +234,7 @@ def run(arrays: Any, params: Any, state0: Any, hist_len: int, record: bool) -> d
         np.ascontiguousarray(arrays.other_width_m, dtype=np.float64),
         p_mat, s0, b0, out, outb, outh, h0, fs, fb, fh, coll_t, min_d,
         *xa, xs0, xb0, outx, outxb, xfs, xfb,
+        scored, t_m, dt_m, mcfg, m_out,
     )  # fmt: skip
     final = {f: fs[j].copy() for j, f in enumerate(FLOAT_FIELDS)}
     final["cap_state"] = fs[FLOAT_FIELDS.index("cap_state")].astype(np.int8)
@@ -254,4 +273,5 @@ def run(arrays: Any, params: Any, state0: Any, hist_len: int, record: bool) -> d
         "final": final,
         "collision_time_s": coll_t,
         "min_center_distance_m": min_d,
+        "metrics": m_out if scored else None,
     }
