@@ -80,11 +80,13 @@ def sweep(
         int, typer.Option("--workers", help="Parallel workers (processes or Ray CPUs), >= 1.")
     ] = 1,
     chunk_size: Annotated[
-        int,
+        int | None,
         typer.Option(
-            "--chunk-size", help="Variants per engine batch; bounds memory (one chunk per worker)."
+            "--chunk-size",
+            help="Variants per engine batch; bounds memory (one chunk per worker). "
+            "Default: the variants shared into >= 4 chunks per worker, at most 1024.",
         ),
-    ] = 2048,
+    ] = None,
     max_chunks: Annotated[
         int | None,
         typer.Option(

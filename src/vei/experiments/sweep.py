@@ -135,6 +135,22 @@ def find_scenarios(path: str | Path) -> list[Path]:
     return found
 
 
+#: Largest automatic chunk [variants]: one chunk's time series and metrics take ~0.5 MB
+#: per variant in a worker (record='full'), so 1024 keeps each worker near 0.6 GB.
+MAX_AUTO_CHUNK = 1024
+
+#: Chunks per worker the automatic size aims at (so no worker idles at the end).
+_CHUNKS_PER_WORKER = 4
+
+
+def auto_chunk_size(n_variants: int, workers: int) -> int:
+    """The default chunk size [variants] of a sweep of ``n_variants`` over ``workers``:
+    at least :data:`_CHUNKS_PER_WORKER` chunks per worker (both workers stay busy to the
+    end), at most :data:`MAX_AUTO_CHUNK` (bounds memory), at least 1."""
+    per = -(-int(n_variants) // (_CHUNKS_PER_WORKER * max(1, int(workers))))
+    return max(1, min(MAX_AUTO_CHUNK, per))
+
+
 def _chunks(frame: pd.DataFrame, size: int) -> Iterator[pd.DataFrame]:
     for start in range(0, len(frame), size):
         yield frame.iloc[start : start + size]
@@ -174,7 +190,7 @@ def run_sweep(
     *,
     engine: str = "local",
     workers: int = 1,
-    chunk_size: int = 2048,
+    chunk_size: int | None = None,
     evaluator: Evaluator | None = None,
     progress: bool | None = None,
     max_chunks: int | None = None,
@@ -188,9 +204,11 @@ def run_sweep(
         out_dir: output folder (layout and resume design in the module docstring).
         engine: 'local' (this process; ``workers`` > 1 = that many worker processes) or
             'ray' (``ray.init(num_cpus=workers)`` unless Ray is already initialised).
-        workers: parallel workers (>= 1).
+        workers: parallel workers (>= 1). With more than one, each is a process that
+            gets the evaluator and each prepared scenario once and runs the compiled
+            kernel on its share of the cores (:mod:`vei.experiments.sweep_runners`).
         chunk_size: variants per engine batch (bounds memory: one chunk's traces at a time
-            per worker), >= 1.
+            per worker), >= 1; None: :func:`auto_chunk_size` of the variants to run.
         evaluator: how a chunk is evaluated; default :class:`EngineEvaluator`.
         progress: show a rich progress bar; default: when stderr is a terminal.
         max_chunks: stop after this many chunks (for tests and partial runs); the sweep
@@ -211,7 +229,9 @@ def run_sweep(
         raise ConfigError(f"engine must be 'local' or 'ray', got {engine!r}")
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ConfigError(f"workers must be an integer >= 1, got {workers!r}")
-    if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
+    if chunk_size is not None and (
+        isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1
+    ):
         raise ConfigError(f"chunk_size must be an integer >= 1, got {chunk_size!r}")
     if evaluator is None:
         evaluator = EngineEvaluator(
@@ -235,7 +255,7 @@ def run_sweep(
 
     with _runner(engine, workers, evaluator) as runner:
         n_skipped, n_run, table, scen_meta, prepared = _run_jobs(
-            runner, dirs, spec, out, evaluator, chunk_size, max_chunks, bool(progress)
+            runner, dirs, spec, out, evaluator, chunk_size, workers, max_chunks, bool(progress)
         )
     manifest_path = out / "sweep.json"
     manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
@@ -296,12 +316,14 @@ def _run_jobs(
     spec: SweepSpec,
     out: Path,
     evaluator: Evaluator,
-    chunk_size: int,
+    chunk_size: int | None,
+    workers: int,
     max_chunks: int | None,
     progress: bool,
 ) -> tuple[int, int, pd.DataFrame, list[dict[str, Any]], dict[str, Any]]:
     """Prepare the scenarios, check / write the manifest, run the chunks not yet done and
-    write each as a part file. Returns (n_skipped, n_run, variants table, scenario
+    write each as a part file (the runner writes them; part numbers are handed out here, in
+    job order). Returns (n_skipped, n_run, variants table, scenario
     metadata, prepared scenarios)."""
     parts_dir = out / "parts"
     prepared = runner.prepare_all(dirs)
@@ -335,7 +357,7 @@ def _run_jobs(
         "spec": spec.to_dict(),
         "scenarios": scen_meta,
         "n_variants": len(table),
-        "chunk_size": chunk_size,
+        "chunk_size": chunk_size,  # None: automatic (auto_chunk_size)
         "status": "running",
         "updated_utc": datetime.now(UTC).isoformat(timespec="seconds"),
     }
@@ -347,24 +369,23 @@ def _run_jobs(
     existing = _existing_parts(parts_dir)
     next_seq = 1 + max((int(PART_RE.match(p.name).group(1)) for p in existing), default=-1)
 
-    jobs = [
-        (str(d), chunk)
-        for d, grp in todo.groupby("_dir", sort=False)
-        for chunk in _chunks(grp.drop(columns="_dir"), chunk_size)
-    ]
-    if max_chunks is not None:
-        jobs = jobs[:max_chunks]
+    size = chunk_size or auto_chunk_size(len(todo), workers)
+
+    def jobs() -> Iterator[tuple[str, pd.DataFrame, Path]]:
+        # Made as the runner asks for them (a few chunks ahead), not all at once.
+        nonlocal next_seq
+        n = 0
+        for d, grp in todo.groupby("_dir", sort=False):
+            for chunk in _chunks(grp.drop(columns="_dir"), size):
+                if max_chunks is not None and n >= max_chunks:
+                    return
+                yield str(d), chunk, parts_dir / f"part-{next_seq:06d}.parquet"
+                next_seq += 1
+                n += 1
 
     n_run = 0
-
-    def write_part(rows: pd.DataFrame) -> None:
-        nonlocal next_seq, n_run
-        write_parquet(parts_dir / f"part-{next_seq:06d}.parquet", rows)
-        next_seq += 1
-        n_run += len(rows)
-
     with _progress(len(table), n_skipped, progress) as advance:
-        for rows in runner.run(jobs, prepared):
-            write_part(rows)
-            advance(len(rows))
+        for n_rows in runner.run(jobs(), prepared):
+            n_run += n_rows
+            advance(n_rows)
     return n_skipped, n_run, table, scen_meta, prepared
