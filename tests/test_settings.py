@@ -322,6 +322,17 @@ def test_sweep_names_are_the_declared_paths():
     assert SWEEP_FIELDS == {str(s.path): s.field for s in SETTINGS if s.sweep and s.kind == "float"}
     assert sweep_params.RENAMED["cap.T_safe_s"] == "cap.t_safe_s"
     assert set(sweep_params.RENAMED.values()) <= set(declared)
+    # a swept value goes through its setting's conversion (k_des x k_des_factor); the
+    # sweep knows no other conversion of a number
+    assert {s.convert for s in SETTINGS if s.sweep and s.kind == "float"} <= {
+        "identity", "times_k_des_factor", "median_moving", "policy_param",
+    }  # fmt: skip
+    from vei.experiments.sweep_engine import _K_DES_COLUMNS, _PARAM_FIELDS
+
+    assert {s.path for s in SETTINGS if s.sweep and s.convert == "times_k_des_factor"} <= set(
+        _K_DES_COLUMNS
+    )
+    assert {p: f for p, f in _PARAM_FIELDS.items() if p in PARAMETERS} == SWEEP_FIELDS
 
 
 def test_config_checks_come_from_the_declarations():
