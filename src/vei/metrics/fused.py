@@ -18,7 +18,7 @@ latched and a non-finite ego acceleration is replaced as np.nan_to_num does.
 
 Needs numba (the optional extra ``fast``); ``import vei.metrics`` never imports this module.
 
-Layout:
+Layout (:mod:`vei.metrics.fused_layout`, importable without numba):
     channels ``ch [N_CH, T]`` float64 (rows CH_*): ego x, y [m], yaw [rad], speed [m/s],
     acceleration [m/s^2]; rider x, y [m], yaw [rad], speed [m/s], active (0/1), collided
     (0/1, latched here). ``cfg [N_CFG]`` (rows C_*, :func:`config_vector`). Output row
@@ -39,61 +39,71 @@ import numpy.typing as npt
 import pandas as pd
 
 from vei.boxes import overlap_core
-from vei.errors import ConfigError
 from vei.metrics._trace import TraceArrays, arrays, param_of
 from vei.metrics.config import MetricsConfig
-from vei.metrics.severity import SIDES, STRIKING
+from vei.metrics.fused_layout import (
+    C_AHEAD,
+    C_ALERT,
+    C_B0,
+    C_B1,
+    C_CAR,
+    C_CEIL,
+    C_MINV,
+    C_REACT,
+    C_RIDER,
+    C_SAFE,
+    CH_EA,
+    CH_EV,
+    CH_EX,
+    CH_EY,
+    CH_EYAW,
+    CH_RACT,
+    CH_RCOL,
+    CH_RSP,
+    CH_RX,
+    CH_RY,
+    CH_RYAW,
+    FUSED_METRICS,
+    M_ALERT,
+    M_ALL,
+    M_ATT,
+    M_COLL,
+    M_COLL_T,
+    M_DRAC,
+    M_DVC,
+    M_DVR,
+    M_GAP,
+    M_IMPACT,
+    M_INJ,
+    M_MEAN,
+    M_MIN,
+    M_PEAK,
+    M_SAFE,
+    M_SI,
+    M_SIDE,
+    M_STD,
+    M_STRIKE,
+    M_TCOLL,
+    M_TTC,
+    M_UNAV,
+    N_CFG,
+    N_CH,
+    N_FUSED,
+    check_names,
+    config_vector,
+    metrics_frame,
+)  # fmt: skip
 from vei.types import Trace
 
-#: The scalar metrics computed here, in the order of a fused output row.
-FUSED_METRICS: tuple[str, ...] = (
-    "collision", "collision_time_s", "safety_index", "t_safe_s", "t_attention_s",
-    "t_alert_s", "t_collision_s", "t_interaction_s", "min_gap_m", "min_ttc_s",
-    "max_drac_mps2", "drac_unavoidable", "impact_speed_mps", "delta_v_rider_mps",
-    "delta_v_car_mps", "impact_side", "striking", "injury_risk", "peak_decel_mps2",
-    "ego_speed_std_mps", "ego_speed_mean_mps", "ego_speed_min_mps",
-)  # fmt: skip
-N_FUSED = len(FUSED_METRICS)
-(
-    M_COLL, M_COLL_T, M_SI, M_SAFE, M_ATT, M_ALERT, M_TCOLL, M_ALL, M_GAP, M_TTC, M_DRAC,
-    M_UNAV, M_IMPACT, M_DVR, M_DVC, M_SIDE, M_STRIKE, M_INJ, M_PEAK, M_STD, M_MEAN, M_MIN,
-) = range(N_FUSED)  # fmt: skip
-#: Columns holding a bool (0/1) and a label (index of SIDES / STRIKING, -1 = '').
-_BOOL_COLUMNS = ("collision", "drac_unavoidable")
-_LABEL_COLUMNS = {"impact_side": SIDES, "striking": STRIKING}
-
-#: Rows of the channel matrix ch [N_CH, T].
-CH_EX, CH_EY, CH_EYAW, CH_EV, CH_EA, CH_RX, CH_RY, CH_RYAW, CH_RSP, CH_RACT, CH_RCOL = range(11)
-N_CH = 11
-#: Rows of the config vector (NaN ceiling / rider mass = each run's own).
-C_SAFE, C_ALERT, C_AHEAD, C_MINV, C_CEIL, C_REACT, C_CAR, C_RIDER, C_B0, C_B1 = range(10)
-N_CFG = 10
+__all__ = [
+    "FUSED_METRICS", "N_CFG", "N_CH", "N_FUSED", "config_vector", "fused_summary",
+    "metrics_frame", "rows_metrics", "run_metrics",
+]  # fmt: skip
 
 _DBL_MAX = np.finfo(np.float64).max
 _EPS = 1e-12
 
 _overlap = numba.njit(cache=True, error_model="numpy")(overlap_core)
-
-
-def config_vector(cfg: MetricsConfig | None = None) -> npt.NDArray[np.float64]:
-    """[N_CFG] the MetricsConfig values the compiled metrics read (NaN = per-run value)."""
-    cfg = MetricsConfig() if cfg is None else cfg
-    nan = float("nan")
-    return np.array(
-        [
-            cfg.safe_ttc_s,
-            cfg.alert_ttc_s,
-            1.0 if cfg.ttc_scope == "ahead" else 0.0,
-            cfg.min_speed_mps,
-            nan if cfg.drac_ceiling_mps2 is None else cfg.drac_ceiling_mps2,
-            cfg.reaction_time_s,
-            cfg.car_mass_kg,
-            nan if cfg.rider_mass_kg is None else cfg.rider_mass_kg,
-            cfg.injury_intercept,
-            cfg.injury_slope_per_kmh,
-        ],
-        dtype=np.float64,
-    )
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -119,44 +129,76 @@ def _minimum(a, b):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True, error_model="numpy")
-def pairwise_sum(x, lo, n):  # type: ignore[no-untyped-def]
-    """NumPy's pairwise summation of x[lo:lo + n] (numpy/_core/src/umath/loops_utils.h):
-    n < 8 a plain loop from 0; n <= 128 eight accumulators; else split at a multiple of 8.
-    A row reduction (``arr.sum(axis=1)`` of a C-contiguous array) is 0 + this."""
+def _block_sum(x, lo, n):  # type: ignore[no-untyped-def]
+    """A leaf of :func:`pairwise_sum` (n <= 128): n < 8 a plain loop from 0, else eight
+    accumulators combined ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7)), then the tail."""
     if n < 8:
         res = 0.0
         for i in range(n):
             res += x[lo + i]
         return res
+    r0 = x[lo]
+    r1 = x[lo + 1]
+    r2 = x[lo + 2]
+    r3 = x[lo + 3]
+    r4 = x[lo + 4]
+    r5 = x[lo + 5]
+    r6 = x[lo + 6]
+    r7 = x[lo + 7]
+    i = 8
+    stop = n - (n % 8)
+    while i < stop:
+        r0 += x[lo + i]
+        r1 += x[lo + i + 1]
+        r2 += x[lo + i + 2]
+        r3 += x[lo + i + 3]
+        r4 += x[lo + i + 4]
+        r5 += x[lo + i + 5]
+        r6 += x[lo + i + 6]
+        r7 += x[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += x[lo + i]
+        i += 1
+    return res
+
+
+@numba.njit(cache=True, error_model="numpy")
+def pairwise_sum(x, lo, n):  # type: ignore[no-untyped-def]
+    """NumPy's pairwise summation of x[lo:lo + n] (numpy/_core/src/umath/loops_utils.h):
+    blocks of <= 128 by :func:`_block_sum`; a longer range splits at n2 = n // 2 - (n // 2)
+    % 8 and adds the two halves' sums. A row reduction (``arr.sum(axis=1)`` of a
+    C-contiguous float64 array) is 0 + this (checked against NumPy in the tests).
+    Iterative (an explicit stack): numba's on-disk cache cannot link a recursive function
+    into a cached caller."""
     if n <= 128:
-        r0 = x[lo]
-        r1 = x[lo + 1]
-        r2 = x[lo + 2]
-        r3 = x[lo + 3]
-        r4 = x[lo + 4]
-        r5 = x[lo + 5]
-        r6 = x[lo + 6]
-        r7 = x[lo + 7]
-        i = 8
-        stop = n - (n % 8)
-        while i < stop:
-            r0 += x[lo + i]
-            r1 += x[lo + i + 1]
-            r2 += x[lo + i + 2]
-            r3 += x[lo + i + 3]
-            r4 += x[lo + i + 4]
-            r5 += x[lo + i + 5]
-            r6 += x[lo + i + 6]
-            r7 += x[lo + i + 7]
-            i += 8
-        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-        while i < n:
-            res += x[lo + i]
-            i += 1
-        return res
-    n2 = n // 2
-    n2 -= n2 % 8
-    return pairwise_sum(x, lo, n2) + pairwise_sum(x, lo + n2, n - n2)
+        return _block_sum(x, lo, n)
+    s_lo = np.empty(192, dtype=np.int64)
+    s_n = np.empty(192, dtype=np.int64)
+    s_join = np.empty(192, dtype=np.bool_)
+    vals = np.empty(96)
+    sp = 0
+    vp = 0
+    s_lo[0], s_n[0], s_join[0] = lo, n, False
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        a, m, join = s_lo[sp], s_n[sp], s_join[sp]
+        if join:  # both halves done: left + right
+            vp -= 1
+            vals[vp - 1] = vals[vp - 1] + vals[vp]
+        elif m <= 128:
+            vals[vp] = _block_sum(x, a, m)
+            vp += 1
+        else:
+            n2 = m // 2
+            n2 -= n2 % 8
+            s_lo[sp], s_n[sp], s_join[sp] = a, m, True
+            s_lo[sp + 1], s_n[sp + 1], s_join[sp + 1] = a + n2, m - n2, False
+            s_lo[sp + 2], s_n[sp + 2], s_join[sp + 2] = a, n2, False
+            sp += 3
+    return vals[0]
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -474,34 +516,6 @@ def rows_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # t
     out [B, N_FUSED]."""
     for b in numba.prange(ch.shape[0]):
         run_metrics(t, dt, ch[b], Le, We, Lr, Wr, cfg, mass_kg[b], brake_mps2[b], out[b])
-
-
-def metrics_frame(rows: npt.NDArray[np.float64], names: Sequence[str]) -> pd.DataFrame:
-    """The fused rows [B, N_FUSED] as :func:`vei.metrics.summarize` returns them: one
-    column per name (bool for collision / drac_unavoidable, the labels as strings with ''
-    for none, float otherwise)."""
-    check_names(names)
-    cols: dict[str, np.ndarray] = {}
-    for name in names:
-        v = rows[:, FUSED_METRICS.index(name)]
-        if name in _BOOL_COLUMNS:
-            cols[name] = v != 0.0
-        elif name in _LABEL_COLUMNS:
-            labels = np.asarray(("", *_LABEL_COLUMNS[name]), dtype=object)
-            cols[name] = labels[v.astype(np.intp) + 1]
-        else:
-            cols[name] = v.copy()
-    return pd.DataFrame(cols)
-
-
-def check_names(names: Sequence[str]) -> None:
-    """ConfigError unless every name is one of :data:`FUSED_METRICS`."""
-    bad = [n for n in names if n not in FUSED_METRICS]
-    if bad:
-        raise ConfigError(
-            f"metric(s) {', '.join(bad)} have no fused implementation; fused: "
-            f"{', '.join(FUSED_METRICS)}"
-        )
 
 
 def trace_channels(a: TraceArrays) -> npt.NDArray[np.float64]:

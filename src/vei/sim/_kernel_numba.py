@@ -18,6 +18,21 @@ import math
 import numba
 import numpy as np
 
+from vei.metrics.fused import run_metrics
+from vei.metrics.fused_layout import (
+    CH_EA,
+    CH_EV,
+    CH_EX,
+    CH_EY,
+    CH_EYAW,
+    CH_RACT,
+    CH_RCOL,
+    CH_RSP,
+    CH_RX,
+    CH_RY,
+    CH_RYAW,
+    N_CH,
+)
 from vei.sim._kernel_ego import ego_step
 from vei.sim._kernel_riders import extra_riders_step
 from vei.sim._kernel_scalar import idx, ped_forces, rforce, sat
@@ -45,6 +60,7 @@ from vei.sim.kernel_layout import (
     P_BRR,
     P_BVEH,
     P_DELAY,
+    P_DMAX,
     P_FRONTB,
     P_KDES,
     P_LOOK,
@@ -94,6 +110,7 @@ def kernel(  # type: ignore[no-untyped-def]
     XS0, XB0,  # initial extra state [8, B, R] floats, [4, B, R] uint8 (act, started, done, hit)
     OX, OXB,  # out [B, 5, T, R] (x y yaw speed accel), [B, 2, T, R] uint8 (active, hit)
     XFS, XFB,  # final extra state [8, B, R], [4, B, R]
+    metrics, t_m, dt_m, MCFG, M,  # fused metrics (vei.metrics.fused): on?, t [T], dt, cfg, out [B, N_FUSED]
 ):  # fmt: skip
     B = P.shape[1]
     n_p = path.shape[1]
@@ -177,6 +194,10 @@ def kernel(  # type: ignore[no-untyped-def]
         md = np.inf
         if r_act:
             md = math.sqrt((rx - ex) ** 2 + (ry - ey) ** 2)
+        # Fused metrics: this variant's [T] channels (scratch, never [B, T]), scored at the end.
+        ch = np.empty((N_CH, T if metrics else 1))
+        if metrics:
+            _channels(ch, 0, ex, ey, eyaw, v, a_rep, rx, ry, ryaw, rsp, r_act, collided)
         for k in range(T - 1):
             t_new = (k + 1) * dt
             # ---------------- ego
@@ -339,6 +360,8 @@ def kernel(  # type: ignore[no-untyped-def]
                 dd = math.sqrt((rx - ex) * (rx - ex) + (ry - ey) * (ry - ey))
                 if dd < md:
                     md = dd
+            if metrics:
+                _channels(ch, k + 1, ex, ey, eyaw, v, a_rep, rx, ry, ryaw, rsp, r_act, collided)
             if record:
                 kk = k + 1
                 OUT[b, O_S, kk] = s
@@ -398,6 +421,8 @@ def kernel(  # type: ignore[no-untyped-def]
             FH[3, h, b] = hact[h]
         coll_t[b] = ct
         min_d[b] = md
+        if metrics:
+            run_metrics(t_m, dt_m, ch, Le, We, Lr, Wr, MCFG, P[P_MASS, b], P[P_DMAX, b], M[b])
         for j in range(no):
             H0[b, j] = 1 if hit[j] else 0
         for j in range(R):
@@ -405,3 +430,19 @@ def kernel(  # type: ignore[no-untyped-def]
                 XFS[f, b, j] = xs[f, j]
             for f in range(4):
                 XFB[f, b, j] = 1 if xb[f, j] else 0
+
+
+@numba.njit(cache=True, inline="always")
+def _channels(ch, k, ex, ey, eyaw, v, a, rx, ry, ryaw, rsp, r_act, collided):  # type: ignore[no-untyped-def]
+    """Step k of the fused metrics' channels (what record='full' writes for that step)."""
+    ch[CH_EX, k] = ex
+    ch[CH_EY, k] = ey
+    ch[CH_EYAW, k] = eyaw
+    ch[CH_EV, k] = v
+    ch[CH_EA, k] = a
+    ch[CH_RX, k] = rx
+    ch[CH_RY, k] = ry
+    ch[CH_RYAW, k] = ryaw
+    ch[CH_RSP, k] = rsp
+    ch[CH_RACT, k] = 1.0 if r_act else 0.0
+    ch[CH_RCOL, k] = 1.0 if collided else 0.0

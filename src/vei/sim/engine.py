@@ -15,6 +15,8 @@ Entry points:
     result = run_cases(scenario, ["replay", "normal", ...], time_shift_s=2.0)
     # large batches: the compiled kernel (numba), same model, ~10x faster at B >= 1e3:
     result = simulate(arrays, params, record="none", kernel="auto")
+    # a sweep's scalar metrics, scored inside the compiled kernel (no [B, T] series):
+    frame = simulate_metrics(arrays, params, names=("collision", "min_ttc_s"))
 
 Batch layout: :func:`simulate` sorts the variants into contiguous blocks of equal (ego
 mode, rider model) so that each block runs only its own branches (no per-variant mode
@@ -50,7 +52,7 @@ equal one batch of B).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -64,6 +66,11 @@ from vei.sim.result import _RECORDED, _RECORDED_EXTRA, SimResult
 from vei.sim.state import EGO_POLICY, ScenarioArrays, SimState, VariantParams, prepare_scenario
 from vei.sim.step import initial_state, step
 from vei.types import Scenario
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from vei.config_metrics import MetricsConfig
 
 FloatArray = npt.NDArray[np.float64]
 _XNAMES = tuple(name for name, _, _ in _RECORDED_EXTRA)
@@ -297,6 +304,86 @@ def _merge_runs(parts: list[tuple[Any, ...]]) -> tuple[Any, ...]:
     return bufs, hit, xb, np.concatenate([c0, c1]), np.concatenate([m0, m1]), SimState(**merged)
 
 
+def simulate_metrics(
+    arrays: ScenarioArrays,
+    params: VariantParams,
+    cfg: MetricsConfig | None = None,
+    *,
+    names: Sequence[str],
+    kernel: Kernel = "auto",
+    full_batch: int = 256,
+) -> pd.DataFrame:
+    """Scalar metrics of B variants, without keeping their time series.
+
+    Variants the compiled kernel runs (every ego mode but a policy, with kernel 'numba',
+    or 'auto' and numba importable) are scored inside it: each keeps its own [T] channels
+    (ego pose, speed, acceleration; rider pose, speed, presence, collision) as scratch and
+    :func:`vei.metrics.fused.run_metrics` turns them into one row at the end of the
+    variant, so memory is O(B x n_metrics + threads x T), never B x T. The others (policy
+    variants, which run the NumPy step loop; every variant with kernel 'numpy' or without
+    numba; metrics without a fused implementation) run ``simulate(record='full')`` in
+    sub-batches of ``full_batch`` and are scored by :func:`vei.metrics.summarize`. Either
+    way a row equals ``summarize(as_timeseries_trace(simulate(...).to_trace()), cfg,
+    names=names, params={rider mass, full brake of each variant})`` bit for bit (what a
+    sweep stored before; tests/sim/test_engine_metrics.py).
+
+    Args:
+        arrays: from :func:`prepare_scenario`. params: [B] variants.
+        cfg: metric thresholds (vei.metrics.MetricsConfig; paper defaults when None).
+        names: scalar metric names (vei.metrics.SCALAR_METRICS).
+        kernel: as :func:`simulate`.
+        full_batch: variants per full-recording sub-batch of the fallback (memory ~ 16
+            float64 x full_batch x T).
+    Returns:
+        DataFrame of B rows in ``params`` order, one column per name (dtypes as
+        summarize's: bool collision flags, '' / label strings, float otherwise).
+    """
+    import pandas as pd
+
+    from vei.config_metrics import MetricsConfig
+    from vei.metrics import as_timeseries_trace, summarize
+    from vei.sim import kernel as compiled
+
+    if kernel not in ("numpy", "numba", "auto"):
+        raise ConfigError(f"kernel must be 'numpy', 'numba' or 'auto', got {kernel!r}")
+    if full_batch < 1:
+        raise ConfigError(f"full_batch must be >= 1, got {full_batch}")
+    cfg = MetricsConfig() if cfg is None else cfg
+    names = tuple(names)
+    b = params.batch_size
+    use_numba = kernel == "numba" or (kernel == "auto" and compiled.available())
+    fused = np.zeros(b, dtype=bool)
+    from vei.metrics.fused_layout import FUSED_METRICS, config_vector, metrics_frame
+
+    if use_numba and all(n in FUSED_METRICS for n in names):
+        fused = params.ego_mode != EGO_POLICY
+    parts: list[tuple[np.ndarray, pd.DataFrame]] = []
+    idx = np.flatnonzero(fused)
+    if idx.size:
+        sub = params.take(idx)
+        perm = np.argsort(group_keys(sub), kind="stable")  # blocks, as simulate runs them
+        run_params = sub.take(perm)
+        fl = batch_flags(run_params, arrays.dt_s)
+        state = initial_state(arrays, run_params, fl)
+        out = compiled.run(arrays, run_params, state, fl.hist_len, False, config_vector(cfg))
+        rows = np.empty_like(out["metrics"])
+        rows[perm] = out["metrics"]
+        parts.append((idx, metrics_frame(rows, names)))
+    rest = np.flatnonzero(~fused)
+    for start in range(0, rest.size, full_batch):
+        sel = rest[start : start + full_batch]
+        sub = params.take(sel)
+        result = simulate(arrays, sub, record="full", kernel=kernel)
+        run_params = {"rider_mass_kg": sub.mass_kg, "ego_max_decel_mps2": sub.max_decel_mps2_ego}
+        trace = as_timeseries_trace(result.to_trace())
+        parts.append((sel, summarize(trace, cfg, names=names, params=run_params)))
+    if len(parts) == 1:
+        return parts[0][1]
+    order = np.concatenate([i for i, _ in parts])
+    frame = pd.concat([f for _, f in parts], ignore_index=True)
+    return frame.iloc[np.argsort(order, kind="stable")].reset_index(drop=True)
+
+
 def run_cases(
     scenario: Scenario | ScenarioArrays,
     cases: Sequence[str | CaseConfig],
@@ -343,5 +430,6 @@ __all__ = [
     "prepare_scenario",
     "run_cases",
     "simulate",
+    "simulate_metrics",
     "step",
 ]

@@ -57,7 +57,7 @@ def _build() -> Any:
 _KERNEL_SOURCES = (
     "_kernel_numba.py", "_kernel_scalar.py", "_kernel_ego.py", "_kernel_sfm.py",
     "_kernel_riders.py", "kernel_layout.py", "../boxes.py", "../config_settings.py",
-    "../metrics/fused.py",
+    "../metrics/fused.py", "../metrics/fused_layout.py",
 )  # fmt: skip
 
 
@@ -155,7 +155,7 @@ def run(
         fields), 'collision_time_s', 'min_center_distance_m', 'metrics' ([B, N_FUSED]
         rows of vei.metrics.fused.FUSED_METRICS, or None).
     """
-    from vei.metrics.fused import N_CFG, N_FUSED
+    from vei.metrics.fused_layout import N_CFG, N_FUSED
 
     kernel = _build()
     t_n = arrays.n_steps
