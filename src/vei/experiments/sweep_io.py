@@ -60,22 +60,115 @@ def done_ids(out_dir: str | Path) -> set[str]:
     return ids
 
 
+_KEYS = ["scenario_id", "variant_index", "variant_id"]
+
+
+def _read_part(path: Path, columns: list[str] | None = None) -> Any:
+    """One part file as a pyarrow Table without pandas metadata (parts are concatenated)."""
+    import pyarrow.parquet as pq
+
+    return pq.read_table(path, columns=columns).replace_schema_metadata(None)
+
+
+def _in_order(parts: list[Path], ids: Any) -> list[Path] | None:
+    """The parts in result order when they can be streamed as they are: ordered by their
+    first row, their rows strictly increasing in (scenario_id, variant_index) across all
+    of them (no duplicate, no overlap) and, with ``ids`` (a pyarrow array), all among
+    them. None when not (the caller then loads, de-duplicates and sorts)."""
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    keys = [(p, _read_part(p, _KEYS)) for p in parts]
+    keys = [(p, k) for p, k in keys if k.num_rows]
+    keys.sort(key=lambda pk: (pk[1]["scenario_id"][0].as_py(), pk[1]["variant_index"][0].as_py()))
+    if not keys:
+        return []
+    allk = pa.concat_tables([k for _, k in keys], promote_options="default")
+    if ids is not None and not pc.all(pc.is_in(allk["variant_id"], value_set=ids)).as_py():
+        return None
+    sid = allk["scenario_id"].to_numpy(zero_copy_only=False)
+    idx = allk["variant_index"].to_numpy()
+    same = sid[1:] == sid[:-1]
+    increasing = np.where(same, idx[1:] > idx[:-1], sid[1:] > sid[:-1])
+    return [p for p, _ in keys] if bool(np.all(increasing)) else None
+
+
+def write_results(
+    out_dir: str | Path, target: str | Path, table: pd.DataFrame | None = None
+) -> int:
+    """Write every row of ``out_dir/parts`` to the Parquet file ``target`` (atomically):
+    de-duplicated by variant_id, sorted by (scenario_id, variant_index), restricted to
+    ``table``'s variant ids when given; returns the number of rows.
+
+    Parts that are already in order (a sweep run in one go, or resumed without overlap)
+    are streamed one at a time, so memory holds one part, not the whole result; otherwise
+    (duplicates, foreign rows) the rows are loaded, de-duplicated and sorted
+    (:func:`assemble_table`).
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from vei.io.atomic import atomic_path
+
+    parts = _existing_parts(Path(out_dir) / "parts")
+    ids = None if table is None else pa.array(table["variant_id"].to_numpy(object), pa.string())
+    ordered = _in_order(parts, ids) if parts else []
+    if ordered is None:
+        whole = assemble_table(out_dir, ids)
+        with atomic_path(target) as tmp:
+            pq.write_table(whole, tmp)
+        return whole.num_rows
+    schema = pa.unify_schemas(
+        [pq.read_schema(p).remove_metadata() for p in ordered] or [pa.schema([])],
+        promote_options="default",
+    )
+    n = 0
+    with atomic_path(target) as tmp, pq.ParquetWriter(tmp, schema) as writer:
+        for p in ordered:
+            part = _read_part(p)
+            writer.write_table(part.select(schema.names).cast(schema))
+            n += part.num_rows
+    return n
+
+
+def assemble_table(out_dir: str | Path, ids: Any = None) -> Any:
+    """All rows of ``out_dir/parts`` as one pyarrow Table, de-duplicated by variant_id
+    (first kept), restricted to the variant ids ``ids`` (pyarrow array) when given, sorted
+    by (scenario_id, variant_index)."""
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    parts = _existing_parts(Path(out_dir) / "parts")
+    if not parts:
+        return pa.table({})
+    whole = pa.concat_tables([_read_part(p) for p in parts], promote_options="default")
+    vid = whole["variant_id"]
+    if pc.count_distinct(vid).as_py() != whole.num_rows:
+        first = ~pd.Index(vid.to_numpy(zero_copy_only=False)).duplicated(keep="first")
+        whole = whole.filter(pa.array(np.asarray(first)))
+    if ids is not None:
+        whole = whole.filter(pc.is_in(whole["variant_id"], value_set=ids))
+    return whole.sort_by([("scenario_id", "ascending"), ("variant_index", "ascending")])
+
+
 def assemble_results(out_dir: str | Path, table: pd.DataFrame | None = None) -> pd.DataFrame:
     """All rows of ``out_dir/parts``, de-duplicated by variant_id, sorted by
     (scenario_id, variant_index); restricted to ``table``'s variant ids when given."""
-    parts = _existing_parts(Path(out_dir) / "parts")
-    if not parts:
+    import pyarrow as pa
+
+    if not _existing_parts(Path(out_dir) / "parts"):
         return pd.DataFrame()
-    frame = pd.concat([pd.read_parquet(p) for p in parts], ignore_index=True)
-    frame = frame.drop_duplicates("variant_id", keep="first")
-    if table is not None:
-        frame = frame[frame["variant_id"].isin(set(table["variant_id"]))]
-    return frame.sort_values(["scenario_id", "variant_index"], kind="stable").reset_index(drop=True)
+    ids = None if table is None else pa.array(table["variant_id"].to_numpy(object), pa.string())
+    return assemble_table(out_dir, ids).to_pandas()
 
 
 def most_critical(results: pd.DataFrame, k: int = 20) -> pd.DataFrame:
     """The ``k`` most critical variants: collisions first, then the lowest safety index,
-    then the smallest minimum gap (columns that exist are used; ties keep table order)."""
+    then the smallest minimum gap (columns that exist are used; NaN last; ties keep table
+    order). Ranks numeric keys with one stable ``numpy.lexsort`` (no sorted copy of a
+    10^6-row table)."""
     if results.empty:
         return results
     keys, asc = [], []
@@ -86,8 +179,19 @@ def most_critical(results: pd.DataFrame, k: int = 20) -> pd.DataFrame:
         if col in results:
             keys.append(col)
             asc.append(True)
-    ranked = results.sort_values(keys, ascending=asc, kind="stable") if keys else results
-    return ranked.head(k).reset_index(drop=True)
+    if not keys:
+        return results.head(k).reset_index(drop=True)
+    cols = [results[c] for c in keys]
+    if not all(pd.api.types.is_numeric_dtype(c) or pd.api.types.is_bool_dtype(c) for c in cols):
+        ranked = results.sort_values(keys, ascending=asc, kind="stable")
+        return ranked.head(k).reset_index(drop=True)
+    # lexsort: last key primary; descending = negated (NaN stays NaN and sorts last)
+    arrays = [
+        c.to_numpy(np.float64, na_value=np.nan) * (1.0 if a else -1.0)
+        for c, a in zip(cols, asc, strict=True)
+    ]
+    order = np.lexsort(arrays[::-1])
+    return results.iloc[order[:k]].reset_index(drop=True)
 
 
 def read_results(out_dir: str | Path) -> pd.DataFrame:

@@ -68,6 +68,12 @@ from vei.calibrate.population import (
 from vei.config import CASE_PRESETS, RiderPopulationConfig
 from vei.config_perception import PerceptionConfig
 from vei.errors import ConfigError, InputError
+from vei.experiments.sweep_ids import (  # noqa: F401 - variant_id/_seed part of this API
+    variant_id,
+    variant_ids,
+    variant_seed,
+    variant_seeds,
+)
 from vei.experiments.sweep_params import (  # noqa: F401 - part of this module's API
     CONFIG_FIELDS,
     PARAMETERS,
@@ -471,31 +477,8 @@ def load_spec(path: str | Path) -> SweepSpec:
 # --------------------------------------------------------------------------- variants
 
 
-def _canonical(value: Any) -> Any:
-    if isinstance(value, bool | np.bool_):
-        return bool(value)
-    if isinstance(value, int | float | np.integer | np.floating):
-        return repr(float(value))
-    return str(value)
-
-
-def variant_id(scenario_id: str, params: Mapping[str, Any]) -> str:
-    """Stable id of a variant: 16 hex digits of SHA-256 over the scenario id and parameters.
-
-    Floats enter by ``repr`` (exact), so the same values always give the same id.
-    """
-    payload = json.dumps(
-        {"scenario": scenario_id, "params": {k: _canonical(v) for k, v in sorted(params.items())}},
-        sort_keys=True,
-        separators=(",", ":"),
-    )
-    return hashlib.sha256(payload.encode()).hexdigest()[:16]
-
-
-def variant_seed(vid: str, spec_seed: int) -> int:
-    """Per-variant seed in [0, 2**31): from the variant id and the spec seed (stable)."""
-    h = hashlib.sha256(f"{vid}:{spec_seed}".encode()).digest()
-    return int.from_bytes(h[:4], "little") & 0x7FFFFFFF
+# variant_id / variant_seed (and their whole-table forms) live in sweep_ids (H2, issue 15:
+# one implementation, vectorised for 10^6-variant sweeps); importable from here too.
 
 
 def design_points(spec: SweepSpec) -> pd.DataFrame:
@@ -564,14 +547,13 @@ def variants_table(spec: SweepSpec, scenario_id: str) -> pd.DataFrame:
         pts[SAMPLE_COLUMN] = np.tile(np.arange(n_rec, dtype=np.int64), len(pts) // n_rec)
     if spec.rider is not None:
         pts = with_population(pts, spec.rider)
-    records = pts.to_dict("records")
-    ids = [variant_id(scenario_id, r) for r in records]
+    ids = variant_ids(scenario_id, pts)  # = variant_id of each row (sweep_ids)
     df = pd.DataFrame(
         {
             "variant_id": ids,
             "scenario_id": scenario_id,
             "variant_index": np.arange(len(pts), dtype=np.int64),
-            "seed": np.array([variant_seed(i, spec.seed) for i in ids], dtype=np.int64),
+            "seed": variant_seeds(ids, spec.seed),
         }
     )
     df = pd.concat([df, pts.reset_index(drop=True)], axis=1)
