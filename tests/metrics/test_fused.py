@@ -47,6 +47,8 @@ def assert_same(trace, cfg=None, params=None) -> pd.DataFrame:
     for name in FUSED_METRICS:
         assert got[name].dtype == ref[name].dtype, name
         np.testing.assert_array_equal(got[name].to_numpy(), ref[name].to_numpy(), err_msg=name)
+        if ref[name].dtype == np.float64:  # bit for bit: also the sign of a zero
+            np.testing.assert_array_equal(np.signbit(got[name]), np.signbit(ref[name]), name)
     return ref
 
 

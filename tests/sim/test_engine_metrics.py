@@ -36,6 +36,8 @@ def assert_rows_equal(got: pd.DataFrame, ref: pd.DataFrame) -> None:
     for name in ref.columns:
         assert got[name].dtype == ref[name].dtype, name
         np.testing.assert_array_equal(got[name].to_numpy(), ref[name].to_numpy(), err_msg=name)
+        if ref[name].dtype == np.float64:  # bit for bit: also the sign of a zero
+            np.testing.assert_array_equal(np.signbit(got[name]), np.signbit(ref[name]), name)
 
 
 @pytest.fixture(scope="module")

@@ -118,14 +118,16 @@ def _nan_to_num(x):  # type: ignore[no-untyped-def]
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _maximum(a, b):  # type: ignore[no-untyped-def]
-    """np.maximum of two floats (NaN propagates, ties give the first)."""
-    return a if (a >= b or math.isnan(a)) else b
+    """np.maximum of two floats as NumPy's loop computes it: NaN propagates, a tie (e.g.
+    -0.0 vs 0.0) gives the second operand (np.maximum(-0.0, 0.0) is 0.0)."""
+    return a if (a > b or math.isnan(a)) else b
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _minimum(a, b):  # type: ignore[no-untyped-def]
-    """np.minimum of two floats (NaN propagates, ties give the first)."""
-    return a if (a <= b or math.isnan(a)) else b
+    """np.minimum of two floats as NumPy's loop computes it: NaN propagates, a tie gives
+    the second operand."""
+    return a if (a < b or math.isnan(a)) else b
 
 
 @numba.njit(cache=True, error_model="numpy")
