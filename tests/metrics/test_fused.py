@@ -91,6 +91,35 @@ def test_pairwise_sum_is_numpys_row_sum() -> None:
             assert pairwise_sum(x[row], 0, n) == x.sum(axis=1)[row], n
 
 
+def test_box_gap_and_time_to_contact_equal_vei_boxes() -> None:
+    """The scalar ports equal vei.boxes on random pairs, exactly touching pairs (gap 0 by
+    the overlap test's 1e-9 m slack) and boxes far apart."""
+    from vei.boxes import box_corners, box_gap, time_to_contact
+    from vei.metrics import fused
+
+    rng = np.random.default_rng(2)
+    n = 4000
+    ax, ay, bx, by = rng.uniform(-6, 6, (4, n))
+    ayaw, byaw = rng.uniform(-4, 4, (2, n))
+    al, bl = rng.uniform(0.5, 5.0, (2, n))
+    aw, bw = rng.uniform(0.3, 2.0, (2, n))
+    ayaw[:500], byaw[:500], ay[:500], by[:500] = 0.0, 0.0, 0.0, 0.0
+    bx[:500] = ax[:500] + 0.5 * (al[:500] + bl[:500])  # end to end: touching
+    bx[500:600] += 1e9
+    ref = box_gap(ax, ay, ayaw, al, aw, bx, by, byaw, bl, bw)
+    cols = (ax, ay, ayaw, al, aw, bx, by, byaw, bl, bw)
+    got = np.array([fused.box_gap(*(c[i] for c in cols)) for i in range(n)])
+    np.testing.assert_array_equal(got, ref)
+    assert (ref[:500] == 0).all() and (ref > 0).sum() > 1000
+    ca = box_corners(ax, ay, ayaw, al, aw)
+    cb = box_corners(bx, by, byaw, bl, bw)
+    v = rng.uniform(-10, 10, (n, 2))
+    ref = time_to_contact(ca, cb, v)
+    got = np.array([fused.time_to_contact(ca[i], cb[i], v[i, 0], v[i, 1]) for i in range(n)])
+    np.testing.assert_array_equal(got, ref)
+    assert np.isfinite(ref).sum() > 100 and np.isinf(ref).sum() > 100
+
+
 def test_demo_grid_bit_identical(demo_grid) -> None:
     """Collisions (with and without an approach step), near misses, braking and free
     runs: every metric equal, with the runs' own masses / brakes and with other thresholds."""

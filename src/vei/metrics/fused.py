@@ -38,7 +38,6 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
-from vei.boxes import overlap_core
 from vei.metrics._trace import TraceArrays, arrays, param_of
 from vei.metrics.config import MetricsConfig
 from vei.metrics.fused_layout import (
@@ -102,8 +101,6 @@ __all__ = [
 
 _DBL_MAX = np.finfo(np.float64).max
 _EPS = 1e-12
-
-_overlap = numba.njit(cache=True, error_model="numpy")(overlap_core)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -207,6 +204,32 @@ def pairwise_sum(x, lo, n):  # type: ignore[no-untyped-def]
 def box_gap(ax, ay, ayaw, al, aw, bx, by, byaw, bl, bw):  # type: ignore[no-untyped-def]
     """:func:`vei.boxes.box_gap` of two scalar boxes (the same operations in order) [m]."""
     ca, sa, cb, sb = np.cos(ayaw), np.sin(ayaw), np.cos(byaw), np.sin(byaw)
+    return _box_gap_cs(ax, ay, ca, sa, al, aw, bx, by, cb, sb, bl, bw)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _overlap_cs(ax, ay, ca, sa, al, aw, bx, by, cb, sb, bl, bw):  # type: ignore[no-untyped-def]
+    """:func:`vei.boxes.overlap_core` of scalar boxes given the cos / sin of their yaws
+    (the same operations in order; the caller's cos / sin are the ones it would take)."""
+    dx, dy = bx - ax, by - ay
+    hla, hwa, hlb, hwb = 0.5 * al, 0.5 * aw, 0.5 * bl, 0.5 * bw
+    cd = np.abs(ca * cb + sa * sb)
+    sd = np.abs(sa * cb - ca * sb)
+    eps = 1e-9
+    if np.abs(dx * ca + dy * sa) > hla + hlb * cd + hwb * sd + eps:
+        return False
+    if np.abs(-dx * sa + dy * ca) > hwa + hlb * sd + hwb * cd + eps:
+        return False
+    if np.abs(dx * cb + dy * sb) > hlb + hla * cd + hwa * sd + eps:
+        return False
+    if np.abs(-dx * sb + dy * cb) > hwb + hla * sd + hwa * cd + eps:
+        return False
+    return True
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _box_gap_cs(ax, ay, ca, sa, al, aw, bx, by, cb, sb, bl, bw):  # type: ignore[no-untyped-def]
+    """:func:`box_gap` given the cos / sin of the two yaws (each taken once per step)."""
     dx = bx - ax
     dy = by - ay
     ha, wa = 0.5 * al, 0.5 * aw
@@ -226,7 +249,7 @@ def box_gap(ax, ay, ayaw, al, aw, bx, by, byaw, bl, bw):  # type: ignore[no-unty
             pu = _maximum(np.abs(ru + (el * cu - ew * cv)) - h1, 0.0)
             pv = _maximum(np.abs(rv + (el * cv + ew * cu)) - w1, 0.0)
             best = _minimum(best, pu * pu + pv * pv)
-    if _overlap(ax, ay, ayaw, al, aw, bx, by, byaw, bl, bw):
+    if _overlap_cs(ax, ay, ca, sa, al, aw, bx, by, cb, sb, bl, bw):
         return 0.0
     return np.sqrt(best)
 
@@ -361,14 +384,15 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
         osp = rsp if np.isfinite(rsp) else 0.0
         ox, oy = ch[CH_RX, k], ch[CH_RY, k]
         ok = np.isfinite(ox) and np.isfinite(oy)
-        g = box_gap(
-            ex, ey, eyaw, Le, We, ox if ok else 1e9, oy if ok else 1e9, oyaw, Lr, Wr
+        ce, se = np.cos(eyaw), np.sin(eyaw)
+        co, so = np.cos(oyaw), np.sin(oyaw)
+        g = _box_gap_cs(
+            ex, ey, ce, se, Le, We, ox if ok else 1e9, oy if ok else 1e9, co, so, Lr, Wr
         )  # fmt: skip
         if np.isfinite(g):
             gap_finite = True
         if not math.isnan(g) and (math.isnan(min_gap) or g < min_gap):
             min_gap = g
-        ce, se = np.cos(eyaw), np.sin(eyaw)
         dx = ox - ex
         dy = oy - ey
         ahead = ce * dx + se * dy > 0.0
@@ -394,8 +418,8 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
         # one on a collision course
         if not ahead or latched:
             continue
-        ovx = _nan_to_num(osp * np.cos(oyaw))
-        ovy = _nan_to_num(osp * np.sin(oyaw))
+        ovx = _nan_to_num(osp * co)
+        ovy = _nan_to_num(osp * so)
         v_close = v - (ovx * ce + ovy * se)
         gd = _nan_to_num(g)
         if v_close > 0.0 and gd > 0.0:
