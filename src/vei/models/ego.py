@@ -28,13 +28,14 @@ import numpy as np
 import numpy.typing as npt
 
 from vei.errors import InputError
+from vei.models import ego_core as core
+from vei.models.ego_core import BRAKE, CRUISE, RECOVER  # noqa: F401 (the CAP state codes)
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 ArrayLike = npt.ArrayLike
 
-#: CAP states (int8 codes in the engine's arrays) and their names.
-CRUISE, BRAKE, RECOVER = 0, 1, 2
+#: Names of the CAP states CRUISE, BRAKE, RECOVER (int8 codes 0, 1, 2 in the engine's arrays).
 CAP_STATE_NAMES: tuple[str, ...] = ("CRUISE", "BRAKE", "RECOVER")
 
 
@@ -315,14 +316,14 @@ def pid_step(
         (u [B] in [-1, 1], new PIDState).
     """
     e = np.asarray(error_mps, dtype=np.float64)
-    decay = np.exp(-dt_s / np.asarray(integral_window_s, dtype=np.float64))
-    integral = state.integral_m * decay + e * dt_s
+    decay = core.pid_decay(dt_s, np.asarray(integral_window_s, dtype=np.float64))
     ki_a = np.asarray(ki, dtype=np.float64)
-    lim = np.asarray(integral_limit, dtype=np.float64) / np.where(ki_a > 0, ki_a, 1.0)
-    integral = np.clip(integral, -lim, lim)
-    deriv = (e - state.prev_error_mps) / dt_s
-    u = np.clip(kp * e + ki_a * integral + kd * deriv, -1.0, 1.0)
-    return u, PIDState(integral, e)
+    lim = core.pid_limit(np.asarray(integral_limit, dtype=np.float64), ki_a)
+    u, integral = core.pid_core(
+        e, np.asarray(state.integral_m, dtype=np.float64), state.prev_error_mps, dt_s, decay,
+        lim, np.asarray(kp, dtype=np.float64), ki_a, np.asarray(kd, dtype=np.float64),
+    )  # fmt: skip
+    return np.asarray(u), PIDState(np.asarray(integral), e)
 
 
 def pid_reset_where(state: PIDState, mask: ArrayLike, error_mps: ArrayLike) -> PIDState:
@@ -343,7 +344,7 @@ def command_to_accel(
         [B] demanded acceleration [m/s^2].
     """
     u = np.clip(np.asarray(u, dtype=np.float64), -1.0, 1.0)
-    return u * np.where(u >= 0.0, max_accel_mps2, max_decel_mps2)
+    return np.asarray(core.command_to_accel_core(u, max_accel_mps2, max_decel_mps2))
 
 
 def accel_to_command(
@@ -351,7 +352,7 @@ def accel_to_command(
 ) -> FloatArray:
     """The command u in [-1, 1] that demands acceleration a (inverse of command_to_accel, clipped)."""
     a = np.asarray(a_mps2, dtype=np.float64)
-    return np.clip(a / np.where(a >= 0.0, max_accel_mps2, max_decel_mps2), -1.0, 1.0)
+    return np.asarray(core.accel_to_command_core(a, max_accel_mps2, max_decel_mps2))
 
 
 def actuator_step(
@@ -367,14 +368,13 @@ def actuator_step(
     Returns:
         [B] new actual acceleration [m/s^2].
     """
-    tau = np.asarray(lag_s, dtype=np.float64)
-    alpha = np.where(tau > 0, -np.expm1(-dt_s / np.where(tau > 0, tau, 1.0)), 1.0)
-    return a_mps2 + alpha * (np.asarray(a_cmd_mps2) - a_mps2)
+    alpha = core.lag_factor(np.asarray(lag_s, dtype=np.float64), dt_s)
+    return np.asarray(core.actuator_core(a_mps2, np.asarray(a_cmd_mps2), alpha))
 
 
 def speed_step(v_mps: ArrayLike, a_mps2: ArrayLike, dt_s: float) -> FloatArray:
     """``v' = max(0, v + a dt)``: the vehicle brakes to a stop, never reverses."""
-    return np.maximum(0.0, np.asarray(v_mps) + np.asarray(a_mps2) * dt_s)
+    return np.asarray(core.speed_core(np.asarray(v_mps), np.asarray(a_mps2), dt_s))
 
 
 # --------------------------------------------------------------------------------------
@@ -385,7 +385,7 @@ def safe_distance(
 ) -> FloatArray:
     """``d_safe = max(v^2 / (2 |a_min|), T_safe v) + d_buf`` [m] (paper eq. cap_safe_dist)."""
     v = np.asarray(v_mps, dtype=np.float64)
-    return np.maximum(v * v / (2.0 * np.abs(a_min_mps2)), np.asarray(t_safe_s) * v) + d_buf_m
+    return np.asarray(core.safe_distance_core(v, np.asarray(t_safe_s), d_buf_m, a_min_mps2))
 
 
 def gap_braking_accel(
@@ -402,9 +402,8 @@ def gap_braking_accel(
         [B] demanded acceleration [m/s^2], in [a_min, 0].
     """
     v = np.asarray(v_mps, dtype=np.float64)
-    room = np.asarray(gap_m, dtype=np.float64) - d_buf_m
-    a = -v * v / (2.0 * np.where(room > 0, room, 1.0))
-    return np.where(room > 0, np.maximum(a, a_min_mps2), np.where(v > 0, a_min_mps2, 0.0))
+    gap = np.asarray(gap_m, dtype=np.float64)
+    return np.asarray(core.gap_braking_core(v, gap, d_buf_m, a_min_mps2))
 
 
 def paper_braking_accel(
@@ -422,9 +421,8 @@ def paper_braking_accel(
         [B] demanded acceleration [m/s^2], in [a_min, 0].
     """
     v = np.asarray(v_mps, dtype=np.float64)
-    room = safe_distance(v, t_safe_s, d_buf_m, a_min_mps2) - d_buf_m
-    a = -v * v / (2.0 * np.where(room > 0, room, 1.0))
-    return np.where(room > 0, np.maximum(a, a_min_mps2), 0.0)
+    d_safe = safe_distance(v, t_safe_s, d_buf_m, a_min_mps2)
+    return np.asarray(core.paper_braking_core(v, d_safe, d_buf_m, a_min_mps2))
 
 
 def corridor_check(
@@ -543,22 +541,21 @@ def cap_step(
     ahead = np.asarray(rider_ahead, dtype=bool)
     gap = np.asarray(gap_m, dtype=np.float64)
     d_safe = safe_distance(v, t_safe_s, d_buf_m, a_min_mps2)
-    trigger = ahead & (gap < d_safe)
-    release = (st == BRAKE) & ~trigger & (~ahead | (gap > d_safe + release_margin_m))
-    recovered = (st == RECOVER) & (np.abs(v - v_cruise_mps) <= recover_tolerance_mps)
-    new = np.where(
-        trigger, BRAKE, np.where(release, RECOVER, np.where(recovered, CRUISE, st))
-    ).astype(np.int8)
+    new, release = core.cap_transition_core(
+        st, v, v_cruise_mps, ahead, gap, d_safe, release_margin_m, recover_tolerance_mps
+    )
+    new = np.asarray(new).astype(np.int8)
+    release = np.asarray(release)
     braking = new == BRAKE
     paper = np.asarray(paper_per_step, dtype=bool)
     if paper.ndim == 0 and not bool(paper):
         a = gap_braking_accel(v, np.where(ahead, gap, 1e9), d_buf_m, a_min_mps2)
     elif paper.ndim == 0:
-        a = paper_braking_accel(v, t_safe_s, d_buf_m, a_min_mps2)
+        a = core.paper_braking_core(v, d_safe, d_buf_m, a_min_mps2)
     else:
         a = np.where(
             paper,
-            paper_braking_accel(v, t_safe_s, d_buf_m, a_min_mps2),
+            core.paper_braking_core(v, d_safe, d_buf_m, a_min_mps2),
             gap_braking_accel(v, np.where(ahead, gap, 1e9), d_buf_m, a_min_mps2),
         )
     return new, np.where(braking, a, 0.0), braking, release

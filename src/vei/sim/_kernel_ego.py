@@ -1,9 +1,11 @@
 """The ego's longitudinal step in the compiled kernel: replayed speed, or PID cruise + CAP.
 
-Imported only when numba is used. The same formulas and order of operations as
-:func:`vei.models.ego` / :func:`vei.models.cap` in the NumPy reference step
-(:func:`vei.sim.step.step`), for one variant; inlined into the kernel's loop
-(``inline="always"``: no call per variant and step). SI units (m, s, m/s, m/s^2).
+Imported only when numba is used. The PID, actuator, CAP laws and CAP state machine are
+:mod:`vei.models.ego_core`'s functions, compiled here on scalars (the NumPy reference step
+runs the same functions on arrays through :mod:`vei.models.ego`); this module adds the
+per-variant control flow and the CAP's corridor test on the packed path table, for one
+variant, inlined into the kernel's loop (``inline="always"``: no call per variant and
+step). SI units (m, s, m/s, m/s^2).
 """
 
 # ruff: noqa: N803
@@ -13,7 +15,10 @@ import math
 
 import numba
 import numpy as np
+from numba import types
+from numba.extending import overload
 
+from vei.models import ego_core as core
 from vei.sim._kernel_scalar import idx
 from vei.sim.kernel_layout import (
     P_AMAX,
@@ -35,6 +40,36 @@ from vei.sim.kernel_layout import (
 )
 
 
+@overload(core.select)
+def _select_scalar(cond, a, b):  # type: ignore[no-untyped-def]
+    """numba: :func:`vei.models.ego_core.select` on scalars is ``a if cond else b``."""
+    if isinstance(cond, types.Boolean) and all(isinstance(t, types.Number) for t in (a, b)):
+
+        def impl(cond, a, b):  # type: ignore[no-untyped-def]
+            if cond:
+                return a
+            return b
+
+        return impl
+    return None
+
+
+_inline = numba.njit(cache=True, inline="always")
+pid_decay = _inline(core.pid_decay)
+pid_limit = _inline(core.pid_limit)
+pid_core = _inline(core.pid_core)
+lag_factor = _inline(core.lag_factor)
+command_to_accel = _inline(core.command_to_accel_core)
+accel_to_command = _inline(core.accel_to_command_core)
+actuator = _inline(core.actuator_core)
+speed = _inline(core.speed_core)
+reported_accel = _inline(core.reported_accel_core)
+safe_distance = _inline(core.safe_distance_core)
+gap_braking = _inline(core.gap_braking_core)
+paper_braking = _inline(core.paper_braking_core)
+cap_transition = _inline(core.cap_transition_core)
+
+
 @numba.njit(cache=True, inline="always")
 def ego_consts(P, b, dt, Lr, Wr):  # type: ignore[no-untyped-def]
     """The ego's per-variant constants, read and derived once per variant (not per step).
@@ -42,18 +77,15 @@ def ego_consts(P, b, dt, Lr, Wr):  # type: ignore[no-untyped-def]
     Args: P [N_PARAMS, B] the packed parameters, b the variant, dt [s] the step, Lr x Wr
     [m] the rider's footprint. Returns the tuple that :func:`ego_step_c` takes: the
     parameters of P it reads and the values derived from them alone (the PID integral's
-    decay factor, its clamp, the actuator's lag factor, 2 |a_min|, half the rider's
+    decay factor and clamp, the actuator's lag factor, half the rider's
     diagonal), each computed by the expression the step used to evaluate every step.
     """
     ki = P[P_KI, b]
-    tau = P[P_LAG, b]
-    a_min = P[P_AMIN, b]
     return (
-        P[P_AMAX, b], P[P_DMAX, b], P[P_HALFW, b], P[P_RANGE, b], a_min, P[P_DBUF, b],
+        P[P_AMAX, b], P[P_DMAX, b], P[P_HALFW, b], P[P_RANGE, b], P[P_AMIN, b], P[P_DBUF, b],
         P[P_TSAFE, b], P[P_RELEASE, b], P[P_RECTOL, b], P[P_PAPERLAW, b] > 0.5,
-        math.exp(-dt / P[P_IWIN, b]), ki, P[P_ILIM, b] / (ki if ki > 0 else 1.0),
-        P[P_KP, b], P[P_KD, b], -math.expm1(-dt / tau) if tau > 0 else 1.0,
-        2.0 * abs(a_min), 0.5 * math.hypot(Lr, Wr),
+        pid_decay(dt, P[P_IWIN, b]), ki, pid_limit(P[P_ILIM, b], ki),
+        P[P_KP, b], P[P_KD, b], lag_factor(P[P_LAG, b], dt), 0.5 * math.hypot(Lr, Wr),
     )  # fmt: skip
 
 
@@ -96,7 +128,7 @@ def ego_step_c(  # type: ignore[no-untyped-def]
     """
     (
         amax, dmax, halfw, rng, a_min, d_buf, tsafe, rel_m, rectol, paperlaw,
-        decay, ki, lim, kp, kd, alpha, two_abs_amin, half_diag_r,
+        decay, ki, lim, kp, kd, alpha, half_diag_r,
     ) = c  # fmt: skip
     p_s0, p_ds, n_p = egeo[1], egeo[2], egeo[3]
     e_t0, e_dt, n_e, Le, Lr, Wr = egeo[5], egeo[6], egeo[7], egeo[8], egeo[9], egeo[10]
@@ -107,8 +139,7 @@ def ego_step_c(  # type: ignore[no-untyped-def]
         v_new = egeo[4][1, i] + w * egeo[4][3, i]
         a_act_n = (v_new - v) / dt
         a_rep_n = a_act_n
-        den = amax if a_act_n >= 0.0 else dmax
-        u = min(1.0, max(-1.0, a_act_n / den))
+        u = accel_to_command(a_act_n, amax, dmax)
     else:
         err = vd - v
         braking = False
@@ -146,50 +177,28 @@ def ego_step_c(  # type: ignore[no-untyped-def]
                     if d_front + ext > 0.0 and g <= rng:
                         ahead = True
                         gap = max(g, 0.0)
-            d_safe = max(v * v / two_abs_amin, tsafe * v) + d_buf
-            trigger = ahead and gap < d_safe
-            release = cap == 1 and (not trigger) and ((not ahead) or gap > d_safe + rel_m)
-            recovered = cap == 2 and abs(v - vd) <= rectol
-            new = cap
-            if trigger:
-                new = 1
-            elif release:
-                new = 2
-            elif recovered:
-                new = 0
-            braking = new == 1
+            d_safe = safe_distance(v, tsafe, d_buf, a_min)
+            new, release = cap_transition(cap, v, vd, ahead, gap, d_safe, rel_m, rectol)
+            braking = new == core.BRAKE
             if paperlaw:
-                room = d_safe - d_buf
-                a = max(-v * v / (2.0 * room), a_min) if room > 0 else 0.0
+                a = paper_braking(v, d_safe, d_buf, a_min)
             else:
-                gg = gap if ahead else 1e9
-                room = gg - d_buf
-                if room > 0:
-                    a = max(-v * v / (2.0 * room), a_min)
-                else:
-                    a = a_min if v > 0 else 0.0
+                a = gap_braking(v, gap if ahead else 1e9, d_buf, a_min)
             a_brake = a if braking else 0.0
             if not collided:
                 cap = new
             if release:
                 pid_i = 0.0
                 pid_e = err
-        pid_i = pid_i * decay + err * dt
-        pid_i = min(max(pid_i, -lim), lim)
-        deriv = (err - pid_e) / dt
-        u = min(1.0, max(-1.0, kp * err + ki * pid_i + kd * deriv))
+        u, pid_i = pid_core(err, pid_i, pid_e, dt, decay, lim, kp, ki, kd)
         pid_e = err
         if braking:
-            den = amax if a_brake >= 0.0 else dmax
-            u = min(1.0, max(-1.0, a_brake / den))
-        a_cmd = u * (amax if u >= 0.0 else dmax)
-        a_act_n = a_act + alpha * (a_cmd - a_act)
-        v_new = max(0.0, v + a_act_n * dt)
+            u = accel_to_command(a_brake, amax, dmax)
+        a_cmd = command_to_accel(u, amax, dmax)
+        a_act_n = actuator(a_act, a_cmd, alpha)
+        v_new = speed(v, a_act_n, dt)
         s_new = s + v_new * dt
-        if v_new <= 0.0 and a_act_n < 0.0:
-            a_rep_n = (v_new - v) / dt
-        else:
-            a_rep_n = a_act_n
+        a_rep_n = reported_accel(v, v_new, a_act_n, dt)
     if collided:
         s_new = s
         v_new = 0.0

@@ -11,6 +11,7 @@ import numpy.typing as npt
 from vei.boxes import boxes_overlap
 from vei.errors import ConfigError
 from vei.models import ego as ego_model
+from vei.models import ego_core
 from vei.models import sfm as sfm_model
 from vei.sim.batch import BatchFlags, Block, batch_flags
 from vei.sim.observe import Demand
@@ -252,7 +253,7 @@ def _step_block(
         a_act = ego_model.actuator_step(st.ego_act_mps2, a_cmd, p.actuator_lag_s, dt)
         v_new = ego_model.speed_step(v, a_act, dt)
         s_new = st.ego_s_m + v_new * dt
-        a_rep = np.where((v_new <= 0.0) & (a_act < 0.0), (v_new - v) / dt, a_act)
+        a_rep = np.asarray(ego_core.reported_accel_core(v, v_new, a_act, dt))
     else:
         vd = p.cruise_speed_mps
         err = vd - v
@@ -309,7 +310,7 @@ def _step_block(
         v_new = ego_model.speed_step(v, a_act, dt)
         s_new = st.ego_s_m + v_new * dt
         # Reported acceleration: what changes the speed (0 while standing still).
-        a_rep = np.where((v_new <= 0.0) & (a_act < 0.0), (v_new - v) / dt, a_act)
+        a_rep = np.asarray(ego_core.reported_accel_core(v, v_new, a_act, dt))
     if any_coll:  # frozen after a collision
         s_new = np.where(collided, st.ego_s_m, s_new)
         v_new = np.where(collided, 0.0, v_new)

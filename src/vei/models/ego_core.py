@@ -1,0 +1,152 @@
+"""The ego's control laws, written once for both engines: PID, actuator, CAP laws and states.
+
+Every function here uses NumPy ufuncs, arithmetic and :func:`select` only, so the same
+source runs vectorised on arrays ``[B]`` (the NumPy reference step through
+:mod:`vei.models.ego`) and compiled by numba on scalars (the compiled kernel,
+:mod:`vei.sim._kernel_ego`), like :func:`vei.boxes.overlap_core` for the box overlap.
+The order of operations is the compiled kernel's (its outputs are pinned bit for bit by
+tests/sim/test_kernel_regression.py); on arrays NumPy's vectorised ``exp`` / ``expm1`` may
+differ from the C library's in the last bit, nothing else does.
+
+Scalar min / max: ``np.minimum(a, b)`` / ``np.maximum(a, b)`` return the first argument on
+a tie (so ``0.0`` vs ``-0.0`` resolves as Python's ``min`` / ``max`` do). Branches are
+:func:`select` (``np.where``; numba compiles it to ``a if cond else b`` on scalars, see
+:mod:`vei.sim._kernel_ego`): both arguments are evaluated, so every division is guarded.
+
+Units: speeds [m/s], accelerations [m/s^2] (negative = braking), distances [m], times [s];
+the command u in [-1, 1] (u >= 0 throttle, u < 0 brake).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+#: CAP states (int8 codes in the engine's arrays).
+CRUISE, BRAKE, RECOVER = 0, 1, 2
+
+
+def select(cond: Any, a: Any, b: Any) -> Any:
+    """``a`` where ``cond`` else ``b`` (``np.where``; a scalar ternary when numba compiles it)."""
+    return np.where(cond, a, b)
+
+
+# ----------------------------------------------------------------------------- PID
+def pid_decay(dt_s: Any, integral_window_s: Any) -> Any:
+    """Per-step decay of the PID integral, ``exp(-dt / window)`` (window = inf: 1)."""
+    return np.exp(-dt_s / integral_window_s)
+
+
+def pid_limit(integral_limit: Any, ki: Any) -> Any:
+    """Clamp of the PID integral [m]: ``integral_limit / ki`` (``/ 1`` where ki <= 0)."""
+    return integral_limit / select(ki > 0, ki, 1.0)
+
+
+def pid_core(
+    err: Any,
+    integral: Any,
+    prev_err: Any,
+    dt_s: Any,
+    decay: Any,
+    lim: Any,
+    kp: Any,
+    ki: Any,
+    kd: Any,
+) -> tuple[Any, Any]:
+    """One PID step on the speed error err = v_d - v [m/s].
+
+    ``I <- clip(I decay + e dt, -lim, lim)``; ``u = clip(kp e + ki I + kd (e - e_prev) / dt,
+    -1, 1)``; decay from :func:`pid_decay`, lim from :func:`pid_limit`.
+    Returns (u, new integral [m]); the new previous error is err itself.
+    """
+    integral = integral * decay + err * dt_s
+    integral = np.minimum(np.maximum(integral, -lim), lim)
+    deriv = (err - prev_err) / dt_s
+    u = np.minimum(1.0, np.maximum(-1.0, kp * err + ki * integral + kd * deriv))
+    return u, integral
+
+
+# ------------------------------------------------------------------------ actuator
+def command_to_accel_core(u: Any, max_accel_mps2: Any, max_decel_mps2: Any) -> Any:
+    """Demanded acceleration of a command u in [-1, 1]: u max_accel (u >= 0), u max_decel (u < 0)."""
+    return u * select(u >= 0.0, max_accel_mps2, max_decel_mps2)
+
+
+def accel_to_command_core(a_mps2: Any, max_accel_mps2: Any, max_decel_mps2: Any) -> Any:
+    """The command in [-1, 1] that demands a (inverse of :func:`command_to_accel_core`, clipped)."""
+    return np.minimum(
+        1.0, np.maximum(-1.0, a_mps2 / select(a_mps2 >= 0.0, max_accel_mps2, max_decel_mps2))
+    )
+
+
+def lag_factor(lag_s: Any, dt_s: Any) -> Any:
+    """Actuator lag factor ``1 - exp(-dt / tau)`` (exact discretisation; tau <= 0: 1, no lag)."""
+    pos = lag_s > 0
+    return select(pos, -np.expm1(-dt_s / select(pos, lag_s, 1.0)), 1.0)
+
+
+def actuator_core(a_mps2: Any, a_cmd_mps2: Any, alpha: Any) -> Any:
+    """First-order lag of the actual acceleration: ``a + alpha (a_cmd - a)`` (alpha: :func:`lag_factor`)."""
+    return a_mps2 + alpha * (a_cmd_mps2 - a_mps2)
+
+
+def speed_core(v_mps: Any, a_mps2: Any, dt_s: Any) -> Any:
+    """``v' = max(0, v + a dt)``: the vehicle brakes to a stop, never reverses."""
+    return np.maximum(0.0, v_mps + a_mps2 * dt_s)
+
+
+def reported_accel_core(v_mps: Any, v_new_mps: Any, a_act_mps2: Any, dt_s: Any) -> Any:
+    """Reported acceleration: the actuator's, or the speed change where braking stopped the car."""
+    stopped = np.logical_and(v_new_mps <= 0.0, a_act_mps2 < 0.0)
+    return select(stopped, (v_new_mps - v_mps) / dt_s, a_act_mps2)
+
+
+# ----------------------------------------------------------------------------- CAP
+def safe_distance_core(v_mps: Any, t_safe_s: Any, d_buf_m: Any, a_min_mps2: Any) -> Any:
+    """``d_safe = max(v^2 / (2 |a_min|), T_safe v) + d_buf`` [m] (paper eq. cap_safe_dist)."""
+    return np.maximum(v_mps * v_mps / (2.0 * np.abs(a_min_mps2)), t_safe_s * v_mps) + d_buf_m
+
+
+def gap_braking_core(v_mps: Any, gap_m: Any, d_buf_m: Any, a_min_mps2: Any) -> Any:
+    """Gap law ``a = -v^2 / (2 (d - d_buf))`` saturated at a_min (a_min, or 0 standing, where d <= d_buf)."""
+    room = gap_m - d_buf_m
+    ok = room > 0
+    a = -v_mps * v_mps / (2.0 * select(ok, room, 1.0))
+    return select(ok, np.maximum(a, a_min_mps2), select(v_mps > 0, a_min_mps2, 0.0))
+
+
+def paper_braking_core(v_mps: Any, d_safe_m: Any, d_buf_m: Any, a_min_mps2: Any) -> Any:
+    """The paper's law ``a = -v^2 / (2 (d_safe - d_buf))`` saturated at a_min (0 where d_safe <= d_buf)."""
+    room = d_safe_m - d_buf_m
+    ok = room > 0
+    a = -v_mps * v_mps / (2.0 * select(ok, room, 1.0))
+    return select(ok, np.maximum(a, a_min_mps2), 0.0)
+
+
+def cap_transition_core(
+    cap_state: Any,
+    v_mps: Any,
+    v_cruise_mps: Any,
+    ahead: Any,
+    gap_m: Any,
+    d_safe_m: Any,
+    release_margin_m: Any,
+    recover_tolerance_mps: Any,
+) -> tuple[Any, Any]:
+    """One transition of the CAP state machine (CRUISE=0 / BRAKE=1 / RECOVER=2), in this order.
+
+    Any state -> BRAKE when the rider is ahead and d < d_safe; BRAKE -> RECOVER when it is
+    not ahead any more or d > d_safe + release_margin; RECOVER -> CRUISE when |v - v_d| <=
+    recover_tolerance. Returns (new state, release: BRAKE -> RECOVER happened now).
+    """
+    trigger = np.logical_and(ahead, gap_m < d_safe_m)
+    release = np.logical_and(
+        np.logical_and(cap_state == BRAKE, np.logical_not(trigger)),
+        np.logical_or(np.logical_not(ahead), gap_m > d_safe_m + release_margin_m),
+    )
+    recovered = np.logical_and(
+        cap_state == RECOVER, np.abs(v_mps - v_cruise_mps) <= recover_tolerance_mps
+    )
+    new = select(trigger, BRAKE, select(release, RECOVER, select(recovered, CRUISE, cap_state)))
+    return new, release
