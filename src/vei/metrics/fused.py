@@ -363,7 +363,11 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
     ttc_any = False
     min_ttc = np.nan
     present = False
-    best = 0.0
+    m = 0  # DRAC candidates at least the reaction time before contact
+    cand_raw = np.empty(n)
+    cand_k = np.empty(n, dtype=np.int64)
+    cand_rv = np.empty((2, n))
+    cand_yaw = np.empty(n)
     peak = 0.0
     v_min = 0.0
     for k in range(n):
@@ -422,14 +426,25 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
         ovy = _nan_to_num(osp * so)
         v_close = v - (ovx * ce + ovy * se)
         gd = _nan_to_num(g)
-        if v_close > 0.0 and gd > 0.0:
-            raw = v_close * v_close / (2.0 * gd)  # numpy's x**2 is x * x
-            if gd / v_close >= react and raw > best:
-                if _on_course(
-                    ex, ey, eyaw, Le, We, ox, oy, oyaw, Lr, Wr,
-                    ovx - v * ce, ovy - v * se, A, Bc,
-                ):  # fmt: skip
-                    best = raw
+        if v_close > 0.0 and gd > 0.0 and gd / v_close >= react:
+            cand_raw[m] = v_close * v_close / (2.0 * gd)  # numpy's x**2 is x * x
+            cand_k[m] = k
+            cand_rv[0, m] = ovx - v * ce
+            cand_rv[1, m] = ovy - v * se
+            cand_yaw[m] = oyaw
+            m += 1
+    # the largest eligible DRAC on a collision course: candidates in descending order of
+    # DRAC until one is on course (as conflict._max_drac_raw; usually the first)
+    best = 0.0
+    if m > 0:
+        for j in np.argsort(-cand_raw[:m]):
+            k = cand_k[j]
+            if _on_course(
+                ch[CH_EX, k], ch[CH_EY, k], ch[CH_EYAW, k], Le, We, ch[CH_RX, k],
+                ch[CH_RY, k], cand_yaw[j], Lr, Wr, cand_rv[0, j], cand_rv[1, j], A, Bc,
+            ):  # fmt: skip
+                best = cand_raw[j]
+                break
     for j in range(N_FUSED):
         out[j] = np.nan
     hit = first >= 0
