@@ -1,26 +1,45 @@
-"""Benchmark: a 10^4-variant sweep of the 25 s demo scenario, end to end.
+"""Benchmark: sweeps of the 25 s demo scenario at the engine's speed, end to end.
 
-``run_sweep`` on a grid of 100 time shifts x 100 ego cruise speeds (base ``normal-cap``:
-SFM rider, PID + CAP), 20 Hz, into a fresh folder: reading and compiling the scenario,
-the automatic time shift, the engine, every default metric, part files, results.parquet,
-critical variants and the risk map. Run with ``workers`` = the machine's CPU count (local
-processes) and, for reference, in one process. Also printed: the split of one chunk's time
-between engine and metrics. Target: under 30 s on 2 cores.
+Grids of time shift x ego cruise speed (base ``normal-cap``: SFM rider, PID + CAP),
+20 Hz, 500 steps, each ``run_sweep`` into a fresh folder: reading and compiling the
+scenario, the automatic time shift, the engine, every default metric, part files,
+results.parquet, critical variants and the risk maps. Printed:
+
+1. **throughput**: the 10^5-variant sweep's variants/s next to the engine alone on the same
+   variants (``simulate(record='none')`` in chunks of the sweep's size, this process, numba
+   on every core). Target: the sweep >= 50 % of the engine.
+2. **workers**: the 10^5-variant sweep with 1 worker (this process, numba on 1 thread),
+   ``N`` = the CPU count workers (one numba thread each), and, for reference, 1 worker
+   with numba on every core (the default of ``--workers 1``). Target: N=2 workers >= 1.7x
+   the one-thread worker.
+3. **10^6 variants** (only with ``--million``: it takes minutes): 1000 x 1000 grid with
+   ``N`` workers; wall time and peak memory = the sum over this process and every worker
+   of its peak resident set (VmHWM, polled from /proc every 50 ms). Targets: < 120 s,
+   < 2 GB.
+
+Exit status 1 when a target is missed. ``python -m benchmarks.bench_sweep [--million]
+[--side N]`` (``--side`` sets the grid side of parts 1-2, default 316: 99 856 variants).
 """
 
 from __future__ import annotations
 
+import argparse
 import os
+import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
-TARGET_S = 30.0
-N_SIDE = 100
-CHUNK = 2500
+SIDE = 316  # 316^2 = 99 856 variants (10^5)
+MILLION_SIDE = 1000
+THROUGHPUT_TARGET = 0.5
+SPEEDUP_TARGET = 1.7
+MILLION_TARGET_S = 120.0
+MILLION_TARGET_MB = 2000.0
 
 
-def _spec():
+def _spec(side: int):
     from vei.experiments.sweep_spec import spec_from_dict
 
     return spec_from_dict(
@@ -28,65 +47,192 @@ def _spec():
             "design": "grid",
             "base": "normal-cap",
             "parameters": {
-                "time_shift_s": {"min": -3.0, "max": 3.0, "num": N_SIDE},
-                "ego.cruise_speed_mps": {"min": 3.0, "max": 9.0, "num": N_SIDE},
+                "time_shift_s": {"min": -3.0, "max": 3.0, "num": side},
+                "ego.cruise_speed_mps": {"min": 3.0, "max": 9.0, "num": side},
             },
         }
     )
 
 
-def main() -> None:
-    """Run the sweep benchmark and print its table."""
+def _descendants(pid: int) -> list[int]:
+    """Every process below ``pid`` (from /proc/<pid>/task/*/children)."""
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            tasks = os.listdir(f"/proc/{p}/task")
+        except OSError:
+            continue
+        for t in tasks:
+            try:
+                with open(f"/proc/{p}/task/{t}/children") as fh:
+                    kids = [int(k) for k in fh.read().split()]
+            except OSError:
+                continue
+            out.extend(kids)
+            todo.extend(kids)
+    return out
+
+
+def _hwm_mb(pid: int) -> float | None:
+    try:
+        with open(f"/proc/{pid}/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        return None
+    return None
+
+
+class PeakMemory:
+    """Polls this process and its descendants every ``period_s``: each one's peak resident
+    set (VmHWM) [MB]; :attr:`total_mb` is their sum (an upper bound of the peak of the
+    sum)."""
+
+    def __init__(self, period_s: float = 0.05) -> None:
+        self.period_s = period_s
+        self.peaks: dict[int, float] = {}
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._poll, daemon=True)
+
+    def _poll(self) -> None:
+        me = os.getpid()
+        while not self._stop.is_set():
+            for pid in (me, *_descendants(me)):
+                mb = _hwm_mb(pid)
+                if mb is not None:
+                    self.peaks[pid] = max(self.peaks.get(pid, 0.0), mb)
+            self._stop.wait(self.period_s)
+
+    def __enter__(self) -> PeakMemory:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    @property
+    def total_mb(self) -> float:
+        return sum(self.peaks.values())
+
+
+def _timed_sweep(scen: Path, spec, out: Path, workers: int) -> tuple[float, int, PeakMemory]:
+    from vei.experiments.sweep import run_sweep
+
+    with PeakMemory() as mem:
+        t0 = time.perf_counter()
+        res = run_sweep(scen, spec, out, workers=workers, progress=False)
+        wall = time.perf_counter() - t0
+    return wall, res.n_run, mem
+
+
+def _engine_rate(scen: Path, spec, workers: int) -> tuple[float, int]:
+    """variants/s of the engine alone (record='none') on the sweep's variants, in the
+    sweep's chunks, this process (numba on every core)."""
+    from vei.experiments.sweep import EngineEvaluator, auto_chunk_size, variant_params
+    from vei.experiments.sweep_spec import variants_table
+    from vei.sim.engine import simulate
+
+    ev = EngineEvaluator(time_shift_reference="auto", base=spec.base)
+    prep = ev.prepare(scen)
+    table = variants_table(spec, prep.scenario_id)
+    size = auto_chunk_size(len(table), workers)
+    first = variant_params(table.iloc[:1], prep.arrays, auto_shift_s=prep.auto_shift_s)
+    simulate(prep.arrays, first, record="none", kernel=ev.sim.kernel)  # load / compile
+    t_engine = 0.0
+    for start in range(0, len(table), size):
+        params = variant_params(
+            table.iloc[start : start + size], prep.arrays, auto_shift_s=prep.auto_shift_s
+        )
+        t0 = time.perf_counter()
+        simulate(prep.arrays, params, record="none", kernel=ev.sim.kernel)
+        t_engine += time.perf_counter() - t0
+    return len(table) / t_engine, size
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the sweep benchmark, print its tables; returns 1 when a target is missed."""
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.bench_sweep")
+    ap.add_argument("--million", action="store_true", help="also the 10^6-variant sweep")
+    ap.add_argument("--side", type=int, default=SIDE, help="grid side of the 10^5 sweep")
+    ap.add_argument("--skip-small", action="store_true", help="only the 10^6 sweep")
+    args = ap.parse_args(argv)
+
     import matplotlib
 
     matplotlib.use("Agg")
     from vei.experiments.demo_data import demo_interaction
-    from vei.experiments.sweep import EngineEvaluator, run_sweep, variant_params
-    from vei.experiments.sweep_spec import variants_table
+    from vei.experiments.sweep_runners import set_numba_threads, threads_per_worker
     from vei.io.scenario import write_scenario
-    from vei.metrics import summarize
     from vei.recon.pipeline import reconstruct
-    from vei.sim.engine import simulate
 
-    spec = _spec()
-    workers = max(1, os.cpu_count() or 1)
+    cpus = threads_per_worker(1)
+    workers = max(2, cpus)
+    missed: list[str] = []
+    print(f"demo scenario (25 s, 20 Hz, 500 steps); {cpus} CPUs; load {os.getloadavg()}")
     with tempfile.TemporaryDirectory() as tmp:
         scen = Path(tmp) / "scenario"
         write_scenario(reconstruct(demo_interaction()), scen)
-
-        # split of one chunk (engine vs metrics)
-        ev = EngineEvaluator(time_shift_reference="auto", base=spec.base)
-        prep = ev.prepare(scen)
-        chunk = variants_table(spec, prep.scenario_id).iloc[:CHUNK]
-        params = variant_params(chunk, prep.arrays, base=spec.base, auto_shift_s=prep.auto_shift_s)
-        simulate(prep.arrays, params.take([0]), record="full", kernel=ev.sim.kernel)  # compile
-        t0 = time.perf_counter()
-        result = simulate(prep.arrays, params, record="full", kernel=ev.sim.kernel)
-        t_engine = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        summarize(result.to_trace(), names=ev.metrics)
-        t_metrics = time.perf_counter() - t0
-        del result
-
-        timings = []
-        for w in (workers, 1) if workers > 1 else (1,):
-            t0 = time.perf_counter()
-            res = run_sweep(
-                scen, spec, Path(tmp) / f"out-{w}", workers=w, chunk_size=CHUNK, progress=False
+        if not args.skip_small:
+            spec = _spec(args.side)
+            n = args.side**2
+            rate_engine, size = _engine_rate(scen, spec, workers)
+            rows = []
+            set_numba_threads(1)
+            rows.append(("1 (1 thread)", *_timed_sweep(scen, spec, Path(tmp) / "w1", 1)))
+            set_numba_threads(cpus)
+            rows.append(
+                (f"{workers} (1 thread each)", *_timed_sweep(scen, spec, Path(tmp) / "wn", workers))
             )
-            timings.append((w, time.perf_counter() - t0, res.n_run))
-
-    print(
-        f"sweep of the 25 s demo scenario (20 Hz, 500 steps), {N_SIDE}x{N_SIDE} grid, chunks of {CHUNK}"
-    )
-    print(f"one chunk of {CHUNK}: engine {t_engine:.2f} s, metrics {t_metrics:.2f} s")
-    print(
-        f"{'workers':>8} {'variants':>9} {'wall s':>8} {'variants/s':>11} {'target s':>9} {'status':>7}"
-    )
-    for w, t, n in timings:
-        ok = "MET" if t < TARGET_S else "MISSED"
-        print(f"{w:>8} {n:>9} {t:8.1f} {n / t:11.0f} {TARGET_S:9.0f} {ok:>7}")
+            rows.append((f"1 ({cpus} threads)", *_timed_sweep(scen, spec, Path(tmp) / "w1t", 1)))
+            print(f"\n{n} variants ({args.side} x {args.side}), chunks of {size}")
+            print(f"{'workers':>20} {'wall s':>8} {'variants/s':>11} {'peak MB':>8}")
+            for name, wall, n_run, mem in rows:
+                print(f"{name:>20} {wall:8.1f} {n_run / wall:11.0f} {mem.total_mb:8.0f}")
+            speedup = rows[0][1] / rows[1][1]
+            best = max(r[2] / r[1] for r in rows)
+            share = best / rate_engine
+            print(
+                f"engine alone (record='none', {cpus} threads): {rate_engine:.0f} variants/s; "
+                f"best sweep {best:.0f} variants/s = {share:.0%} (target >= "
+                f"{THROUGHPUT_TARGET:.0%}): {'MET' if share >= THROUGHPUT_TARGET else 'MISSED'}"
+            )
+            print(
+                f"{workers} workers / 1 worker (1 thread each): {speedup:.2f}x (target >= "
+                f"{SPEEDUP_TARGET}x): {'MET' if speedup >= SPEEDUP_TARGET else 'MISSED'}"
+            )
+            if share < THROUGHPUT_TARGET:
+                missed.append("throughput")
+            if speedup < SPEEDUP_TARGET:
+                missed.append("speed-up")
+        if args.million:
+            spec = _spec(MILLION_SIDE)
+            wall, n_run, mem = _timed_sweep(scen, spec, Path(tmp) / "million", workers)
+            ok_t, ok_m = wall < MILLION_TARGET_S, mem.total_mb < MILLION_TARGET_MB
+            print(f"\n{n_run} variants ({MILLION_SIDE} x {MILLION_SIDE}), {workers} workers")
+            print(
+                f"wall {wall:.1f} s (target < {MILLION_TARGET_S:.0f}): "
+                f"{'MET' if ok_t else 'MISSED'}; {n_run / wall:.0f} variants/s"
+            )
+            each = ", ".join(f"{v:.0f}" for v in sorted(mem.peaks.values(), reverse=True))
+            print(
+                f"peak memory {mem.total_mb:.0f} MB = sum of {len(mem.peaks)} processes' peaks "
+                f"({each}) (target < {MILLION_TARGET_MB:.0f}): {'MET' if ok_m else 'MISSED'}"
+            )
+            if not ok_t:
+                missed.append("10^6 wall time")
+            if not ok_m:
+                missed.append("10^6 memory")
+        else:
+            print("\n(10^6 variants: python -m benchmarks.bench_sweep --million)")
+    print(f"load after: {os.getloadavg()}")
+    if missed:
+        print(f"missed: {', '.join(missed)}")
+        return 1
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main(sys.argv[1:]))

@@ -10,6 +10,9 @@ The process pool pays every fixed cost once per worker, not per chunk:
 - the evaluator reaches each worker once (the pool's initializer), with the number of
   numba threads of that worker (:func:`threads_per_worker`: the cores shared out, so two
   workers on two cores run one thread each instead of fighting over both);
+- the workers are launched without waiting for them (their imports and initializer run
+  while this process prepares a single scenario itself and builds the variants table);
+  several scenarios are prepared in the pool, in parallel;
 - each prepared scenario (its ScenarioArrays, possibly MBs) is pickled once into a file of
   a temporary folder; a worker loads it on its first chunk of that scenario and keeps it
   (:data:`_WORKER` cache, the last :data:`_CACHE_SCENARIOS` scenarios); the worker that
@@ -187,12 +190,19 @@ class _PoolRunner:
     """A pool of ``workers`` spawned processes (module docstring); at most 2 chunks per
     worker in flight."""
 
-    def __init__(self, pool: Any, workers: int, scratch: Path) -> None:
-        self.pool, self.workers, self.scratch = pool, workers, scratch
+    def __init__(self, evaluator: Evaluator, pool: Any, workers: int, scratch: Path) -> None:
+        self.evaluator, self.pool, self.workers, self.scratch = evaluator, pool, workers, scratch
         self.files: dict[str, str] = {}
 
     def prepare_all(self, dirs: Sequence[Path]) -> dict[str, Any]:
         self.files = {str(d): str(self.scratch / f"scenario-{i}.pkl") for i, d in enumerate(dirs)}
+        if len(dirs) == 1:  # here, while the workers start
+            from vei.io.atomic import write_bytes
+
+            d = str(dirs[0])
+            prepared = self.evaluator.prepare(Path(d))
+            write_bytes(self.files[d], pickle.dumps(prepared, protocol=pickle.HIGHEST_PROTOCOL))
+            return {d: prepared}
         futures = {d: self.pool.submit(_pool_prepare, d, f) for d, f in self.files.items()}
         return {d: f.result() for d, f in futures.items()}
 
@@ -280,6 +290,7 @@ def _runner(engine: str, workers: int, evaluator: Evaluator) -> Iterator[Any]:
             workers,
             initializer=_init_sweep_worker,
             initargs=(evaluator, threads_per_worker(workers)),
+            wait_ready=False,
         ) as pool,
     ):
-        yield _PoolRunner(pool, workers, Path(scratch))
+        yield _PoolRunner(evaluator, pool, workers, Path(scratch))

@@ -118,6 +118,11 @@ class WorkerPool(ProcessPoolExecutor):
         poll_s: period of each worker's parent watchdog [s] (> 0).
         pdeathsig: use Linux's PR_SET_PDEATHSIG (default); False leaves only the portable
             watchdog (what other systems get; tests use it to check that path).
+        wait_ready: entering the ``with`` block waits until every worker has run its
+            initializer (:meth:`start`, default); False only launches them
+            (:meth:`launch`): the caller works on while they import and initialise, and
+            its first tasks wait in the queue (a failing initializer then breaks the pool
+            at the first result).
     Attributes:
         pids: the worker process ids, in the order they became ready (empty before
             :meth:`start`).
@@ -131,6 +136,7 @@ class WorkerPool(ProcessPoolExecutor):
         initargs: tuple = (),
         poll_s: float = DEFAULT_POLL_S,
         pdeathsig: bool = True,
+        wait_ready: bool = True,
     ) -> None:
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
             raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
@@ -148,7 +154,23 @@ class WorkerPool(ProcessPoolExecutor):
             ),
         )  # fmt: skip
         self.workers = workers
+        self.wait_ready = bool(wait_ready)
         self.pids: tuple[int, ...] = ()
+        self._launch_futures: list = []
+
+    def launch(self) -> WorkerPool:
+        """Start every worker process now, from the calling thread, without waiting for
+        their initializers; returns self.
+
+        Trivial tasks submitted from the calling thread make the executor start all
+        ``workers`` processes.
+        """
+        while (
+            len(self._processes or {}) < self.workers
+            and len(self._launch_futures) < 4 * self.workers
+        ):
+            self._launch_futures.append(self.submit(int))
+        return self
 
     def start(self, timeout_s: float = 300.0) -> WorkerPool:
         """Start every worker now and wait until each has run its initializer; returns self.
@@ -165,9 +187,7 @@ class WorkerPool(ProcessPoolExecutor):
             return self
         import queue
 
-        futures = []
-        while len(self._processes or {}) < self.workers and len(futures) < 4 * self.workers:
-            futures.append(self.submit(int))
+        futures = self.launch()._launch_futures
         pids: list[int] = []
         deadline = time.monotonic() + timeout_s
         while len(pids) < self.workers:
@@ -203,7 +223,7 @@ class WorkerPool(ProcessPoolExecutor):
 
     def __enter__(self) -> WorkerPool:
         try:
-            return self.start()
+            return self.start() if self.wait_ready else self.launch()
         except BaseException:  # Ctrl-C or a failed initializer while starting: no leftovers
             self.kill_workers()
             raise

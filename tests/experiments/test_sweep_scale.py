@@ -1,0 +1,163 @@
+"""Sweep mechanics at scale: the scenario reaches each worker once, workers run one numba
+thread each, whole-design variant ids equal the one-at-a-time ones, results.parquet is
+streamed (and de-duplicated when parts overlap), resumed sweeps equal uninterrupted ones.
+
+Most tests use tests.experiments.sweep_fakes.FakeEvaluator (formulas, no engine), so they
+take seconds; the engine's own sweeps are tested in test_sweep.py / test_workers.py.
+"""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pandas as pd
+
+from tests.experiments.sweep_fakes import FakeEvaluator, fake_scenarios
+from vei.experiments.sweep import (
+    MAX_AUTO_CHUNK,
+    assemble_results,
+    auto_chunk_size,
+    most_critical,
+    read_results,
+    run_sweep,
+    write_results,
+)
+from vei.experiments.sweep_ids import variant_id, variant_ids, variant_seed, variant_seeds
+from vei.experiments.sweep_runners import threads_per_worker
+from vei.experiments.sweep_spec import spec_from_dict
+
+N = 60  # variants of the fake sweeps: time_shift_s in [-3, 3] (61 points minus one)
+
+
+def _spec(num: int = N):
+    return spec_from_dict(
+        {"design": "grid", "parameters": {"time_shift_s": {"min": -3.0, "max": 3.0, "num": num}}}
+    )
+
+
+def test_whole_design_ids_and_seeds_equal_one_at_a_time():
+    pts = pd.DataFrame(
+        {
+            "time_shift_s": [0.0, -0.0, np.nan, 1e-300, 3.0, 0.1 + 0.2, 3.0],
+            "ego.policy": ["none", 'a"é\\', "none", True, 1, 1.0, "none"],
+            "sample": np.array([0, 1, 2, 3, 4, 5, 0], dtype=np.int64),
+            "sfm.use_vehicle_force": [True, False, True, True, False, False, True],
+        }
+    )
+    for sid in ("demo", 'odd "ü" id'):
+        one = [variant_id(sid, r) for r in pts.to_dict("records")]
+        assert variant_ids(sid, pts) == one
+        assert list(variant_seeds(one, 7)) == [variant_seed(v, 7) for v in one]
+    ids = variant_ids("demo", pts)
+    assert ids[0] != ids[1]  # -0.0 and 0.0 print differently, so they are two variants
+    assert ids[4] != ids[6] and len(set(ids)) == len(ids)
+    # hand-checked payload of the canonical form: repr of the float, sorted keys, no spaces
+    import hashlib
+
+    text = '{"params":{"time_shift_s":"0.5"},"scenario":"s"}'
+    want = hashlib.sha256(text.encode()).hexdigest()[:16]
+    assert variant_ids("s", pd.DataFrame({"time_shift_s": [0.5]})) == [want]
+    assert variant_ids("s", pd.DataFrame(index=range(2))) == [variant_id("s", {})] * 2
+
+
+def test_auto_chunk_size_and_threads_per_worker():
+    assert auto_chunk_size(100_000, 2) == MAX_AUTO_CHUNK == 4096  # 100000/16 = 6250 > cap
+    assert auto_chunk_size(10_000, 2) == 625  # 8 chunks per worker
+    assert auto_chunk_size(10_001, 2) == 626
+    assert auto_chunk_size(3, 4) == 1 and auto_chunk_size(0, 1) == 1
+    assert threads_per_worker(2, cpus=2) == 1
+    assert threads_per_worker(2, cpus=16) == 8
+    assert threads_per_worker(3, cpus=2) == 1
+    assert threads_per_worker(1, cpus=4) == 4
+
+
+def test_the_scenario_reaches_each_worker_once(tmp_path):
+    """12 chunks over 2 workers: each worker unpickles the prepared scenario once (from the
+    file), not with every chunk; the parent prepares it once."""
+    (scen,) = fake_scenarios(tmp_path, ["one"])
+    ev = FakeEvaluator()
+    res = run_sweep(scen, _spec(), tmp_path / "out", workers=2, chunk_size=5, evaluator=ev)
+    assert res.n_run == N and ev.prepares == 1
+    rows = read_results(tmp_path / "out")
+    assert rows["pid"].nunique() <= 2
+    assert rows.groupby("pid")["unpickled"].max().max() == 1
+    assert (rows["payload_sum"] == float(np.arange(100_000).sum())).all()
+    # each worker runs the compiled kernel on its share of the cores
+    assert set(rows["threads"]) == {threads_per_worker(2)}
+    # two scenarios: prepared in the pool (in parallel); each worker loads each at most once
+    scens = fake_scenarios(tmp_path / "many", ["a", "b"])
+    res = run_sweep(scens, _spec(), tmp_path / "two", workers=2, chunk_size=5, evaluator=ev)
+    rows = read_results(tmp_path / "two")
+    assert res.n_run == 2 * N and ev.prepares == 1  # the parent prepared none of them
+    assert rows.groupby("pid")["unpickled"].max().max() <= 2
+
+
+def test_rows_equal_the_formulas_and_keep_their_dtypes(tmp_path):
+    (scen,) = fake_scenarios(tmp_path, ["one"])
+    run_sweep(scen, _spec(), tmp_path / "out", chunk_size=7, evaluator=FakeEvaluator())
+    rows = read_results(tmp_path / "out")
+    x = np.linspace(-3.0, 3.0, N)
+    assert list(rows["variant_index"]) == list(range(N))
+    np.testing.assert_array_equal(rows["time_shift_s"].to_numpy(), x)
+    np.testing.assert_array_equal(rows["collision"].to_numpy(), x > 0)
+    np.testing.assert_array_equal(rows["min_gap_m"].to_numpy(), x + 3.0)
+    assert list(rows["side"]) == ["front" if v > 0 else "" for v in x]
+    assert rows["collision"].dtype == bool and rows["variant_index"].dtype == np.int64
+    assert rows["safety_index"].dtype == np.float64 and rows["seed"].dtype == np.int64
+    assert pd.api.types.is_string_dtype(rows["variant_id"]) and rows["variant_id"].is_unique
+
+
+def test_resumed_pool_sweep_equals_an_uninterrupted_one(tmp_path):
+    (scen,) = fake_scenarios(tmp_path, ["one"])
+    spec = _spec()
+    out = tmp_path / "resumed"
+    first = run_sweep(scen, spec, out, chunk_size=4, max_chunks=5, evaluator=FakeEvaluator())
+    assert first.n_run == 20 and not (out / "results.parquet").exists()
+    # a second partial run: its parts fill gaps after the first run's, numbered after them
+    again = run_sweep(scen, spec, out, chunk_size=7, max_chunks=2, evaluator=FakeEvaluator())
+    assert again.n_skipped == 20 and again.n_run == 14
+    done = run_sweep(scen, spec, out, workers=2, chunk_size=3, evaluator=FakeEvaluator())
+    assert done.n_skipped == 34 and done.n_run == N - 34
+    run_sweep(scen, spec, tmp_path / "whole", evaluator=FakeEvaluator())
+    drop = ["pid", "unpickled", "threads"]
+    a, b = read_results(out).drop(columns=drop), read_results(tmp_path / "whole").drop(columns=drop)
+    pd.testing.assert_frame_equal(a, b)
+
+
+def test_overlapping_parts_are_deduplicated_and_sorted(tmp_path):
+    """results.parquet from parts in order is streamed; from parts with a duplicate chunk
+    and out of order it is rebuilt; both give the same table as assemble_results."""
+    (scen,) = fake_scenarios(tmp_path, ["one"])
+    out = tmp_path / "out"
+    run_sweep(scen, _spec(), out, chunk_size=8, evaluator=FakeEvaluator())
+    ref = read_results(out)
+    parts = sorted((out / "parts").glob("part-*.parquet"))
+    shutil.copy(parts[0], out / "parts" / "part-000100.parquet")  # a duplicate chunk
+    parts[3].rename(out / "parts" / "part-000050.parquet")  # out of order
+    write_results(out, tmp_path / "again.parquet")
+    again = pd.read_parquet(tmp_path / "again.parquet")
+    pd.testing.assert_frame_equal(again, ref)
+    pd.testing.assert_frame_equal(assemble_results(out), ref)
+    # restricted to a table's ids
+    table = ref.iloc[::2]
+    write_results(out, tmp_path / "half.parquet", table)
+    half = pd.read_parquet(tmp_path / "half.parquet")
+    pd.testing.assert_frame_equal(half, ref.iloc[::2].reset_index(drop=True))
+
+
+def test_most_critical_equals_a_full_sort_with_nan_and_ties():
+    rng = np.random.default_rng(3)
+    n = 500
+    df = pd.DataFrame(
+        {
+            "variant_id": [f"v{i}" for i in range(n)],
+            "collision": rng.random(n) < 0.3,
+            "safety_index": np.where(rng.random(n) < 0.1, np.nan, rng.integers(0, 5, n) / 4),
+            "min_gap_m": np.where(rng.random(n) < 0.1, np.nan, rng.integers(0, 3, n) * 1.0),
+        }
+    )
+    ref = df.sort_values(
+        ["collision", "safety_index", "min_gap_m"], ascending=[False, True, True], kind="stable"
+    )
+    pd.testing.assert_frame_equal(most_critical(df, 40), ref.head(40).reset_index(drop=True))
