@@ -8,10 +8,13 @@ The order of operations is the compiled kernel's (its outputs are pinned bit for
 tests/sim/test_kernel_regression.py); on arrays NumPy's vectorised ``exp`` / ``expm1`` may
 differ from the C library's in the last bit, nothing else does.
 
-Scalar min / max: ``np.minimum(a, b)`` / ``np.maximum(a, b)`` return the first argument on
-a tie (so ``0.0`` vs ``-0.0`` resolves as Python's ``min`` / ``max`` do). Branches are
-:func:`select` (``np.where``; numba compiles it to ``a if cond else b`` on scalars, see
-:mod:`vei.sim._kernel_ego`): both arguments are evaluated, so every division is guarded.
+Three helpers stand for what NumPy and numba spell differently: :func:`select`
+(``np.where``; numba compiles it to ``a if cond else b`` on scalars), :func:`maximum` and
+:func:`minimum` (``np.maximum`` / ``np.minimum``; numba compiles them to Python's ``max`` /
+``min`` on scalars, one instruction instead of numba's NaN-propagating ufunc, whose extra
+compares lie on the step's critical path). Both return the first argument on a tie (so
+``0.0`` vs ``-0.0`` resolves alike); they differ only for NaN, which the laws never see.
+:func:`select` evaluates both arguments, so every division is guarded.
 
 Units: speeds [m/s], accelerations [m/s^2] (negative = braking), distances [m], times [s];
 the command u in [-1, 1] (u >= 0 throttle, u < 0 brake).
@@ -30,6 +33,16 @@ CRUISE, BRAKE, RECOVER = 0, 1, 2
 def select(cond: Any, a: Any, b: Any) -> Any:
     """``a`` where ``cond`` else ``b`` (``np.where``; a scalar ternary when numba compiles it)."""
     return np.where(cond, a, b)
+
+
+def maximum(a: Any, b: Any) -> Any:
+    """Elementwise maximum (``np.maximum``; Python's ``max`` when numba compiles it)."""
+    return np.maximum(a, b)
+
+
+def minimum(a: Any, b: Any) -> Any:
+    """Elementwise minimum (``np.minimum``; Python's ``min`` when numba compiles it)."""
+    return np.minimum(a, b)
 
 
 # ----------------------------------------------------------------------------- PID
@@ -61,9 +74,9 @@ def pid_core(
     Returns (u, new integral [m]); the new previous error is err itself.
     """
     integral = integral * decay + err * dt_s
-    integral = np.minimum(np.maximum(integral, -lim), lim)
+    integral = minimum(maximum(integral, -lim), lim)
     deriv = (err - prev_err) / dt_s
-    u = np.minimum(1.0, np.maximum(-1.0, kp * err + ki * integral + kd * deriv))
+    u = minimum(1.0, maximum(-1.0, kp * err + ki * integral + kd * deriv))
     return u, integral
 
 
@@ -75,8 +88,8 @@ def command_to_accel_core(u: Any, max_accel_mps2: Any, max_decel_mps2: Any) -> A
 
 def accel_to_command_core(a_mps2: Any, max_accel_mps2: Any, max_decel_mps2: Any) -> Any:
     """The command in [-1, 1] that demands a (inverse of :func:`command_to_accel_core`, clipped)."""
-    return np.minimum(
-        1.0, np.maximum(-1.0, a_mps2 / select(a_mps2 >= 0.0, max_accel_mps2, max_decel_mps2))
+    return minimum(
+        1.0, maximum(-1.0, a_mps2 / select(a_mps2 >= 0.0, max_accel_mps2, max_decel_mps2))
     )
 
 
@@ -93,7 +106,7 @@ def actuator_core(a_mps2: Any, a_cmd_mps2: Any, alpha: Any) -> Any:
 
 def speed_core(v_mps: Any, a_mps2: Any, dt_s: Any) -> Any:
     """``v' = max(0, v + a dt)``: the vehicle brakes to a stop, never reverses."""
-    return np.maximum(0.0, v_mps + a_mps2 * dt_s)
+    return maximum(0.0, v_mps + a_mps2 * dt_s)
 
 
 def reported_accel_core(v_mps: Any, v_new_mps: Any, a_act_mps2: Any, dt_s: Any) -> Any:
@@ -105,7 +118,7 @@ def reported_accel_core(v_mps: Any, v_new_mps: Any, a_act_mps2: Any, dt_s: Any) 
 # ----------------------------------------------------------------------------- CAP
 def safe_distance_core(v_mps: Any, t_safe_s: Any, d_buf_m: Any, a_min_mps2: Any) -> Any:
     """``d_safe = max(v^2 / (2 |a_min|), T_safe v) + d_buf`` [m] (paper eq. cap_safe_dist)."""
-    return np.maximum(v_mps * v_mps / (2.0 * np.abs(a_min_mps2)), t_safe_s * v_mps) + d_buf_m
+    return maximum(v_mps * v_mps / (2.0 * np.abs(a_min_mps2)), t_safe_s * v_mps) + d_buf_m
 
 
 def gap_braking_core(v_mps: Any, gap_m: Any, d_buf_m: Any, a_min_mps2: Any) -> Any:
@@ -113,7 +126,7 @@ def gap_braking_core(v_mps: Any, gap_m: Any, d_buf_m: Any, a_min_mps2: Any) -> A
     room = gap_m - d_buf_m
     ok = room > 0
     a = -v_mps * v_mps / (2.0 * select(ok, room, 1.0))
-    return select(ok, np.maximum(a, a_min_mps2), select(v_mps > 0, a_min_mps2, 0.0))
+    return select(ok, maximum(a, a_min_mps2), select(v_mps > 0, a_min_mps2, 0.0))
 
 
 def paper_braking_core(v_mps: Any, d_safe_m: Any, d_buf_m: Any, a_min_mps2: Any) -> Any:
@@ -121,7 +134,7 @@ def paper_braking_core(v_mps: Any, d_safe_m: Any, d_buf_m: Any, a_min_mps2: Any)
     room = d_safe_m - d_buf_m
     ok = room > 0
     a = -v_mps * v_mps / (2.0 * select(ok, room, 1.0))
-    return select(ok, np.maximum(a, a_min_mps2), 0.0)
+    return select(ok, maximum(a, a_min_mps2), 0.0)
 
 
 def cap_transition_core(

@@ -54,6 +54,22 @@ def _select_scalar(cond, a, b):  # type: ignore[no-untyped-def]
     return None
 
 
+@overload(core.maximum)
+def _maximum_scalar(a, b):  # type: ignore[no-untyped-def]
+    """numba: :func:`vei.models.ego_core.maximum` on scalars is Python's ``max(a, b)``."""
+    if all(isinstance(t, types.Number) for t in (a, b)):
+        return lambda a, b: max(a, b)
+    return None
+
+
+@overload(core.minimum)
+def _minimum_scalar(a, b):  # type: ignore[no-untyped-def]
+    """numba: :func:`vei.models.ego_core.minimum` on scalars is Python's ``min(a, b)``."""
+    if all(isinstance(t, types.Number) for t in (a, b)):
+        return lambda a, b: min(a, b)
+    return None
+
+
 _inline = numba.njit(cache=True, inline="always")
 pid_decay = _inline(core.pid_decay)
 pid_limit = _inline(core.pid_limit)
