@@ -95,7 +95,7 @@ def test_box_gap_and_time_to_contact_equal_vei_boxes() -> None:
     """The scalar ports equal vei.boxes on random pairs, exactly touching pairs (gap 0 by
     the overlap test's 1e-9 m slack) and boxes far apart."""
     from vei.boxes import box_corners, box_gap, time_to_contact
-    from vei.metrics import fused
+    from vei.metrics import fused_ops as fused
 
     rng = np.random.default_rng(2)
     n = 4000

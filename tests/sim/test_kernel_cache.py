@@ -42,5 +42,6 @@ def test_every_kernel_module_is_in_the_digest() -> None:
     # CAP laws (compiled on scalars by _kernel_ego)
     extra = {"kernel_layout.py", "../boxes.py", "../config_settings.py"}
     extra |= {"../metrics/fused.py", "../metrics/fused_layout.py", "../models/ego_core.py"}
+    extra |= {"../metrics/fused_ops.py"}
     assert compiled | extra == set(kernel._KERNEL_SOURCES)
     assert all((here / n).is_file() for n in kernel._KERNEL_SOURCES)

@@ -351,6 +351,8 @@ def simulate_metrics(
     cfg = MetricsConfig() if cfg is None else cfg
     names = tuple(names)
     b = params.batch_size
+    if b < 1:
+        raise ConfigError("simulate_metrics needs at least one variant")
     use_numba = kernel == "numba" or (kernel == "auto" and compiled.available())
     fused = np.zeros(b, dtype=bool)
     from vei.metrics.fused_layout import FUSED_METRICS, config_vector, metrics_frame
