@@ -121,7 +121,15 @@ def lattice_segments(
         crossing_map[key] = p
         return p
 
-    for i, j in np.asarray(cells, dtype=np.int64).reshape(-1, 2):
+    cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
+    # only cells with two labels and none unevaluated cross the boundary (vectorised filter,
+    # same cells in the same order: a 1000 x 1000 sweep grid has ~10^3 of its 10^6 cells)
+    ci, cj = cells[:, 0], cells[:, 1]
+    quad = np.stack(
+        [label[cj, ci], label[cj, ci + 1], label[cj + 1, ci + 1], label[cj + 1, ci]], axis=1
+    )
+    mixed = (quad.min(axis=1) >= 0) & (quad.min(axis=1) != quad.max(axis=1))
+    for i, j in cells[mixed]:
         corners = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)]  # counter-clockwise
         lab = [int(label[c[1], c[0]]) for c in corners]
         if min(lab) < 0 or len(set(lab)) == 1:

@@ -104,9 +104,5 @@ def variant_seeds(ids: Sequence[str], spec_seed: int) -> np.ndarray:
     """:func:`variant_seed` of every id [N] as int64."""
     sha = hashlib.sha256
     suffix = f":{spec_seed}"
-    out = np.fromiter(
-        (int.from_bytes(sha((v + suffix).encode()).digest()[:4], "little") for v in ids),
-        dtype=np.int64,
-        count=len(ids),
-    )
-    return out & 0x7FFFFFFF
+    head = b"".join([sha((v + suffix).encode()).digest()[:4] for v in ids])
+    return np.frombuffer(head, dtype="<u4").astype(np.int64) & 0x7FFFFFFF

@@ -60,9 +60,6 @@ def done_ids(out_dir: str | Path) -> set[str]:
     return ids
 
 
-_KEYS = ["scenario_id", "variant_index", "variant_id"]
-
-
 def _read_part(path: Path, columns: list[str] | None = None) -> Any:
     """One part file as a pyarrow Table without pandas metadata (parts are concatenated)."""
     import pyarrow.parquet as pq
@@ -70,28 +67,48 @@ def _read_part(path: Path, columns: list[str] | None = None) -> Any:
     return pq.read_table(path, columns=columns).replace_schema_metadata(None)
 
 
-def _in_order(parts: list[Path], ids: Any) -> list[Path] | None:
-    """The parts in result order when they can be streamed as they are: ordered by their
-    first row, their rows strictly increasing in (scenario_id, variant_index) across all
-    of them (no duplicate, no overlap) and, with ``ids`` (a pyarrow array), all among
-    them. None when not (the caller then loads, de-duplicates and sorts)."""
-    import numpy as np
-    import pyarrow as pa
-    import pyarrow.compute as pc
+def _bounds(path: Path) -> tuple[str, int, int] | None:
+    """(scenario id, first and last variant_index) of a part file, from its footer's
+    statistics (no data read); None when it spans scenarios or has no statistics."""
+    import pyarrow.parquet as pq
 
-    keys = [(p, _read_part(p, _KEYS)) for p in parts]
-    keys = [(p, k) for p, k in keys if k.num_rows]
-    keys.sort(key=lambda pk: (pk[1]["scenario_id"][0].as_py(), pk[1]["variant_index"][0].as_py()))
-    if not keys:
-        return []
-    allk = pa.concat_tables([k for _, k in keys], promote_options="default")
-    if ids is not None and not pc.all(pc.is_in(allk["variant_id"], value_set=ids)).as_py():
+    md = pq.ParquetFile(path).metadata
+    cols = {md.schema.column(i).name: i for i in range(md.num_columns)}
+    if md.num_rows == 0 or not {"scenario_id", "variant_index"} <= set(cols):
         return None
-    sid = allk["scenario_id"].to_numpy(zero_copy_only=False)
-    idx = allk["variant_index"].to_numpy()
-    same = sid[1:] == sid[:-1]
-    increasing = np.where(same, idx[1:] > idx[:-1], sid[1:] > sid[:-1])
-    return [p for p, _ in keys] if bool(np.all(increasing)) else None
+    sids: set[str] = set()
+    lo, hi = None, None
+    for r in range(md.num_row_groups):
+        rg = md.row_group(r)
+        ss = rg.column(cols["scenario_id"]).statistics
+        si = rg.column(cols["variant_index"]).statistics
+        if ss is None or si is None or not ss.has_min_max or not si.has_min_max:
+            return None
+        sids.update((ss.min, ss.max))
+        lo = si.min if lo is None else min(lo, si.min)
+        hi = si.max if hi is None else max(hi, si.max)
+    if len(sids) != 1 or lo is None or hi is None:
+        return None
+    return next(iter(sids)), int(lo), int(hi)
+
+
+def _in_order(parts: list[Path]) -> list[Path] | None:
+    """The parts in result order when their rows can be streamed as they are: each holds
+    one scenario, and ordered by (scenario id, first variant_index) their index ranges do
+    not overlap (footer statistics only). None when not (the caller then loads,
+    de-duplicates and sorts)."""
+    bounds = [(b, p) for p in parts if (b := _bounds(p)) is not None]
+    if len(bounds) != len(parts):
+        return None
+    bounds.sort(key=lambda bp: (bp[0][0], bp[0][1]))
+    for (a, _), (b, _) in zip(bounds, bounds[1:], strict=False):
+        if (a[0], a[2]) >= (b[0], b[1]):
+            return None
+    return [p for _, p in bounds]
+
+
+class _Unordered(Exception):
+    """A part's rows were not as its footer promised (streaming gives way to sorting)."""
 
 
 def write_results(
@@ -101,35 +118,49 @@ def write_results(
     de-duplicated by variant_id, sorted by (scenario_id, variant_index), restricted to
     ``table``'s variant ids when given; returns the number of rows.
 
-    Parts that are already in order (a sweep run in one go, or resumed without overlap)
-    are streamed one at a time, so memory holds one part, not the whole result; otherwise
-    (duplicates, foreign rows) the rows are loaded, de-duplicated and sorted
-    (:func:`assemble_table`).
+    Parts that are in order (a sweep run in one go, or resumed: new parts fill the gaps)
+    are streamed one at a time, each read once, so memory holds one part and not the whole
+    result; otherwise (duplicates, overlaps, foreign rows) the rows are loaded,
+    de-duplicated and sorted (:func:`assemble_table`).
     """
+    import numpy as np
     import pyarrow as pa
+    import pyarrow.compute as pc
     import pyarrow.parquet as pq
 
     from vei.io.atomic import atomic_path
 
     parts = _existing_parts(Path(out_dir) / "parts")
     ids = None if table is None else pa.array(table["variant_id"].to_numpy(object), pa.string())
-    ordered = _in_order(parts, ids) if parts else []
-    if ordered is None:
-        whole = assemble_table(out_dir, ids)
-        with atomic_path(target) as tmp:
-            pq.write_table(whole, tmp)
-        return whole.num_rows
-    schema = pa.unify_schemas(
-        [pq.read_schema(p).remove_metadata() for p in ordered] or [pa.schema([])],
-        promote_options="default",
-    )
-    n = 0
-    with atomic_path(target) as tmp, pq.ParquetWriter(tmp, schema) as writer:
-        for p in ordered:
-            part = _read_part(p)
-            writer.write_table(part.select(schema.names).cast(schema))
-            n += part.num_rows
-    return n
+    ordered = _in_order(parts) if parts else []
+    if ordered:
+        schema = pa.unify_schemas(
+            [pq.read_schema(p).remove_metadata() for p in ordered], promote_options="default"
+        )
+        try:
+            n, written = 0, []
+            with atomic_path(target) as tmp:
+                with pq.ParquetWriter(tmp, schema) as writer:
+                    for p in ordered:
+                        part = _read_part(p)
+                        if np.any(np.diff(part["variant_index"].to_numpy()) <= 0):
+                            raise _Unordered(p)
+                        part = part.select(schema.names).cast(schema)
+                        writer.write_table(part)
+                        written.extend(part["variant_id"].chunks)
+                        n += part.num_rows
+                # one lookup table for all rows (not one per part)
+                vid = pa.chunked_array(written, schema.field("variant_id").type)
+                lookup = None if ids is None else ids.cast(vid.type)
+                if lookup is not None and not pc.all(pc.is_in(vid, value_set=lookup)).as_py():
+                    raise _Unordered(target)
+            return n
+        except _Unordered:
+            pass
+    whole = assemble_table(out_dir, ids)
+    with atomic_path(target) as tmp:
+        pq.write_table(whole, tmp)
+    return whole.num_rows
 
 
 def assemble_table(out_dir: str | Path, ids: Any = None) -> Any:

@@ -32,6 +32,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from vei.experiments.sweep_engine import Evaluator
@@ -93,7 +94,9 @@ def set_numba_threads(n: int) -> int:
 def evaluate_rows(evaluator: Evaluator, prepared: Any, chunk: pd.DataFrame) -> pd.DataFrame:
     """Run one chunk [B rows] and join its metrics to its variant rows (same order)."""
     metrics = evaluator.evaluate(prepared, chunk)
-    if len(metrics) != len(chunk) or list(metrics["variant_id"]) != list(chunk["variant_id"]):
+    if len(metrics) != len(chunk) or not np.array_equal(
+        metrics["variant_id"].to_numpy(object), chunk["variant_id"].to_numpy(object)
+    ):
         raise RuntimeError("evaluator returned rows that do not match the chunk's variants")
     rows = chunk.reset_index(drop=True)
     extra = metrics.drop(columns=["variant_id"]).reset_index(drop=True)
