@@ -103,6 +103,17 @@ def test_an_exception_in_the_block_kills_the_workers_at_once():
     assert time.monotonic() - t0 < 20  # the 60 s task was not waited for
 
 
+def test_a_launched_pool_starts_every_worker_without_waiting():
+    with WorkerPool(2, wait_ready=False) as pool:
+        assert pool.pids == ()  # not waited for
+        procs = list(pool._processes.values())
+        assert len(procs) == 2  # but both started, from this thread
+        assert pool.submit(pow, 2, 5).result() == 32
+        served = {pool.submit(os.getpid).result() for _ in range(8)}
+        assert served <= {p.pid for p in procs}
+    assert not wait_gone([p.pid for p in procs], timeout_s=5.0)
+
+
 def test_bad_arguments_and_prctl_on_linux():
     with pytest.raises(ValueError, match="workers"):
         WorkerPool(0)

@@ -144,9 +144,9 @@ def find_scenarios(path: str | Path) -> list[Path]:
 #: the per-chunk costs (parameters, rows, part file) are ~2 % of a chunk's time at 4096.
 MAX_AUTO_CHUNK = 4096
 
-#: Chunks per worker the automatic size aims at (the last chunks, run while other workers
-#: have nothing left, are ~1/8 of a worker's share at most).
-_CHUNKS_PER_WORKER = 8
+#: Chunks per worker the automatic size aims at (the last chunk, run while other workers
+#: have nothing left, is ~1/16 of a worker's share at most).
+_CHUNKS_PER_WORKER = 16
 
 
 def auto_chunk_size(n_variants: int, workers: int) -> int:

@@ -22,6 +22,8 @@ it, however that process ends:
 - **Process start paid once**: :meth:`WorkerPool.start` (called on entering the ``with``
   block) starts every worker and runs the optional ``initializer`` (e.g. imports and JIT
   compilation) in each before the first task; the same workers then serve every task.
+  With ``wait_ready=False`` entering the block only launches them (:meth:`launch`, still
+  from the caller's thread) and the caller works on while they import (sweeps do).
 
 Use::
 
