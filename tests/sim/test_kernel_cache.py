@@ -38,10 +38,11 @@ def test_every_kernel_module_is_in_the_digest() -> None:
     compiled = {p.name for p in here.glob("_kernel_*.py")}
     # vei.boxes (the bottom floor) gives the kernel its box-overlap test, vei.config_settings
     # the order of the parameter rows (kernel_layout's P_* constants), vei.metrics.fused the
-    # per-variant metrics of simulate_metrics, vei.models.ego_core the ego's PID, actuator and
-    # CAP laws (compiled on scalars by _kernel_ego)
+    # per-variant metrics of simulate_metrics, vei.models.ego_core / sfm_core the ego's and
+    # the riders' laws (compiled on scalars by _kernel_ego / _kernel_sfm)
     extra = {"kernel_layout.py", "../boxes.py", "../config_settings.py"}
     extra |= {"../metrics/fused.py", "../metrics/fused_layout.py", "../models/ego_core.py"}
+    extra |= {"../models/sfm_core.py"}
     extra |= {"../metrics/fused_ops.py"}
     assert compiled | extra == set(kernel._KERNEL_SOURCES)
     assert all((here / n).is_file() for n in kernel._KERNEL_SOURCES)

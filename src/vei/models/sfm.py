@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from vei.boxes import closest_point_on_box
+from vei.models import sfm_core as core
 
 FloatArray = npt.NDArray[np.float64]
 ArrayLike = npt.ArrayLike
@@ -55,16 +56,13 @@ def desired_velocity(
     Returns:
         (vx_mps, vy_mps) [...].
     """
-    dx = np.subtract(gx_m, px_m, dtype=np.float64)
-    dy = np.subtract(gy_m, py_m, dtype=np.float64)
-    q = dx * dx + dy * dy + np.square(sigma_m)
-    paper = np.asarray(paper_form, dtype=bool)
-    if paper.ndim == 0:
-        den = q if bool(paper) else np.sqrt(q)
-    else:
-        den = np.where(paper, q, np.sqrt(q))
-    f = np.asarray(v0_mps, dtype=np.float64) / den
-    return f * dx, f * dy
+    f64 = np.float64
+    vx, vy = core.desired_velocity_core(
+        np.asarray(px_m, f64), np.asarray(py_m, f64), np.asarray(gx_m, f64),
+        np.asarray(gy_m, f64), np.asarray(v0_mps, f64), np.asarray(sigma_m, f64),
+        np.asarray(paper_form, dtype=bool),
+    )  # fmt: skip
+    return np.asarray(vx), np.asarray(vy)
 
 
 def destination_force(
@@ -84,7 +82,10 @@ def destination_force(
         (fx_n, fy_n) [...] force [N].
     """
     k = np.asarray(k_des_nspm, dtype=np.float64)
-    return k * np.subtract(vdes_x_mps, vx_mps), k * np.subtract(vdes_y_mps, vy_mps)
+    fx, fy = core.destination_force_core(
+        np.asarray(vdes_x_mps), np.asarray(vdes_y_mps), np.asarray(vx_mps), np.asarray(vy_mps), k
+    )
+    return np.asarray(fx), np.asarray(fy)
 
 
 def influential_point(
@@ -190,10 +191,11 @@ def point_mass_step(
     Returns:
         (px_m, py_m, vx_mps, vy_mps) after the step.
     """
-    inv_m = 1.0 / np.asarray(mass_kg, dtype=np.float64)
-    vx = vx_mps + np.asarray(fx_n) * inv_m * dt_s
-    vy = vy_mps + np.asarray(fy_n) * inv_m * dt_s
-    return px_m + vx * dt_s, py_m + vy * dt_s, vx, vy
+    out = core.point_mass_core(
+        np.asarray(px_m), np.asarray(py_m), np.asarray(vx_mps), np.asarray(vy_mps),
+        np.asarray(fx_n), np.asarray(fy_n), np.asarray(mass_kg, dtype=np.float64), dt_s,
+    )  # fmt: skip
+    return tuple(np.asarray(o) for o in out)  # type: ignore[return-value]
 
 
 def social_force(

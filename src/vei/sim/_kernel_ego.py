@@ -15,11 +15,9 @@ import math
 
 import numba
 import numpy as np
-from numba import types
-from numba.extending import overload
 
 from vei.models import ego_core as core
-from vei.sim._kernel_scalar import idx
+from vei.sim._kernel_scalar import idx  # also registers select / maximum / minimum on scalars
 from vei.sim.kernel_layout import (
     P_AMAX,
     P_AMIN,
@@ -38,37 +36,6 @@ from vei.sim.kernel_layout import (
     P_RELEASE,
     P_TSAFE,
 )
-
-
-@overload(core.select)
-def _select_scalar(cond, a, b):  # type: ignore[no-untyped-def]
-    """numba: :func:`vei.models.ego_core.select` on scalars is ``a if cond else b``."""
-    if isinstance(cond, types.Boolean) and all(isinstance(t, types.Number) for t in (a, b)):
-
-        def impl(cond, a, b):  # type: ignore[no-untyped-def]
-            if cond:
-                return a
-            return b
-
-        return impl
-    return None
-
-
-@overload(core.maximum)
-def _maximum_scalar(a, b):  # type: ignore[no-untyped-def]
-    """numba: :func:`vei.models.ego_core.maximum` on scalars is Python's ``max(a, b)``."""
-    if all(isinstance(t, types.Number) for t in (a, b)):
-        return lambda a, b: max(a, b)
-    return None
-
-
-@overload(core.minimum)
-def _minimum_scalar(a, b):  # type: ignore[no-untyped-def]
-    """numba: :func:`vei.models.ego_core.minimum` on scalars is Python's ``min(a, b)``."""
-    if all(isinstance(t, types.Number) for t in (a, b)):
-        return lambda a, b: min(a, b)
-    return None
-
 
 _inline = numba.njit(cache=True, inline="always")
 pid_decay = _inline(core.pid_decay)

@@ -1,5 +1,5 @@
 """Scalar numba helpers of the compiled kernel: interpolation index, box overlap (vei.boxes),
-repulsion.
+repulsion, and the scalar forms of the model cores' select / maximum / minimum.
 
 Imported only when numba is used (by :mod:`vei.sim._kernel_numba` and the other kernel
 helper modules). Every function is compiled at module level with ``cache=True`` so that
@@ -12,8 +12,45 @@ from __future__ import annotations
 import math
 
 import numba
+from numba import types
+from numba.extending import overload
 
 from vei.boxes import overlap_core
+from vei.models import ego_core as core
+
+# The model cores (vei.models.ego_core, sfm_core) are written with these three helpers;
+# on scalars numba compiles them to what the hand-written kernel used.
+
+
+@overload(core.select)
+def _select_scalar(cond, a, b):  # type: ignore[no-untyped-def]
+    """numba: :func:`vei.models.ego_core.select` on scalars is ``a if cond else b``."""
+    if isinstance(cond, types.Boolean) and all(isinstance(t, types.Number) for t in (a, b)):
+
+        def impl(cond, a, b):  # type: ignore[no-untyped-def]
+            if cond:
+                return a
+            return b
+
+        return impl
+    return None
+
+
+@overload(core.maximum)
+def _maximum_scalar(a, b):  # type: ignore[no-untyped-def]
+    """numba: :func:`vei.models.ego_core.maximum` on scalars is Python's ``max(a, b)``."""
+    if all(isinstance(t, types.Number) for t in (a, b)):
+        return lambda a, b: max(a, b)
+    return None
+
+
+@overload(core.minimum)
+def _minimum_scalar(a, b):  # type: ignore[no-untyped-def]
+    """numba: :func:`vei.models.ego_core.minimum` on scalars is Python's ``min(a, b)``."""
+    if all(isinstance(t, types.Number) for t in (a, b)):
+        return lambda a, b: min(a, b)
+    return None
+
 
 #: Gap [m] beyond which riders / pedestrians do not repel (vei.models.sfm.RIDER_FORCE_CUTOFF_M).
 CUTOFF_M = 10.0

@@ -1,7 +1,10 @@
 """Social-force pieces of the compiled kernel: path-following drive, ego repulsion, limits.
 
-Imported only when numba is used. For one rider of one variant, the same formulas and
-order of operations as :mod:`vei.models.sfm` in the NumPy reference step; shared by the
+Imported only when numba is used. For one rider of one variant: the desired velocity,
+destination force and Euler step are :mod:`vei.models.sfm_core`'s functions compiled on
+scalars (the NumPy step runs them on arrays); the goal on the path, the ego repulsion and
+the limits follow :mod:`vei.models.sfm` formula for formula (see sfm_core for why they
+stay written twice). Shared by the
 primary rider (:mod:`vei.sim._kernel_numba`) and the extra riders
 (:mod:`vei.sim._kernel_riders`), inlined into the kernel's loop (``inline="always"``).
 SI units (m, s, m/s, N, kg).
@@ -14,7 +17,13 @@ import math
 
 import numba
 
-from vei.sim._kernel_scalar import idx
+from vei.models import sfm_core as core
+from vei.sim._kernel_scalar import idx  # also registers the cores' select on scalars
+
+_inline = numba.njit(cache=True, inline="always")
+desired_velocity = _inline(core.desired_velocity_core)
+destination_force = _inline(core.destination_force_core)
+point_mass = _inline(core.point_mass_core)
 
 
 @numba.njit(cache=True, inline="always")
@@ -36,12 +45,8 @@ def drive_force(x0, y0, vx0, vy0, prog0, rpath, ps0, pds, pn, plen, look, sigma,
     i, w = idx(ps0, pds, pn, min(pr + look, plen))
     gx = rpath[0, i] + w * rpath[5, i]
     gy = rpath[1, i] + w * rpath[6, i]
-    dx, dy = gx - x0, gy - y0
-    q = dx * dx + dy * dy + sigma**2
-    den = q if paperv else math.sqrt(q)
-    f = v0 / den
-    fx = kdes * (f * dx - vx0)
-    fy = kdes * (f * dy - vy0)
+    vdx, vdy = desired_velocity(x0, y0, gx, gy, v0, sigma, paperv)
+    fx, fy = destination_force(vdx, vdy, vx0, vy0, kdes)
     return fx, fy, pr
 
 
@@ -94,11 +99,7 @@ def integrate(x0, y0, vx0, vy0, fx, fy, m, amax, vmax, dt, limits):  # type: ign
         if fmag > fmax:
             sc = fmax / fmag if fmag > 0 else 1.0
             fx, fy = fx * sc, fy * sc
-    inv_m = 1.0 / m
-    vx2 = vx0 + fx * inv_m * dt
-    vy2 = vy0 + fy * inv_m * dt
-    x2 = x0 + vx2 * dt
-    y2 = y0 + vy2 * dt
+    x2, y2, vx2, vy2 = point_mass(x0, y0, vx0, vy0, fx, fy, m, dt)
     sp2 = math.sqrt(vx2 * vx2 + vy2 * vy2)
     if limits:
         if sp2 > vmax:

@@ -58,7 +58,7 @@ _KERNEL_SOURCES = (
     "_kernel_numba.py", "_kernel_scalar.py", "_kernel_ego.py", "_kernel_sfm.py",
     "_kernel_riders.py", "kernel_layout.py", "../boxes.py", "../config_settings.py",
     "../metrics/fused.py", "../metrics/fused_layout.py", "../metrics/fused_ops.py",
-    "../models/ego_core.py",
+    "../models/ego_core.py", "../models/sfm_core.py",
 )  # fmt: skip
 
 
