@@ -162,6 +162,15 @@ def _chunks(frame: pd.DataFrame, size: int) -> Iterator[pd.DataFrame]:
         yield frame.iloc[start : start + size]
 
 
+def _preload_plotting() -> None:
+    """Import the figure modules the risk maps need at the end (~1 s) while the workers
+    compute: this process is idle then, and the import leaves the sweep's serial tail."""
+    with contextlib.suppress(ImportError):
+        import matplotlib.backends.backend_agg  # noqa: F401
+        import matplotlib.collections  # noqa: F401
+        import matplotlib.figure  # noqa: F401
+
+
 @contextlib.contextmanager
 def _progress(total: int, done: int, enabled: bool) -> Iterator[Callable[[int], None]]:
     if not enabled:
@@ -267,12 +276,15 @@ def run_sweep(
     manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
 
     results_path = out / "results.parquet"
-    if n_skipped + n_run >= len(table):
-        # streamed part by part into results.parquet, then read back once (compact:
-        # arrow-backed strings) for the critical variants and the maps
+    n_variants = len(table)
+    if n_skipped + n_run >= n_variants:
+        # streamed part by part into results.parquet, then read back (only the columns
+        # the critical ranking and the maps need, unless policies or samples are compared)
         write_results(out, results_path, table)
-        results = read_results(out)
-        crit = most_critical(results, k_critical)
+        del table
+        whole = "ego.policy" in spec.names or bool(spec.reconstruction_samples)
+        results = read_results(out, columns=None if whole else _post_columns(results_path, spec))
+        crit = _critical_rows(results_path, most_critical(results, k_critical), whole)
         from vei.io.atomic import write_text
 
         write_text(out / "critical.csv", crit.to_csv(index=False))
@@ -311,11 +323,42 @@ def run_sweep(
     return SweepResult(
         out_dir=out,
         results=results_path,
-        n_variants=len(table),
+        n_variants=n_variants,
         n_run=n_run,
         n_skipped=n_skipped,
         seconds=time.perf_counter() - t0,
     )
+
+
+#: Columns the ranking of critical variants and the risk / severity maps read.
+_POST_COLUMNS = (
+    "variant_id",
+    "scenario_id",
+    "variant_index",
+    "collision",
+    "safety_index",
+    "min_gap_m",
+    "injury_risk",
+)
+
+
+def _post_columns(results_path: Path, spec: SweepSpec) -> list[str]:
+    """The columns of results.parquet that the critical ranking and the maps need."""
+    import pyarrow.parquet as pq
+
+    have = pq.read_schema(results_path).names
+    want = {*_POST_COLUMNS, *spec.names}
+    return [c for c in have if c in want]
+
+
+def _critical_rows(results_path: Path, crit: pd.DataFrame, whole: bool) -> pd.DataFrame:
+    """The full rows (every column) of the critical variants ``crit`` (in its order), read
+    by variant id from results.parquet when ``crit`` holds only some columns."""
+    if whole or crit.empty:
+        return crit
+    ids = crit["variant_id"].astype(str).tolist()
+    rows = pd.read_parquet(results_path, filters=[("variant_id", "in", ids)])
+    return rows.set_index("variant_id").loc[ids].reset_index()
 
 
 def _run_jobs(
@@ -392,6 +435,10 @@ def _run_jobs(
                 n += 1
 
     n_run = 0
+    if workers > 1 and max_chunks is None:
+        import threading
+
+        threading.Thread(target=_preload_plotting, name="vei-preload", daemon=True).start()
     with _progress(len(table), n_skipped, progress) as advance:
         for n_rows in runner.run(jobs(), prepared):
             n_run += n_rows

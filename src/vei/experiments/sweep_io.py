@@ -225,8 +225,8 @@ def most_critical(results: pd.DataFrame, k: int = 20) -> pd.DataFrame:
     return results.iloc[order[:k]].reset_index(drop=True)
 
 
-def read_results(out_dir: str | Path) -> pd.DataFrame:
-    """results.parquet of a finished sweep.
+def read_results(out_dir: str | Path, columns: Sequence[str] | None = None) -> pd.DataFrame:
+    """results.parquet of a finished sweep (only ``columns`` when given).
 
     Raises:
         InputError: the sweep has not finished (no results.parquet).
@@ -236,7 +236,7 @@ def read_results(out_dir: str | Path) -> pd.DataFrame:
         raise InputError(
             "no results.parquet: the sweep has not finished (run it again to resume)", path=path
         )
-    return pd.read_parquet(path)
+    return pd.read_parquet(path, columns=None if columns is None else list(columns))
 
 
 def numeric_metric_columns(results: pd.DataFrame, spec_names: Sequence[str]) -> list[str]:
