@@ -33,7 +33,7 @@ from vei.metrics.fused_layout import (
     CH_RYAW,
     N_CH,
 )
-from vei.sim._kernel_ego import ego_step
+from vei.sim._kernel_ego import ego_consts, ego_step_c
 from vei.sim._kernel_riders import extra_riders_step
 from vei.sim._kernel_scalar import idx, ped_forces, rforce, sat
 from vei.sim._kernel_sfm import drive_force, integrate, vehicle_force
@@ -119,6 +119,11 @@ def kernel(  # type: ignore[no-untyped-def]
     n_rp = rpath.shape[1]
     no = oL.shape[0]
     reach = 0.5 * (math.hypot(Le, We) + math.hypot(Lr, Wr))
+    # Squared contact radius of the ego with each replayed other (constant over the run).
+    o_rr2 = np.empty(no)
+    for j in range(no):
+        rr = 0.5 * (math.hypot(Le, We) + math.hypot(oL[j], oW[j]))
+        o_rr2[j] = rr * rr
     for b in numba.prange(B):
         use_rf = rep_on and P[P_USERF, b] > 0.5
         a_rr = P[P_ARR, b]
@@ -147,6 +152,7 @@ def kernel(  # type: ignore[no-untyped-def]
         mode = int(P[P_MODE, b])
         delay = int(P[P_DELAY, b])
         vd = P[P_VD, b]
+        ec = ego_consts(P, b, dt, Lr, Wr)  # the ego's per-variant constants, once per variant
         # state
         s = S0[0, b]
         ex = S0[1, b]
@@ -201,8 +207,8 @@ def kernel(  # type: ignore[no-untyped-def]
         for k in range(T - 1):
             t_new = (k + 1) * dt
             # ---------------- ego
-            s_new, v_new, a_act_n, a_rep_n, u, pid_i, pid_e, cap = ego_step(
-                k, t_new, dt, P, b, mode, delay, vd, hist_len,
+            s_new, v_new, a_act_n, a_rep_n, u, pid_i, pid_e, cap = ego_step_c(
+                k, t_new, dt, ec, mode, delay, vd, hist_len,
                 s, v, a_act, pid_i, pid_e, cap, collided,
                 rx, ry, ryaw, r_act, hist, egeo,
             )  # fmt: skip
@@ -325,8 +331,7 @@ def kernel(  # type: ignore[no-untyped-def]
             for j in range(no):
                 if oACT[k + 1, j] and not hit[j]:
                     ddx, ddy = oX[k + 1, j] - ex_n, oY[k + 1, j] - ey_n
-                    rr = 0.5 * (math.hypot(Le, We) + math.hypot(oL[j], oW[j]))
-                    if ddx * ddx + ddy * ddy <= rr * rr:
+                    if ddx * ddx + ddy * ddy <= o_rr2[j]:
                         if sat(
                             ex_n,
                             ey_n,
