@@ -24,6 +24,7 @@ from vei.experiments.sweep import (
     write_results,
 )
 from vei.experiments.sweep_ids import variant_id, variant_ids, variant_seed, variant_seeds
+from vei.experiments.sweep_io import _existing_parts, _in_order
 from vei.experiments.sweep_runners import threads_per_worker
 from vei.experiments.sweep_spec import spec_from_dict
 
@@ -119,6 +120,8 @@ def test_resumed_pool_sweep_equals_an_uninterrupted_one(tmp_path):
     assert again.n_skipped == 20 and again.n_run == 14
     done = run_sweep(scen, spec, out, workers=2, chunk_size=3, evaluator=FakeEvaluator())
     assert done.n_skipped == 34 and done.n_run == N - 34
+    # the resumed parts fill gaps without overlap: results.parquet was streamed
+    assert _in_order(_existing_parts(out / "parts")) is not None
     run_sweep(scen, spec, tmp_path / "whole", evaluator=FakeEvaluator())
     drop = ["pid", "unpickled", "threads"]
     a, b = read_results(out).drop(columns=drop), read_results(tmp_path / "whole").drop(columns=drop)
@@ -135,6 +138,7 @@ def test_overlapping_parts_are_deduplicated_and_sorted(tmp_path):
     parts = sorted((out / "parts").glob("part-*.parquet"))
     shutil.copy(parts[0], out / "parts" / "part-000100.parquet")  # a duplicate chunk
     parts[3].rename(out / "parts" / "part-000050.parquet")  # out of order
+    assert _in_order(_existing_parts(out / "parts")) is None  # overlap: loaded and sorted
     write_results(out, tmp_path / "again.parquet")
     again = pd.read_parquet(tmp_path / "again.parquet")
     pd.testing.assert_frame_equal(again, ref)

@@ -43,8 +43,8 @@ Job = tuple[str, pd.DataFrame, Path]
 #: Prepared scenarios a worker keeps (jobs come grouped by scenario, so a few suffice).
 _CACHE_SCENARIOS = 4
 
-#: State of a pool worker (set by :func:`_init_sweep_worker`): the evaluator, the prepared
-#: scenarios by key (LRU), and counters the tests read (how many scenario loads).
+#: State of a pool worker (set by :func:`_init_sweep_worker`): the evaluator and the
+#: prepared scenarios by key (LRU).
 _WORKER: dict[str, Any] = {}
 
 
@@ -131,7 +131,7 @@ def _init_sweep_worker(evaluator: Evaluator, numba_threads: int) -> None:
     if numba_threads > 0:
         set_numba_threads(numba_threads)
     _WORKER.clear()
-    _WORKER.update(evaluator=evaluator, prepared=OrderedDict(), loads=0, prepares=0)
+    _WORKER.update(evaluator=evaluator, prepared=OrderedDict())
 
 
 def _cache(key: str, prepared: Any) -> Any:
@@ -149,7 +149,6 @@ def _pool_prepare(scenario_dir: str, file: str) -> Any:
     from vei.io.atomic import write_bytes
 
     prepared = _WORKER["evaluator"].prepare(Path(scenario_dir))
-    _WORKER["prepares"] += 1
     write_bytes(file, pickle.dumps(prepared, protocol=pickle.HIGHEST_PROTOCOL))
     return _cache(scenario_dir, prepared)
 
@@ -163,13 +162,7 @@ def _pool_job(key: str, file: str, chunk: pd.DataFrame, part: str) -> int:
     else:
         with open(file, "rb") as fh:
             prepared = _cache(key, pickle.load(fh))
-        _WORKER["loads"] += 1
     return _write_part(Path(part), evaluate_rows(_WORKER["evaluator"], prepared, chunk))
-
-
-def _worker_counts() -> tuple[int, int, int]:
-    """(pid, scenario loads, scenario prepares) of this worker (tests)."""
-    return os.getpid(), int(_WORKER.get("loads", 0)), int(_WORKER.get("prepares", 0))
 
 
 # --------------------------------------------------------------------------- executors
