@@ -138,11 +138,16 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
     ttc_any = False
     min_ttc = np.nan
     present = False
-    m = 0  # DRAC candidates at least the reaction time before contact
-    cand_raw = np.empty(n)
+    # DRAC candidates (ahead, not latched, closing): their gap is exact (g_ok) or, where
+    # the lower bound below decided everything else at that step, taken at the end only
+    # if the candidate can still be the largest (:func:`_max_drac`).
+    m = 0
     cand_k = np.empty(n, dtype=np.int64)
-    cand_rv = np.empty((2, n))
-    cand_yaw = np.empty(n)
+    cand_f = np.empty((_N_CF, n))
+    # Lower bound of the box gap: centre distance minus the two half-diagonals, less a
+    # margin far above the rounding of box_gap_cs and the 1e-9 tolerance of its overlap
+    # test (an overlap it reports is at most ~1.5e-9 m apart): lb <= box_gap_cs(...).
+    r_sum = 0.5 * math.hypot(Le, We) + 0.5 * math.hypot(Lr, Wr)
     peak = 0.0
     v_min = 0.0
     for k in range(n):
@@ -163,20 +168,34 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
         osp = rsp if np.isfinite(rsp) else 0.0
         ox, oy = ch[CH_RX, k], ch[CH_RY, k]
         ok = np.isfinite(ox) and np.isfinite(oy)
+        bx, by = (ox, oy) if ok else (1e9, 1e9)
         ce, se = np.cos(eyaw), np.sin(eyaw)
-        co, so = np.cos(oyaw), np.sin(oyaw)
-        g = box_gap_cs(
-            ex, ey, ce, se, Le, We, ox if ok else 1e9, oy if ok else 1e9, co, so, Lr, Wr
-        )  # fmt: skip
-        if np.isfinite(g):
-            gap_finite = True
-        if not math.isnan(g) and (math.isnan(min_gap) or g < min_gap):
-            min_gap = g
         dx = ox - ex
         dy = oy - ey
         ahead = ce * dx + se * dy > 0.0
-        # the paper's TTC and its zone
-        ttc = g / v if v > min_v else np.inf
+        ttc_free = latched or not v > min_v or (ahead_only and not ahead)
+        # the exact gap only where the bound leaves the minimum gap, the TTC zone or the
+        # minimum TTC open: lb >= min_gap, and a TTC that is 0 / inf or lb / v > safe
+        # and >= min_ttc (g / v >= lb / v for v > 0: division rounds monotonically)
+        gx, gy = bx - ex, by - ey
+        lb = math.sqrt(gx * gx + gy * gy) - r_sum - (1e-6 + 1e-9 * (abs(gx) + abs(gy) + r_sum))
+        g_ok = not (math.isfinite(lb) and math.isfinite(eyaw) and lb >= min_gap)
+        tl = np.inf
+        if not g_ok and not ttc_free:
+            tl = lb / v
+            g_ok = not (v > 0.0 and tl > safe and tl >= min_ttc)
+        g = np.nan
+        co, so = 0.0, 0.0
+        if g_ok or (ahead and not latched):
+            co, so = np.cos(oyaw), np.sin(oyaw)
+        if g_ok:
+            g = box_gap_cs(ex, ey, ce, se, Le, We, bx, by, co, so, Lr, Wr)
+            if np.isfinite(g):
+                gap_finite = True
+            if not math.isnan(g) and (math.isnan(min_gap) or g < min_gap):
+                min_gap = g
+        # the paper's TTC and its zone (tl: the same outcome as g / v, see above)
+        ttc = (g / v if g_ok else tl) if v > min_v else np.inf
         if ahead_only and not ahead:
             ttc = np.inf
         if latched:
@@ -200,26 +219,26 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
         ovx = nan_to_num(osp * co)
         ovy = nan_to_num(osp * so)
         v_close = v - (ovx * ce + ovy * se)
-        gd = nan_to_num(g)
-        if v_close > 0.0 and gd > 0.0 and gd / v_close >= react:
-            cand_raw[m] = v_close * v_close / (2.0 * gd)  # numpy's x**2 is x * x
-            cand_k[m] = k
-            cand_rv[0, m] = ovx - v * ce
-            cand_rv[1, m] = ovy - v * se
-            cand_yaw[m] = oyaw
-            m += 1
-    # the largest eligible DRAC on a collision course: candidates in descending order of
-    # DRAC until one is on course (as conflict._max_drac_raw; usually the first)
-    best = 0.0
-    if m > 0:
-        for j in np.argsort(-cand_raw[:m]):
-            k = cand_k[j]
-            if on_course(
-                ch[CH_EX, k], ch[CH_EY, k], ch[CH_EYAW, k], Le, We, ch[CH_RX, k],
-                ch[CH_RY, k], cand_yaw[j], Lr, Wr, cand_rv[0, j], cand_rv[1, j], A, Bc,
-            ):  # fmt: skip
-                best = cand_raw[j]
-                break
+        if not v_close > 0.0:
+            continue
+        if g_ok:
+            gd = nan_to_num(g)
+            if not (gd > 0.0 and gd / v_close >= react):
+                continue
+            ub = v_close * v_close / (2.0 * gd)  # numpy's x**2 is x * x; exact
+        else:  # an upper bound of the DRAC (gd >= lb > 0), inf where lb <= 0
+            ub = v_close * v_close / (2.0 * lb) if lb > 0.0 else np.inf
+        cand_k[m] = k
+        cand_f[_CF_UB, m] = ub
+        cand_f[_CF_G, m] = g  # NaN: not taken yet
+        cand_f[_CF_VC, m] = v_close
+        cand_f[_CF_CE, m], cand_f[_CF_SE, m] = ce, se
+        cand_f[_CF_CO, m], cand_f[_CF_SO, m] = co, so
+        cand_f[_CF_RV0, m] = ovx - v * ce
+        cand_f[_CF_RV1, m] = ovy - v * se
+        cand_f[_CF_YAW, m] = oyaw
+        m += 1
+    best = _max_drac(ch, cand_k, cand_f, m, Le, We, Lr, Wr, react, A, Bc)
     for j in range(N_FUSED):
         out[j] = np.nan
     hit = first >= 0
@@ -250,6 +269,53 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
     out[M_MEAN] = mean
     out[M_STD] = np.sqrt(pairwise_sum(sq, 0, n) / float(n))
     _severity(ch, hit, first, Le, We, cfg, mass_kg, out)
+
+
+#: Rows of a DRAC candidate's floats: upper bound (the DRAC where the gap is exact), the
+#: gap (NaN until taken), closing speed, cos / sin of the ego and rider yaws, relative
+#: velocity of the rider (x, y), rider yaw.
+_CF_UB, _CF_G, _CF_VC, _CF_CE, _CF_SE, _CF_CO, _CF_SO, _CF_RV0, _CF_RV1, _CF_YAW = range(10)
+_N_CF = 10
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _max_drac(ch, cand_k, cand_f, m, Le, We, Lr, Wr, react, A, Bc):  # type: ignore[no-untyped-def]
+    """The largest eligible DRAC on a collision course (conflict._max_drac_raw: the
+    largest on course, 0 if none), visiting the candidates by descending upper bound
+    and stopping once no bound exceeds the best found; a deferred gap is taken as the
+    loop would have taken it (the same operands from ch), so every value is exact."""
+    best = 0.0
+    found = False
+    if m == 0:
+        return best
+    for j in np.argsort(-cand_f[_CF_UB, :m]):
+        if found and cand_f[_CF_UB, j] <= best:
+            break
+        k = cand_k[j]
+        ex, ey = ch[CH_EX, k], ch[CH_EY, k]
+        v_close = cand_f[_CF_VC, j]
+        g = cand_f[_CF_G, j]
+        if math.isnan(g):
+            ox, oy = ch[CH_RX, k], ch[CH_RY, k]
+            ok = np.isfinite(ox) and np.isfinite(oy)
+            bx, by = (ox, oy) if ok else (1e9, 1e9)
+            g = box_gap_cs(
+                ex, ey, cand_f[_CF_CE, j], cand_f[_CF_SE, j], Le, We, bx, by,
+                cand_f[_CF_CO, j], cand_f[_CF_SO, j], Lr, Wr,
+            )  # fmt: skip
+        gd = nan_to_num(g)
+        if not (gd > 0.0 and gd / v_close >= react):
+            continue
+        val = v_close * v_close / (2.0 * gd)
+        if found and not val > best:
+            continue
+        if on_course(
+            ex, ey, ch[CH_EYAW, k], Le, We, ch[CH_RX, k], ch[CH_RY, k], cand_f[_CF_YAW, j],
+            Lr, Wr, cand_f[_CF_RV0, j], cand_f[_CF_RV1, j], A, Bc,
+        ):  # fmt: skip
+            best = val
+            found = True
+    return best
 
 
 @numba.njit(cache=True, error_model="numpy")
