@@ -210,6 +210,7 @@ def run_sweep(
     progress: bool | None = None,
     max_chunks: int | None = None,
     k_critical: int = 20,
+    record_critical: bool = True,  # [H5]
 ) -> SweepResult:
     """Run (or resume) a sweep: every variant of ``spec`` on every scenario.
 
@@ -229,6 +230,8 @@ def run_sweep(
         max_chunks: stop after this many chunks (for tests and partial runs); the sweep
             stays resumable and results.parquet is only assembled once every variant is done.
         k_critical: how many most-critical variants go to critical.csv/json and configs/.
+        record_critical: re-run the critical variants with the full recording
+            (critical/timeseries.parquet, figures; :mod:`vei.experiments.sweep_critical`).
 
     Returns:
         a :class:`SweepResult`. results.parquet: one row per variant, the variants-table
@@ -294,6 +297,10 @@ def run_sweep(
             write_variant_configs(
                 out / "configs", rows, spec, evaluator.auto_shift_s(prepared[_key_of(d, prepared)])
             )
+        if record_critical:  # [H5] the full recording of the critical variants only
+            from vei.experiments.sweep_critical import record_critical as _record_critical
+
+            _record_critical(out, crit, evaluator, prepared)
         from vei.experiments.riskmap import sweep_risk_map, sweep_severity_maps
 
         risk = sweep_risk_map(results, spec, out / "riskmap.png")
