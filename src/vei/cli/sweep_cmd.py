@@ -134,6 +134,14 @@ def sweep(
             help="How many most-critical variants to list and write configs for (>= 1).",
         ),
     ] = 20,
+    record_critical: Annotated[  # [H5]
+        bool,
+        typer.Option(
+            "--record-critical/--no-record-critical",
+            help="Re-run the critical variants with the full recording "
+            "(critical/timeseries.parquet and their bird's-eye figures).",
+        ),
+    ] = True,
     progress: Annotated[
         bool | None,
         typer.Option(
@@ -221,6 +229,7 @@ def sweep(
             progress=progress,
             max_chunks=max_chunks,
             k_critical=critical,
+            record_critical=record_critical,  # [H5]
         )
     except KeyboardInterrupt:
         typer.echo(interrupted_message(out), err=True)
