@@ -18,37 +18,15 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
-from vei.calibrate.profile import load_profile, sample_population
+# The column names live in a light module (no scipy): every sweep worker imports them.
+from vei.calibrate.columns import POPULATION_FIELDS as POPULATION_FIELDS
+from vei.calibrate.columns import POPULATION_SET as POPULATION_SET
+from vei.calibrate.columns import RIDER_COLUMN as RIDER_COLUMN
+from vei.calibrate.columns import RIDER_PARAM_COLUMNS as RIDER_PARAM_COLUMNS
 from vei.config import CaseConfig, RiderPopulationConfig, load_config
 from vei.errors import ConfigError
 
 FloatArray = npt.NDArray[np.float64]
-
-#: VariantParams fields a population sets (k_des_nspm before the case's k_des factor).
-POPULATION_FIELDS: tuple[str, ...] = (
-    "v0_mps",
-    "k_des_nspm",
-    "mass_kg",
-    "sigma_m",
-    "lookahead_m",
-    "max_speed_mps",
-    "max_accel_mps2",
-    "a_veh_n",
-    "b_veh_per_m",
-)
-#: Sweep variants-table column of the population rider a variant runs with (0..N-1).
-RIDER_COLUMN = "rider_sample"
-#: Sweep variants-table columns of a population rider's parameters -> VariantParams field
-#: (rider.k_des_nspm before the configuration's k_des_factor).
-RIDER_PARAM_COLUMNS: dict[str, str] = {f"rider.{f}": f for f in POPULATION_FIELDS}
-#: Sweep parameters a rider population sets (not sweepable together with it).
-POPULATION_SET: tuple[str, ...] = (
-    "sfm.k_des_nspm",
-    "sfm.a_veh_n",
-    "sfm.b_veh_per_m",
-    "sfm.v0_mps",
-    "sfm.mass_kg",
-)
 
 
 def parse_population(raw: Any, where: str, default_seed: Any = 0) -> RiderPopulationConfig | None:
@@ -98,6 +76,9 @@ def with_population(points: pd.DataFrame, pop: RiderPopulationConfig) -> pd.Data
 
 def sample_riders(pop: RiderPopulationConfig) -> dict[str, FloatArray]:
     """The population's N riders as arrays [N] (POPULATION_FIELDS and tau_s), seeded."""
+    # profile -> fit -> scipy: imported when a population is sampled, not by every sweep
+    from vei.calibrate.profile import load_profile, sample_population
+
     profile = load_profile(pop.profile)
     return sample_population(profile, pop.sample, category=pop.category, seed=pop.seed)
 

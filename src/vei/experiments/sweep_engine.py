@@ -11,7 +11,7 @@ from typing import Any, Protocol
 import numpy as np
 import pandas as pd
 
-from vei.calibrate.population import RIDER_PARAM_COLUMNS
+from vei.calibrate.columns import RIDER_PARAM_COLUMNS
 from vei.errors import ConfigError
 from vei.experiments.sweep_params import POLICY_PARAM, SWEEP_FIELDS, check_aeb_rows
 from vei.experiments.sweep_spec import SAMPLE_COLUMN

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from vei.calibrate.population import RIDER_COLUMN, RIDER_PARAM_COLUMNS
+from vei.calibrate.columns import RIDER_COLUMN, RIDER_PARAM_COLUMNS
 from vei.errors import InputError
 from vei.experiments.sweep_spec import SAMPLE_COLUMN, SweepSpec
 

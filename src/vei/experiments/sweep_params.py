@@ -24,7 +24,7 @@ from typing import Any, Literal, Protocol
 
 import numpy as np
 
-from vei.calibrate.population import RIDER_PARAM_COLUMNS
+from vei.calibrate.columns import RIDER_PARAM_COLUMNS
 from vei.config import CASE_PRESETS, SFM_PRESETS, RunConfig, validate_policy_spec
 from vei.config_perception import PerceptionConfig
 from vei.config_settings import SECTIONS, SETTINGS, Setting
