@@ -162,3 +162,39 @@ def test_no_recording_when_switched_off(swept, tmp_path):
     )
     assert (tmp_path / "o" / "critical.csv").is_file()
     assert not (tmp_path / "o" / "critical").exists()
+
+
+def test_samples_riders_and_policies_record_their_own_runs(swept, tmp_path):
+    """Critical variants on different reconstruction samples, riders and policies: each is
+    recorded on its own sample's arrays with its own parameters (the recording's metrics
+    equal the sweep's rows, every metric by ==)."""
+    scenario, _ = swept
+    spec = spec_from_dict(
+        {
+            "design": "grid",
+            "base": "normal-cap",
+            "reconstruction": {"samples": 2},
+            "rider": {"profile": "calibrated", "sample": 2},
+            "parameters": {
+                "time_shift_s": {"min": -2.0, "max": 2.0, "num": 2},
+                "ego.policy": {"choices": ["paper-cap", "aeb"]},
+            },
+        }
+    )
+    out = tmp_path / "o"
+    run_sweep(scenario, spec, out, progress=False, k_critical=6)
+    crit = pd.read_csv(out / "critical.csv")
+    assert crit["reconstruction_sample"].nunique() == 2  # both samples among the critical
+    ts = pd.read_parquet(out / "critical" / "timeseries.parquet")
+    assert list(dict.fromkeys(ts["config"])) == list(crit["variant_id"])
+    meta = json.loads((out / "critical" / "recorded.json").read_text())
+    assert meta["metrics_equal_sweep"], meta["mismatches"]
+    # the recording depends on the sample: run on the mean trajectory instead, the
+    # metrics of some critical variant differ from the sweep's
+    from vei.experiments.sweep_critical import mismatches, record_variants
+    from vei.experiments.sweep_engine import EngineEvaluator
+
+    ev = EngineEvaluator(base=spec.base)
+    prepared = ev.prepare(scenario)
+    _, wrong = record_variants(ev, prepared, crit.drop(columns="reconstruction_sample"))
+    assert mismatches(wrong, crit, ev.metrics)
