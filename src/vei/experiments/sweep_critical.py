@@ -31,7 +31,13 @@ from vei.experiments.sweep_engine import EngineEvaluator, PreparedScenario, vari
 from vei.experiments.sweep_spec import SAMPLE_COLUMN
 from vei.types import TIMESERIES_COLUMNS
 
-__all__ = ["CRITICAL_DIR", "critical_up_to_date", "record_critical", "record_variants"]
+__all__ = [
+    "CRITICAL_DIR",
+    "critical_up_to_date",
+    "mismatches",
+    "record_critical",
+    "record_variants",
+]
 
 #: Sub-folder of a sweep's output folder that holds the critical variants' recordings.
 CRITICAL_DIR = "critical"
