@@ -148,6 +148,9 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
     # margin far above the rounding of box_gap_cs and the 1e-9 tolerance of its overlap
     # test (an overlap it reports is at most ~1.5e-9 m apart): lb <= box_gap_cs(...).
     r_sum = 0.5 * math.hypot(Le, We) + 0.5 * math.hypot(Lr, Wr)
+    # the last yaws whose cos / sin were taken (NaN: none yet; NaN never equals)
+    last_eyaw, last_ce, last_se = np.nan, np.nan, np.nan
+    last_oyaw, last_co, last_so = np.nan, np.nan, np.nan
     peak = 0.0
     v_min = 0.0
     for k in range(n):
@@ -169,7 +172,10 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
         ox, oy = ch[CH_RX, k], ch[CH_RY, k]
         ok = np.isfinite(ox) and np.isfinite(oy)
         bx, by = (ox, oy) if ok else (1e9, 1e9)
-        ce, se = np.cos(eyaw), np.sin(eyaw)
+        if not _same(eyaw, last_eyaw):  # cos / sin of the same bits are the same
+            last_eyaw = eyaw
+            last_ce, last_se = np.cos(eyaw), np.sin(eyaw)
+        ce, se = last_ce, last_se
         dx = ox - ex
         dy = oy - ey
         ahead = ce * dx + se * dy > 0.0
@@ -187,7 +193,10 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
         g = np.nan
         co, so = 0.0, 0.0
         if g_ok or (ahead and not latched):
-            co, so = np.cos(oyaw), np.sin(oyaw)
+            if not _same(oyaw, last_oyaw):
+                last_oyaw = oyaw
+                last_co, last_so = np.cos(oyaw), np.sin(oyaw)
+            co, so = last_co, last_so
         if g_ok:
             g = box_gap_cs(ex, ey, ce, se, Le, We, bx, by, co, so, Lr, Wr)
             if np.isfinite(g):
@@ -269,6 +278,12 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
     out[M_MEAN] = mean
     out[M_STD] = np.sqrt(pairwise_sum(sq, 0, n) / float(n))
     _severity(ch, hit, first, Le, We, cfg, mass_kg, out)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _same(a, b):  # type: ignore[no-untyped-def]
+    """a and b are the same float bit for bit (NaN never; -0.0 is not 0.0)."""
+    return a == b and math.copysign(1.0, a) == math.copysign(1.0, b)
 
 
 #: Rows of a DRAC candidate's floats: upper bound (the DRAC where the gap is exact), the
