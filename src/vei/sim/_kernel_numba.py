@@ -152,6 +152,13 @@ def kernel(  # type: ignore[no-untyped-def]
         mode = int(P[P_MODE, b])
         delay = int(P[P_DELAY, b])
         vd = P[P_VD, b]
+        # the primary rider's social-force constants, once per variant (same values)
+        p_look, p_sigma, p_paperv = P[P_LOOK, b], P[P_SIGMA, b], P[P_PAPERV, b] > 0.5
+        p_v0, p_kdes, p_usevf = P[P_V0, b], P[P_KDES, b], P[P_USEVF, b] > 0.5
+        p_frontb, p_aveh, p_bveh = P[P_FRONTB, b] > 0.5, P[P_AVEH, b], P[P_BVEH, b]
+        p_mass, p_amax, p_vmax = P[P_MASS, b], P[P_AMAX_R, b], P[P_VMAX, b]
+        p_limits = math.isfinite(p_vmax) or math.isfinite(p_amax)
+        p_arrive2 = P[P_ARRIVE, b] ** 2
         ec = ego_consts(P, b, dt, Lr, Wr)  # the ego's per-variant constants, once per variant
         # state
         s = S0[0, b]
@@ -252,11 +259,11 @@ def kernel(  # type: ignore[no-untyped-def]
                 if r_act and not collided:
                     fx, fy, pr = drive_force(
                         rx, ry, rvx, rvy, prog, rpath, rp_s0, rp_ds, n_rp, rp_len,
-                        P[P_LOOK, b], P[P_SIGMA, b], P[P_PAPERV, b] > 0.5, P[P_V0, b], P[P_KDES, b],
+                        p_look, p_sigma, p_paperv, p_v0, p_kdes,
                     )  # fmt: skip
-                    if P[P_USEVF, b] > 0.5:
+                    if p_usevf:
                         vfx, vfy = vehicle_force(
-                            rx, ry, ex, ey, eyaw, Le, We, P[P_FRONTB, b] > 0.5, P[P_AVEH, b], P[P_BVEH, b]
+                            rx, ry, ex, ey, eyaw, Le, We, p_frontb, p_aveh, p_bveh
                         )  # fmt: skip
                         fx = fx + vfx
                         fy = fy + vfy
@@ -275,12 +282,11 @@ def kernel(  # type: ignore[no-untyped-def]
                         )
                         fx = fx + sx
                         fy = fy + sy
-                    limits = math.isfinite(P[P_VMAX, b]) or math.isfinite(P[P_AMAX_R, b])
                     x2, y2, vx2, vy2, sp2 = integrate(
-                        rx, ry, rvx, rvy, fx, fy, P[P_MASS, b], P[P_AMAX_R, b], P[P_VMAX, b], dt, limits
+                        rx, ry, rvx, rvy, fx, fy, p_mass, p_amax, p_vmax, dt, p_limits
                     )  # fmt: skip
                     yaw2 = math.atan2(vy2, vx2) if sp2 > 0.05 else ryaw
-                    arrived = (x2 - rp_ex) ** 2 + (y2 - rp_ey) ** 2 <= P[P_ARRIVE, b] ** 2
+                    arrived = (x2 - rp_ex) ** 2 + (y2 - rp_ey) ** 2 <= p_arrive2
                     leaving = arrived and t_rec > r_tend + 1e-9
                     nrx, nry, nryaw = x2, y2, yaw2
                     if leaving:
