@@ -204,9 +204,11 @@ def kernel(  # type: ignore[no-untyped-def]
         ct = np.nan
         if collided:
             ct = 0.0
-        md = np.inf
+        # the least squared centre distance; its root at the end is the least distance
+        # (sqrt is monotone: min of the roots = root of the min, NaN kept, ties the same)
+        md2 = np.inf
         if r_act:
-            md = math.sqrt((rx - ex) ** 2 + (ry - ey) ** 2)
+            md2 = (rx - ex) ** 2 + (ry - ey) ** 2
         # Fused metrics: this variant's [T] channels (scratch, never [B, T]), scored at the end.
         ch = np.empty((N_CH, T if metrics else 1))
         if metrics:
@@ -368,9 +370,9 @@ def kernel(  # type: ignore[no-untyped-def]
                 hx[slot], hy[slot], hyaw[slot] = rx, ry, ryaw
                 hact[slot] = 1.0 if r_act else 0.0
             if r_act:
-                dd = math.sqrt((rx - ex) * (rx - ex) + (ry - ey) * (ry - ey))
-                if dd < md:
-                    md = dd
+                dd2 = (rx - ex) * (rx - ex) + (ry - ey) * (ry - ey)
+                if dd2 < md2:
+                    md2 = dd2
             if metrics:
                 _channels(ch, k + 1, ex, ey, eyaw, v, a_rep, rx, ry, ryaw, rsp, r_act, collided)
             if record:
@@ -431,7 +433,7 @@ def kernel(  # type: ignore[no-untyped-def]
             FH[2, h, b] = hyaw[h]
             FH[3, h, b] = hact[h]
         coll_t[b] = ct
-        min_d[b] = md
+        min_d[b] = math.sqrt(md2)
         if metrics:
             run_metrics(t_m, dt_m, ch, Le, We, Lr, Wr, MCFG, P[P_MASS, b], P[P_DMAX, b], M[b])
         for j in range(no):
