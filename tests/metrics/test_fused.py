@@ -195,6 +195,34 @@ def test_edge_cases(demo_grid) -> None:
     assert_same(one)
 
 
+def test_gap_bound_and_reused_yaws(demo_grid) -> None:
+    """The paths the compiled loop takes to skip work: yaws repeated bit for bit and
+    alternating 0.0 / -0.0 (cos / sin reused only for the same bits), the rider jumping
+    far away and back (the gap's lower bound decides the step, DRAC deferred), a NaN
+    ego yaw (no bound), all with the paper's and the other thresholds."""
+    params, trace = demo_grid
+    sel = [10, 30, 60, 90]
+    fields = (
+        "ego_xy_m", "ego_yaw_rad", "ego_speed_mps", "ego_accel_mps2", "other_xy_m",
+        "other_yaw_rad", "other_speed_mps", "other_vel_mps", "other_active", "collided",
+    )  # fmt: skip
+    tr = replace(trace, **{f: np.array(getattr(trace, f)[sel]) for f in fields})
+    n = tr.t_s.size
+    zeros = np.where(np.arange(n) % 3 == 0, -0.0, 0.0)
+    tr.ego_yaw_rad[0] = zeros
+    tr.other_yaw_rad[0] = zeros[::-1]
+    tr.ego_yaw_rad[1, 1::2] = tr.ego_yaw_rad[1, : n - 1 : 2]  # each yaw twice in a row
+    act = np.flatnonzero(tr.other_active[2])
+    far = act[: act.size // 2]
+    tr.other_xy_m[2, far] += 1e6
+    tr.ego_yaw_rad[3, act[::5]] = np.nan
+    for run in range(4):
+        assert tr.other_active[run].sum() > 20
+    for cfg in (None, OTHER_CFG):
+        ref = assert_same(tr, cfg, params=_params_of(params.take(np.array(sel))))
+        assert np.isfinite(ref["min_gap_m"]).all()
+
+
 def test_standing_rider_and_four_riders() -> None:
     """A rider standing in the lane (speed 0, the car brakes or hits), and the crossing
     scene with three more social-force e-scooters (the primary rider scored)."""
