@@ -197,6 +197,9 @@ def record_critical(
     path = write_parquet(out / "timeseries.parquet", frame)
     summary = pd.concat(summaries, ignore_index=True)
     bad = mismatches(summary, crit, evaluator.metrics)
+    if n_figures > 0:
+        # before recorded.json: that file marks the recording complete for a resume
+        _figures(out, frame, crit.head(n_figures), by_id)
     write_json(
         out / "recorded.json",
         {
@@ -214,8 +217,6 @@ def record_critical(
             f"sweep's rows (see {out / 'recorded.json'})",
             stacklevel=2,
         )
-    if n_figures > 0:
-        _figures(out, frame, crit.head(n_figures), by_id)
     return path
 
 
