@@ -18,7 +18,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from vei.config import MAX_RUN_UP_M, CaseConfig, case_preset
+from tests.helpers_config import case_field
+from vei.config import MAX_RUN_UP_M, case_preset
 from vei.config_settings import BY_FIELD, NUMERIC_CONVERTS, SETTINGS, Setting, check_section
 from vei.errors import ConfigError
 from vei.experiments import sweep_params
@@ -52,16 +53,7 @@ def resolve(setting: Setting) -> tuple[type, typing.Any]:
     if setting.convert == "policy_param":
         cls: type = POLICY_CONFIGS[str(setting.policy)]
         return cls, typing.get_type_hints(cls)[str(setting.config_field)]
-    cls = CaseConfig
-    parts = setting.path.split(".")
-    for i, part in enumerate(parts):
-        names = {f.name for f in dataclasses.fields(cls)}
-        assert part in names, f"{setting.path}: {cls.__name__} has no field {part!r}"
-        hint = typing.get_type_hints(cls)[part]
-        if i == len(parts) - 1:
-            return cls, hint
-        cls = hint
-    raise AssertionError(setting.path)
+    return case_field(setting.path)
 
 
 def declaration_problems(

@@ -9,6 +9,7 @@ import typing
 
 import pytest
 
+from tests.helpers_config import case_field
 from vei.config import CaseConfig, load_config
 from vei.errors import ConfigError
 from vei.experiments.sweep_engine import _PARAM_FIELDS
@@ -37,17 +38,7 @@ def _resolve(path: str) -> tuple[type, typing.Any]:
         owner, fname = POLICY_PARAMS[path]
         cls: type = POLICY_CONFIGS[owner]
         return cls, typing.get_type_hints(cls)[fname]
-    cls = CaseConfig
-    parts = path.split(".")
-    for i, part in enumerate(parts):
-        names = {f.name for f in dataclasses.fields(cls)}
-        assert part in names, f"{path}: {cls.__name__} has no field {part!r}"
-        hint = typing.get_type_hints(cls)[part]
-        if i == len(parts) - 1:
-            return cls, hint
-        cls = hint
-        assert dataclasses.is_dataclass(cls), f"{path}: {part} is not a section"
-    raise AssertionError(path)
+    return case_field(path)
 
 
 @pytest.mark.parametrize("name", sorted(set(PARAMETERS) - DESIGN_ONLY))
