@@ -44,8 +44,6 @@ from vei.metrics.config import MetricsConfig
 from vei.metrics.fused_layout import (
     C_AHEAD,
     C_ALERT,
-    C_B0,
-    C_B1,
     C_CAR,
     C_CEIL,
     C_MINV,
@@ -360,7 +358,10 @@ def _severity(ch, hit, first, Le, We, cfg, mass_kg, out):  # type: ignore[no-unt
     out[M_IMPACT] = speed
     out[M_DVR] = car_m / total * speed
     out[M_DVC] = m_r / total * speed
-    out[M_INJ] = 1.0 / (1.0 + np.exp(cfg[C_B0] - cfg[C_B1] * (speed * 3.6))) if hit else 0.0
+    # M_INJ (the injury risk, exp of the impact speed) is taken after the pass with NumPy's
+    # exp, as summarize takes it (fused_layout.metrics_frame): NumPy's SIMD exp and the C
+    # library's, which compiled code calls, differ in the last bit on AVX-512 machines.
+    out[M_INJ] = np.nan
     # the hit face, from the rider's centre in the ego frame at contact
     act_k = ch[CH_RACT, k] != 0.0
     dx = (ch[CH_RX, k] if act_k else np.nan) - ch[CH_EX, k]
@@ -463,4 +464,4 @@ def fused_summary(
         float(tr.other_length_m), float(tr.other_width_m),
         config_vector(cfg), mass, brake, out,
     )  # fmt: skip
-    return metrics_frame(out, names)
+    return metrics_frame(out, names, cfg)

@@ -18,7 +18,7 @@ import pandas as pd
 
 from vei.errors import ConfigError
 from vei.metrics.config import MetricsConfig
-from vei.metrics.severity import SIDES, STRIKING
+from vei.metrics.severity import SIDES, STRIKING, injury_risk_of_speed
 
 #: The scalar metrics computed here, in the order of a fused output row.
 FUSED_METRICS: tuple[str, ...] = (
@@ -41,8 +41,8 @@ _LABEL_COLUMNS = {"impact_side": SIDES, "striking": STRIKING}
 CH_EX, CH_EY, CH_EYAW, CH_EV, CH_EA, CH_RX, CH_RY, CH_RYAW, CH_RSP, CH_RACT, CH_RCOL = range(11)
 N_CH = 11
 #: Rows of the config vector (NaN ceiling / rider mass = each run's own).
-C_SAFE, C_ALERT, C_AHEAD, C_MINV, C_CEIL, C_REACT, C_CAR, C_RIDER, C_B0, C_B1 = range(10)
-N_CFG = 10
+C_SAFE, C_ALERT, C_AHEAD, C_MINV, C_CEIL, C_REACT, C_CAR, C_RIDER = range(8)
+N_CFG = 8
 
 
 def config_vector(cfg: MetricsConfig | None = None) -> npt.NDArray[np.float64]:
@@ -59,20 +59,32 @@ def config_vector(cfg: MetricsConfig | None = None) -> npt.NDArray[np.float64]:
             cfg.reaction_time_s,
             cfg.car_mass_kg,
             nan if cfg.rider_mass_kg is None else cfg.rider_mass_kg,
-            cfg.injury_intercept,
-            cfg.injury_slope_per_kmh,
         ],
         dtype=np.float64,
     )
 
 
-def metrics_frame(rows: npt.NDArray[np.float64], names: Sequence[str]) -> pd.DataFrame:
+def metrics_frame(
+    rows: npt.NDArray[np.float64], names: Sequence[str], cfg: MetricsConfig | None = None
+) -> pd.DataFrame:
     """The fused rows [B, N_FUSED] as :func:`vei.metrics.summarize` returns them: one
     column per name (bool for collision / drac_unavoidable, the labels as strings with ''
-    for none, float otherwise)."""
+    for none, float otherwise).
+
+    The injury risk is taken here from the rows' impact speed [m/s] and collision with
+    :func:`vei.metrics.severity.injury_risk_of_speed` (``cfg``'s coefficients; paper
+    defaults when None): the compiled pass leaves it out because NumPy's SIMD exp, which
+    summarize uses, and the C library's exp, which compiled code calls, differ in the last
+    bit on some CPUs (AVX-512).
+    """
     check_names(names)
     cols: dict[str, np.ndarray] = {}
     for name in names:
+        if name == "injury_risk":
+            hit = rows[:, FUSED_METRICS.index("collision")] != 0.0
+            speed = rows[:, FUSED_METRICS.index("impact_speed_mps")]
+            cols[name] = np.where(hit, injury_risk_of_speed(speed, cfg), 0.0)
+            continue
         v = rows[:, FUSED_METRICS.index(name)]
         if name in _BOOL_COLUMNS:
             cols[name] = v != 0.0

@@ -370,7 +370,7 @@ def simulate_metrics(
         out = compiled.run(arrays, run_params, state, fl.hist_len, False, config_vector(cfg))
         rows = np.empty_like(out["metrics"])
         rows[perm] = out["metrics"]
-        parts.append((idx, metrics_frame(rows, names)))
+        parts.append((idx, metrics_frame(rows, names, cfg)))
     rest = np.flatnonzero(~fused)
     for start in range(0, rest.size, full_batch):
         sel = rest[start : start + full_batch]
