@@ -41,7 +41,7 @@ import json
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -109,6 +109,12 @@ class SweepResult:
         out_dir: the output folder; results: path of results.parquet.
         n_variants: variants in the sweep (all scenarios); n_run: run by this call;
         n_skipped: already done by an earlier (interrupted) call; seconds: wall time.
+        timings: wall time of each phase [s]: ``prepare`` (scenarios read and compiled,
+            automatic time shifts, variants tables, manifest), ``evaluate`` (every chunk
+            simulated, scored and written as a part file), ``results`` (results.parquet
+            assembled, critical variants ranked and written with their configurations),
+            ``post`` (the critical variants' recording and figures, risk / severity maps,
+            comparisons). Phases not reached are absent.
     """
 
     out_dir: Path
@@ -117,6 +123,15 @@ class SweepResult:
     n_run: int
     n_skipped: int
     seconds: float
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def variants_per_s(self) -> float:
+        """Throughput of this call [variants/s]: variants run / (prepare + evaluate +
+        results); the post phase is a fixed cost per sweep (figures of the k critical
+        variants, two maps), not per variant. NaN when nothing ran."""
+        busy = sum(self.timings.get(k, 0.0) for k in ("prepare", "evaluate", "results"))
+        return self.n_run / busy if self.n_run and busy > 0 else float("nan")
 
 
 def find_scenarios(path: str | Path) -> list[Path]:
@@ -157,18 +172,15 @@ def auto_chunk_size(n_variants: int, workers: int) -> int:
     return max(1, min(MAX_AUTO_CHUNK, per))
 
 
-def _chunks(frame: pd.DataFrame, size: int) -> Iterator[pd.DataFrame]:
-    for start in range(0, len(frame), size):
-        yield frame.iloc[start : start + size]
-
-
-def _preload_plotting() -> None:
-    """Import the figure modules the risk maps need at the end (~1 s) while the workers
-    compute: this process is idle then, and the import leaves the sweep's serial tail."""
-    with contextlib.suppress(ImportError):
-        import matplotlib.backends.backend_agg  # noqa: F401
-        import matplotlib.collections  # noqa: F401
-        import matplotlib.figure  # noqa: F401
+def _chunks(frame: pd.DataFrame, size: int, tail: int = 0) -> Iterator[pd.DataFrame]:
+    """``frame`` in chunks of ``size`` rows; the last ``tail`` chunks' rows in chunks of a
+    quarter of that (the workers then finish within a quarter chunk of each other)."""
+    fine = max(1, size // 4)
+    split = max(0, len(frame) - tail * size) if tail > 0 and fine < size else len(frame)
+    for start in range(0, split, size):
+        yield frame.iloc[start : min(start + size, split)]
+    for start in range(split, len(frame), fine):
+        yield frame.iloc[start : start + fine]
 
 
 @contextlib.contextmanager
@@ -271,16 +283,22 @@ def run_sweep(
     parts_dir.mkdir(parents=True, exist_ok=True)
     _clean_temporaries(parts_dir)
 
+    timings: dict[str, float] = {}
+    t_start = time.perf_counter()
     with _runner(engine, workers, evaluator) as runner:
         n_skipped, n_run, table, scen_meta, prepared = _run_jobs(
-            runner, dirs, spec, out, evaluator, chunk_size, workers, max_chunks, bool(progress)
-        )
+            runner, dirs, spec, out, evaluator, chunk_size, workers, max_chunks, bool(progress),
+            timings,
+        )  # fmt: skip
+    # evaluate: from the end of prepare to the last worker gone
+    timings["evaluate"] = time.perf_counter() - t_start - timings["prepare"]
     manifest_path = out / "sweep.json"
     manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
 
     results_path = out / "results.parquet"
     n_variants = len(table)
     if n_skipped + n_run >= n_variants:
+        t_results = time.perf_counter()
         # streamed part by part into results.parquet, then read back (only the columns
         # the critical ranking and the maps need, unless policies or samples are compared)
         write_results(out, results_path, table)
@@ -297,6 +315,8 @@ def run_sweep(
             write_variant_configs(
                 out / "configs", rows, spec, evaluator.auto_shift_s(prepared[_key_of(d, prepared)])
             )
+        t_post = time.perf_counter()
+        timings["results"] = t_post - t_results
         if record_critical:  # [H5] the full recording of the critical variants only
             from vei.experiments.sweep_critical import record_critical as _record_critical
 
@@ -324,8 +344,10 @@ def run_sweep(
                 write_sample_share_map(
                     per_point, risk["x"], risk["y"], out / "reconstruction_share.png"
                 )
+        timings["post"] = time.perf_counter() - t_post
         manifest["status"] = "complete"
         manifest["updated_utc"] = datetime.now(UTC).isoformat(timespec="seconds")
+        manifest["timings_s"] = {k: round(v, 3) for k, v in timings.items()}
         write_json(manifest_path, manifest)
     return SweepResult(
         out_dir=out,
@@ -334,6 +356,7 @@ def run_sweep(
         n_run=n_run,
         n_skipped=n_skipped,
         seconds=time.perf_counter() - t0,
+        timings=timings,
     )
 
 
@@ -378,11 +401,14 @@ def _run_jobs(
     workers: int,
     max_chunks: int | None,
     progress: bool,
+    timings: dict[str, float],
 ) -> tuple[int, int, pd.DataFrame, list[dict[str, Any]], dict[str, Any]]:
     """Prepare the scenarios, check / write the manifest, run the chunks not yet done and
     write each as a part file (the runner writes them; part numbers are handed out here, in
     job order). Returns (n_skipped, n_run, variants table, scenario
-    metadata, prepared scenarios)."""
+    metadata, prepared scenarios); sets ``timings['prepare']`` [s] (the caller's clock
+    starts before the runner is opened)."""
+    t0 = time.perf_counter()
     parts_dir = out / "parts"
     prepared = runner.prepare_all(dirs)
     tables = []
@@ -434,7 +460,7 @@ def _run_jobs(
         nonlocal next_seq
         n = 0
         for d, grp in todo.groupby("_dir", sort=False):
-            for chunk in _chunks(grp.drop(columns="_dir"), size):
+            for chunk in _chunks(grp.drop(columns="_dir"), size, 2 * workers if workers > 1 else 0):
                 if max_chunks is not None and n >= max_chunks:
                     return
                 yield str(d), chunk, parts_dir / f"part-{next_seq:06d}.parquet"
@@ -442,10 +468,7 @@ def _run_jobs(
                 n += 1
 
     n_run = 0
-    if workers > 1 and max_chunks is None:
-        import threading
-
-        threading.Thread(target=_preload_plotting, name="vei-preload", daemon=True).start()
+    timings["prepare"] = time.perf_counter() - t0
     with _progress(len(table), n_skipped, progress) as advance:
         for n_rows in runner.run(jobs(), prepared):
             n_run += n_rows

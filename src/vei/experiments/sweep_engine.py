@@ -245,6 +245,20 @@ class EngineEvaluator:
             )
         return PreparedScenario(scenario.id, str(scenario_dir), arrays, auto, sample_arrays)
 
+    def warm_up(self) -> None:
+        """Import the modules :meth:`evaluate` and a part file's writer need (a sweep's
+        pool workers call it while their parent prepares the scenario)."""
+        import pyarrow.parquet  # noqa: F401
+
+        import vei.metrics.timeseries  # noqa: F401
+        import vei.sim.engine  # noqa: F401
+        from vei.sim import kernel
+
+        if kernel.available():
+            import vei.metrics.fused  # noqa: F401
+
+            kernel._build()
+
     def scenario_id(self, prepared: PreparedScenario) -> str:
         """The scenario's id."""
         return prepared.scenario_id

@@ -289,6 +289,8 @@ def write_variant_configs(
     from vei.experiments.sweep_spec import variant_config
     from vei.io.atomic import write_text
 
+    # libyaml's emitter when PyYAML has it (10x faster, same documents)
+    dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
     folder = Path(folder)
     paths = []
     for row in variants.to_dict("records"):
@@ -303,7 +305,8 @@ def write_variant_configs(
         )
         paths.append(
             write_text(
-                folder / f"{row['variant_id']}.yaml", header + yaml.safe_dump(doc, sort_keys=False)
+                folder / f"{row['variant_id']}.yaml",
+                header + yaml.dump(doc, Dumper=dumper, sort_keys=False),
             )
         )
     return paths

@@ -5,20 +5,29 @@ A job is one chunk of variants: ``(scenario key, variants [B rows], part file)``
 executor evaluates it, joins the metrics to the variant rows and writes the part file
 (atomically); :meth:`run` yields the number of rows of each part once it is on disk.
 
-The process pool pays every fixed cost once per worker, not per chunk:
+With ``workers`` = N > 1, N processes evaluate chunks: the sweep's own process and a pool
+of N - 1 spawned children. The sweep's process has the scenario prepared and the kernel
+loaded already, so it computes from the first chunk on while the children start, and
+one process start fewer is paid; each child is handed its next chunk from the pool's
+manager thread the moment it finishes one (the compiled kernel releases the GIL, so this
+goes on while the sweep's process computes its own chunk). The last chunks of a sweep
+are a quarter of the size (``vei.experiments.sweep._chunks``), so the processes finish
+close together. Every fixed cost is paid once per child, not per chunk:
 
-- the evaluator reaches each worker once (the pool's initializer), with the number of
-  numba threads of that worker (:func:`threads_per_worker`: the cores shared out, so two
-  workers on two cores run one thread each instead of fighting over both);
-- the workers are launched without waiting for them (their imports and initializer run
+- the evaluator reaches each child once (the pool's initializer), with the number of
+  numba threads of each process (:func:`threads_per_worker`: the cores shared out, so two
+  workers on two cores run one thread each instead of fighting over both; the sweep's
+  process uses as many while it computes), and its optional ``warm_up()`` imports what
+  the chunks need;
+- the children are launched without waiting for them (their imports and initializer run
   while this process prepares a single scenario itself and builds the variants table);
   several scenarios are prepared in the pool, in parallel;
 - each prepared scenario (its ScenarioArrays, possibly MBs) is pickled once into a file of
   a temporary folder; a worker loads it on its first chunk of that scenario and keeps it
   (:data:`_WORKER` cache, the last :data:`_CACHE_SCENARIOS` scenarios); the worker that
   prepared a scenario keeps its own copy. A job carries only the key and the file name;
-- the worker writes the part file itself, so the parent neither unpickles nor encodes the
-  rows: it only hands out chunks and counts.
+- the child writes the part file itself, so the parent neither unpickles nor encodes the
+  rows of the children's chunks.
 """
 
 from __future__ import annotations
@@ -127,11 +136,16 @@ def _prepare_job(evaluator: Evaluator, scenario_dir: str) -> Any:
 
 
 def _init_sweep_worker(evaluator: Evaluator, numba_threads: int) -> None:
-    """Initializer of a sweep's pool worker: keep the evaluator, set the numba threads."""
+    """Initializer of a sweep's pool worker: keep the evaluator, set the numba threads,
+    and let the evaluator import what its chunks need (its optional ``warm_up()``), while
+    the parent prepares the scenario."""
     if numba_threads > 0:
         set_numba_threads(numba_threads)
     _WORKER.clear()
     _WORKER.update(evaluator=evaluator, prepared=OrderedDict())
+    warm_up = getattr(evaluator, "warm_up", None)
+    if callable(warm_up):
+        warm_up()
 
 
 def _cache(key: str, prepared: Any) -> Any:
@@ -183,16 +197,22 @@ class _SerialRunner:
 
 
 class _PoolRunner:
-    """A pool of ``workers`` spawned processes (module docstring); at most 2 chunks per
-    worker in flight."""
+    """``workers`` processes evaluate chunks: this one and a pool of ``workers - 1``
+    spawned processes (module docstring). This process hands every child up to 2 chunks
+    at a time and evaluates the next chunk itself while they compute: no core waits while
+    the children start, and one process start fewer is paid."""
 
-    def __init__(self, evaluator: Evaluator, pool: Any, workers: int, scratch: Path) -> None:
+    def __init__(
+        self, evaluator: Evaluator, pool: Any, workers: int, scratch: Path, threads: int
+    ) -> None:
         self.evaluator, self.pool, self.workers, self.scratch = evaluator, pool, workers, scratch
+        self.children = workers - 1
+        self.threads = threads
         self.files: dict[str, str] = {}
 
     def prepare_all(self, dirs: Sequence[Path]) -> dict[str, Any]:
         self.files = {str(d): str(self.scratch / f"scenario-{i}.pkl") for i, d in enumerate(dirs)}
-        if len(dirs) == 1:  # here, while the workers start
+        if len(dirs) == 1:  # here, while the children start
             from vei.io.atomic import write_bytes
 
             d = str(dirs[0])
@@ -203,25 +223,78 @@ class _PoolRunner:
         return {d: f.result() for d, f in futures.items()}
 
     def run(self, jobs: Iterable[Job], prepared: dict[str, Any]) -> Iterator[int]:
-        from concurrent.futures import FIRST_COMPLETED, wait
+        import queue
+        import threading
 
         it = iter(jobs)
-        pending: set = set()
+        lock = threading.Lock()
+        finished: queue.SimpleQueue = queue.SimpleQueue()
+        in_flight = [0]
+        stopped = threading.Event()
 
-        def fill() -> None:
-            for d, chunk, part in it:
-                pending.add(self.pool.submit(_pool_job, d, self.files[d], chunk, str(part)))
-                if len(pending) >= 2 * self.workers:
-                    break
+        def take() -> Job | None:
+            with lock:
+                return next(it, None)
 
-        fill()
-        while pending:
-            finished, rest = wait(pending, return_when=FIRST_COMPLETED)
-            pending.clear()
-            pending.update(rest)
-            for f in finished:
-                yield f.result()
-            fill()
+        def feed(done: Any = None) -> None:
+            # Runs here and in the pool's manager thread (a child's chunk is done): the
+            # child gets its next chunk at once, while this process computes its own (the
+            # compiled kernel releases the GIL). Nothing more once a chunk failed or the
+            # sweep stops (Ctrl-C, an error): the pool is being killed.
+            if stopped.is_set() or (
+                done is not None and (done.cancelled() or done.exception() is not None)
+            ):
+                return
+            job = take()
+            if job is None:
+                return
+            d, chunk, part = job
+            with lock:
+                in_flight[0] += 1
+            try:
+                f = self.pool.submit(_pool_job, d, self.files[d], chunk, str(part))
+            except RuntimeError:  # the pool shut down meanwhile (the chunk stays to do)
+                with lock:
+                    in_flight[0] -= 1
+                return
+            f.add_done_callback(finished.put)
+            f.add_done_callback(feed)
+
+        before = _numba_threads()
+        if before:
+            set_numba_threads(self.threads)  # this process's share of the cores
+        try:
+            for _ in range(2 * self.children):  # one computing, one queued per child
+                feed()
+            while True:
+                while not finished.empty():
+                    with lock:
+                        in_flight[0] -= 1
+                    yield finished.get().result()
+                job = take()
+                if job is not None:  # this process's own chunk
+                    d, chunk, part = job
+                    yield _write_part(part, evaluate_rows(self.evaluator, prepared[d], chunk))
+                    continue
+                with lock:
+                    busy = in_flight[0]
+                if busy == 0:
+                    return
+                with lock:
+                    in_flight[0] -= 1
+                yield finished.get().result()
+        finally:
+            stopped.set()
+            if before:
+                set_numba_threads(before)
+
+
+def _numba_threads() -> int:
+    """numba's thread count in this process (0 when numba is not imported)."""
+    import sys
+
+    numba = sys.modules.get("numba")
+    return int(numba.get_num_threads()) if numba is not None else 0
 
 
 class _RayRunner:
@@ -278,15 +351,17 @@ def _runner(engine: str, workers: int, evaluator: Evaluator) -> Iterator[Any]:
         return
     from vei.experiments.workers import WorkerPool
 
-    # Workers die with this process (kill -9 included) and ignore Ctrl-C; leaving the
+    # Children die with this process (kill -9 included) and ignore Ctrl-C; leaving the
     # block with an exception (KeyboardInterrupt) kills them at once.
+    threads = threads_per_worker(workers)
     with (
         tempfile.TemporaryDirectory(prefix="vei-sweep-") as scratch,
         WorkerPool(
-            workers,
+            workers - 1,
             initializer=_init_sweep_worker,
-            initargs=(evaluator, threads_per_worker(workers)),
+            initargs=(evaluator, threads),
             wait_ready=False,
+            wait_on_exit=False,  # every part is on disk: no wait for the children to exit
         ) as pool,
     ):
-        yield _PoolRunner(evaluator, pool, workers, Path(scratch))
+        yield _PoolRunner(evaluator, pool, workers, Path(scratch), threads)

@@ -125,6 +125,10 @@ class WorkerPool(ProcessPoolExecutor):
             (:meth:`launch`): the caller works on while they import and initialise, and
             its first tasks wait in the queue (a failing initializer then breaks the pool
             at the first result).
+        wait_on_exit: leaving the ``with`` block normally waits for the submitted tasks
+            and for every worker to exit (default); False waits for neither (the caller
+            has every result it needs): the workers finish their tasks and exit on their
+            own (still ending with this process, whatever happens to it).
     Attributes:
         pids: the worker process ids, in the order they became ready (empty before
             :meth:`start`).
@@ -139,6 +143,7 @@ class WorkerPool(ProcessPoolExecutor):
         poll_s: float = DEFAULT_POLL_S,
         pdeathsig: bool = True,
         wait_ready: bool = True,
+        wait_on_exit: bool = True,
     ) -> None:
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
             raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
@@ -157,6 +162,7 @@ class WorkerPool(ProcessPoolExecutor):
         )  # fmt: skip
         self.workers = workers
         self.wait_ready = bool(wait_ready)
+        self.wait_on_exit = bool(wait_on_exit)
         self.pids: tuple[int, ...] = ()
         self._launch_futures: list = []
 
@@ -232,7 +238,7 @@ class WorkerPool(ProcessPoolExecutor):
 
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> bool:
         if exc_type is None:
-            self.shutdown(wait=True)
+            self.shutdown(wait=self.wait_on_exit)
         else:
             self.kill_workers()
         return False

@@ -82,8 +82,9 @@ __all__ = ["N_OUT", "kernel"]
 
 
 # parallel=True: variants are independent (per-variant scratch, no reduction across them),
-# so the prange loop spreads them over the cores without changing any result.
-@numba.njit(cache=True, parallel=True)
+# so the prange loop spreads them over the cores without changing any result. nogil: a
+# sweep's parent runs chunks itself while its pool's manager thread feeds the workers.
+@numba.njit(cache=True, parallel=True, nogil=True)
 def kernel(  # type: ignore[no-untyped-def]
     T, dt, hist_len, record,
     path, p_s0, p_ds,  # ego path [10, N]: x y yaw cos sin, then their slopes
