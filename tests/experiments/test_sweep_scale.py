@@ -8,6 +8,7 @@ take seconds; the engine's own sweeps are tested in test_sweep.py / test_workers
 
 from __future__ import annotations
 
+import os
 import shutil
 
 import numpy as np
@@ -165,3 +166,40 @@ def test_most_critical_equals_a_full_sort_with_nan_and_ties():
         ["collision", "safety_index", "min_gap_m"], ascending=[False, True, True], kind="stable"
     )
     pd.testing.assert_frame_equal(most_critical(df, 40), ref.head(40).reset_index(drop=True))
+
+
+def test_chunks_cover_the_table_in_order_with_a_finer_tail():
+    from vei.experiments.sweep import _chunks
+
+    frame = pd.DataFrame({"i": np.arange(103)})
+    sizes = [len(c) for c in _chunks(frame, 10, tail=4)]
+    # 63 rows in chunks of 10 (the last one cut where the tail starts), then 40 in 2-row chunks
+    assert sizes == [10] * 6 + [3] + [2] * 20
+    got = pd.concat(list(_chunks(frame, 10, tail=4)))["i"].to_numpy()
+    np.testing.assert_array_equal(got, np.arange(103))
+    assert [len(c) for c in _chunks(frame, 50)] == [50, 50, 3]  # no tail: plain chunks
+    assert [len(c) for c in _chunks(frame, 3, tail=100)] == [1] * 103  # all tail, >= 1 row
+
+
+def test_phase_timings_and_throughput(tmp_path):
+    import json
+    import math
+
+    import pytest
+
+    (scen,) = fake_scenarios(tmp_path, ["one"])
+    out = tmp_path / "out"
+    res = run_sweep(scen, _spec(), out, workers=2, chunk_size=7, evaluator=FakeEvaluator())
+    assert list(res.timings) == ["prepare", "evaluate", "results", "post"]
+    assert all(v >= 0.0 for v in res.timings.values())
+    assert sum(res.timings.values()) <= res.seconds
+    busy = res.timings["prepare"] + res.timings["evaluate"] + res.timings["results"]
+    assert res.variants_per_s == pytest.approx(N / busy)
+    manifest = json.loads((out / "sweep.json").read_text())
+    assert manifest["timings_s"] == {k: round(v, 3) for k, v in res.timings.items()}
+    # 2 workers: this process computes chunks too (it takes the third while the child
+    # starts), and one child does the rest
+    pids = set(read_results(out)["pid"])
+    assert os.getpid() in pids and len(pids) <= 2
+    again = run_sweep(scen, _spec(), out, workers=2, chunk_size=7, evaluator=FakeEvaluator())
+    assert again.n_run == 0 and math.isnan(again.variants_per_s)  # nothing ran this time

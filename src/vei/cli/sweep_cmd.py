@@ -241,8 +241,15 @@ def sweep(
     table.add_row("run now", str(result.n_run))
     table.add_row("done before (resumed)", str(result.n_skipped))
     table.add_row("seconds", f"{result.seconds:.1f}")
+    if result.timings:
+        table.add_row("phases [s]", ", ".join(f"{k} {v:.1f}" for k, v in result.timings.items()))
+    if result.n_run:
+        table.add_row("variants/s (prepare to results)", f"{result.variants_per_s:,.0f}")
     if result.n_run + result.n_skipped >= result.n_variants:
-        res = read_results(out)
+        import pyarrow.parquet as pq
+
+        have = set(pq.read_schema(result.results).names)
+        res = read_results(out, columns=[c for c in ("collision", "safety_index") if c in have])
         if "collision" in res:
             table.add_row(
                 "collisions", f"{int(res['collision'].sum())} ({res['collision'].mean():.1%})"

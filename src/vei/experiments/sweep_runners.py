@@ -260,9 +260,13 @@ class _PoolRunner:
             f.add_done_callback(finished.put)
             f.add_done_callback(feed)
 
-        before = _numba_threads()
-        if before:
-            set_numba_threads(self.threads)  # this process's share of the cores
+        try:
+            import numba
+        except ImportError:  # pragma: no cover - numba is a core dependency
+            numba = None
+        before = numba.get_num_threads() if numba is not None else 0
+        if numba is not None:  # this process's share of the cores while it computes
+            numba.set_num_threads(max(1, min(self.threads, numba.config.NUMBA_NUM_THREADS)))
         try:
             for _ in range(2 * self.children):  # one computing, one queued per child
                 feed()
@@ -285,16 +289,8 @@ class _PoolRunner:
                 yield finished.get().result()
         finally:
             stopped.set()
-            if before:
-                set_numba_threads(before)
-
-
-def _numba_threads() -> int:
-    """numba's thread count in this process (0 when numba is not imported)."""
-    import sys
-
-    numba = sys.modules.get("numba")
-    return int(numba.get_num_threads()) if numba is not None else 0
+            if numba is not None:
+                numba.set_num_threads(before)
 
 
 class _RayRunner:
@@ -361,7 +357,7 @@ def _runner(engine: str, workers: int, evaluator: Evaluator) -> Iterator[Any]:
             initializer=_init_sweep_worker,
             initargs=(evaluator, threads),
             wait_ready=False,
-            wait_on_exit=False,  # every part is on disk: no wait for the children to exit
+            kill_on_exit=True,  # every part is on disk: no wait for the children to exit
         ) as pool,
     ):
         yield _PoolRunner(evaluator, pool, workers, Path(scratch), threads)

@@ -125,10 +125,10 @@ class WorkerPool(ProcessPoolExecutor):
             (:meth:`launch`): the caller works on while they import and initialise, and
             its first tasks wait in the queue (a failing initializer then breaks the pool
             at the first result).
-        wait_on_exit: leaving the ``with`` block normally waits for the submitted tasks
-            and for every worker to exit (default); False waits for neither (the caller
-            has every result it needs): the workers finish their tasks and exit on their
-            own (still ending with this process, whatever happens to it).
+        kill_on_exit: leaving the ``with`` block normally kills the workers at once, as an
+            exception does, instead of waiting for the submitted tasks and for every
+            worker to exit (the default): for a caller that has every result it needs
+            (a worker still starting is then not waited for either).
     Attributes:
         pids: the worker process ids, in the order they became ready (empty before
             :meth:`start`).
@@ -143,7 +143,7 @@ class WorkerPool(ProcessPoolExecutor):
         poll_s: float = DEFAULT_POLL_S,
         pdeathsig: bool = True,
         wait_ready: bool = True,
-        wait_on_exit: bool = True,
+        kill_on_exit: bool = False,
     ) -> None:
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
             raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
@@ -162,7 +162,7 @@ class WorkerPool(ProcessPoolExecutor):
         )  # fmt: skip
         self.workers = workers
         self.wait_ready = bool(wait_ready)
-        self.wait_on_exit = bool(wait_on_exit)
+        self.kill_on_exit = bool(kill_on_exit)
         self.pids: tuple[int, ...] = ()
         self._launch_futures: list = []
 
@@ -237,8 +237,8 @@ class WorkerPool(ProcessPoolExecutor):
             raise
 
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> bool:
-        if exc_type is None:
-            self.shutdown(wait=self.wait_on_exit)
+        if exc_type is None and not self.kill_on_exit:
+            self.shutdown(wait=True)
         else:
             self.kill_workers()
         return False
