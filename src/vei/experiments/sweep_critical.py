@@ -4,7 +4,7 @@ A sweep scores every variant in the compiled kernel's pass without recording tim
 (:func:`vei.sim.engine.simulate_metrics`). Once the most critical variants are ranked,
 :func:`record_critical` runs just those k variants again with ``record='full'`` -- same
 scenario arrays (or reconstruction sample), same per-variant engine parameters
-(:func:`vei.experiments.sweep_engine.variant_params` of their rows) -- and writes::
+(:meth:`EngineEvaluator.params` of their rows, scored by :meth:`EngineEvaluator.score`) -- and writes::
 
     critical/timeseries.parquet   long time series (scenario_id + vei.types.TIMESERIES_COLUMNS;
                                   ``config`` = the variant id), every critical variant
@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from vei.experiments.sweep_engine import EngineEvaluator, PreparedScenario, variant_params
+from vei.experiments.sweep_engine import EngineEvaluator, PreparedScenario
 from vei.experiments.sweep_spec import SAMPLE_COLUMN
 from vei.types import TIMESERIES_COLUMNS
 
@@ -84,8 +84,6 @@ def record_variants(
         recording [k rows, ``variant_id`` + ``evaluator.metrics``], scored as the sweep
         scores (vei.metrics.timeseries.as_timeseries_trace + summarize), in ``rows`` order.
     """
-    from vei.metrics import summarize
-    from vei.metrics.timeseries import as_timeseries_trace
     from vei.sim.engine import simulate
 
     rows = rows.reset_index(drop=True)
@@ -97,24 +95,12 @@ def record_variants(
         groups = [(prepared.arrays, rows)]
     frames, summaries = [], []
     for arrays, grp in groups:
-        params = variant_params(
-            grp,
-            arrays,
-            base=evaluator.base,
-            time_shift_reference=evaluator.time_shift_reference,
-            auto_shift_s=prepared.auto_shift_s,
-            perception=evaluator.perception,
-        )
+        params = evaluator.params(prepared, arrays, grp)
         result = simulate(arrays, params, record="full", kernel=evaluator.sim.kernel)
         frame = result.to_frame()
         frame["variant"] = grp.index.to_numpy()[frame["variant"].to_numpy()]
         frames.append(frame)
-        run_params = {
-            "rider_mass_kg": params.mass_kg,
-            "ego_max_decel_mps2": params.max_decel_mps2_ego,
-        }
-        trace = as_timeseries_trace(result.to_trace())
-        summary = summarize(trace, names=evaluator.metrics, params=run_params)
+        summary = evaluator.score(result, params)
         summary.insert(0, "variant_id", grp["variant_id"].to_numpy())
         summaries.append(summary.reset_index(drop=True))
     frame = pd.concat(frames, ignore_index=True).sort_values("variant", kind="stable")

@@ -245,6 +245,33 @@ class EngineEvaluator:
             )
         return PreparedScenario(scenario.id, str(scenario_dir), arrays, auto, sample_arrays)
 
+    def params(self, prepared: PreparedScenario, arrays: Any, variants: pd.DataFrame) -> Any:
+        """The engine parameters (VariantParams [B]) of ``variants`` [B rows] on ``arrays``
+        (``prepared.arrays`` or one of its reconstruction samples' arrays), with this
+        evaluator's base configuration, time-shift reference and perception."""
+        return variant_params(
+            variants,
+            arrays,
+            base=self.base,
+            time_shift_reference=self.time_shift_reference,
+            auto_shift_s=prepared.auto_shift_s,
+            perception=self.perception,
+        )
+
+    def score(self, result: Any, params: Any) -> pd.DataFrame:
+        """This evaluator's metrics [B rows] of a full recording ``result`` (SimResult),
+        scored as a run's time series is (vei run, vei casestudy) with each variant's rider
+        mass [kg] and full brake [m/s^2] from ``params``."""
+        from vei.metrics import summarize
+        from vei.metrics.timeseries import as_timeseries_trace
+
+        trace = as_timeseries_trace(result.to_trace())
+        run_params = {
+            "rider_mass_kg": params.mass_kg,
+            "ego_max_decel_mps2": params.max_decel_mps2_ego,
+        }
+        return summarize(trace, names=self.metrics, params=run_params)
+
     def warm_up(self) -> None:
         """Import the modules :meth:`evaluate` and a part file's writer need (a sweep's
         pool workers call it while their parent prepares the scenario)."""
@@ -274,9 +301,7 @@ class EngineEvaluator:
         then ``self.metrics`` columns (collision bool, the others float). Variants with a
         SAMPLE_COLUMN run on that sample's arrays (one batch per sample).
         """
-        from vei.metrics import summarize
         from vei.metrics.fused_layout import FUSED_METRICS
-        from vei.metrics.timeseries import as_timeseries_trace
         from vei.sim.engine import simulate, simulate_metrics
 
         if SAMPLE_COLUMN in variants.columns and prepared.sample_arrays:
@@ -292,14 +317,7 @@ class EngineEvaluator:
             out = pd.concat(parts, ignore_index=True).set_index("variant_id")
             return out.loc[variants["variant_id"].to_numpy()].reset_index()
 
-        params = variant_params(
-            variants,
-            prepared.arrays,
-            base=self.base,
-            time_shift_reference=self.time_shift_reference,
-            auto_shift_s=prepared.auto_shift_s,
-            perception=self.perception,
-        )
+        params = self.params(prepared, prepared.arrays, variants)
         # Scored as a run's time series is (vei run, vei casestudy): bit-identical metrics,
         # with the variant's rider mass and full brake (delta-v, DRAC ceiling) as in vei run.
         if all(name in FUSED_METRICS for name in self.metrics):
@@ -310,12 +328,7 @@ class EngineEvaluator:
             )
         else:
             result = simulate(prepared.arrays, params, record="full", kernel=self.sim.kernel)
-            trace = as_timeseries_trace(result.to_trace())
-            run_params = {
-                "rider_mass_kg": params.mass_kg,
-                "ego_max_decel_mps2": params.max_decel_mps2_ego,
-            }
-            summary = summarize(trace, names=self.metrics, params=run_params)
+            summary = self.score(result, params)
         summary.insert(0, "time_shift_applied_s", params.time_shift_s)
         summary.insert(0, "variant_id", variants["variant_id"].to_numpy())
         return summary.reset_index(drop=True)
