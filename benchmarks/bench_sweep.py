@@ -13,9 +13,12 @@ results.parquet, critical variants and the risk maps. Printed:
    and drawing the 20 critical variants, the risk and severity maps) is a fixed cost per
    sweep, printed beside it, and end-to-end variants/s (wall) too. Target: the sweep >= 50 %
    of the engine.
-2. **workers**: the 10^5-variant sweep with 1 worker (this process, numba on 1 thread),
-   ``N`` = the CPU count workers (this process and N - 1 children, one numba thread each),
-   and, for reference, 1 worker with numba on every core (the default of ``--workers 1``).
+2. **workers**: the 10^5-variant sweep with 1 worker (numba on 1 thread), ``N`` = the CPU
+   count workers (the sweep's process and N - 1 children, one numba thread each), and, for
+   reference, 1 worker with numba on every core (the default of ``--workers 1``). Each
+   sweep runs in a fresh Python process, as ``vei sweep`` does (the modules a started
+   ``vei sweep`` has imported are imported before the clock starts; the compiled kernel's
+   first load is timed, in ``prepare``).
    Target: N=2 workers >= 1.7x the one-thread worker, on the throughput above (the ratio of
    the evaluate phase alone, where the workers run, is printed too).
 3. **10^6 variants** (only with ``--million``: it takes minutes): 1000 x 1000 grid with
@@ -124,15 +127,64 @@ class PeakMemory:
         return sum(self.peaks.values())
 
 
-def _timed_sweep(scen: Path, spec, out: Path, workers: int) -> tuple[float, object, PeakMemory]:
-    """(wall [s], the SweepResult, peak memory) of one sweep into ``out``."""
+class _Run:
+    """What a sweep in its own process reported (:func:`_child`): n_run, timings [s]."""
+
+    def __init__(self, doc: dict) -> None:
+        self.n_run = int(doc["n_run"])
+        self.timings = {k: float(v) for k, v in doc["timings"].items()}
+        busy = sum(self.timings[k] for k in ("prepare", "evaluate", "results"))
+        self.variants_per_s = self.n_run / busy
+
+
+def _timed_sweep(
+    scen: Path, side: int, out: Path, workers: int, threads: int | None = None
+) -> tuple[float, _Run, PeakMemory]:
+    """(wall [s] of run_sweep, what it reported, peak memory of every process) of one sweep
+    into ``out``, run as ``vei sweep`` runs it: in a fresh Python process (``threads``:
+    its NUMBA_NUM_THREADS; None: every core)."""
+    import json
+    import subprocess
+
+    env = dict(os.environ)
+    if threads is not None:
+        env["NUMBA_NUM_THREADS"] = str(threads)
+    cmd = [sys.executable, "-m", "benchmarks.bench_sweep", "--child", str(scen), str(out),
+           str(workers), str(side)]  # fmt: skip
+    with PeakMemory() as mem:
+        run = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False,
+                             cwd=Path(__file__).resolve().parents[1])  # fmt: skip
+    if run.returncode != 0:
+        raise RuntimeError(f"sweep process failed: {run.stderr[-2000:]}")
+    doc = json.loads(run.stdout.strip().splitlines()[-1])
+    return float(doc["wall"]), _Run(doc), mem
+
+
+def _child(scen: str, out: str, workers: int, side: int) -> None:
+    """One sweep in this (fresh) process; prints {wall, n_run, timings} as JSON."""
+    import json
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    # What the started ``vei sweep`` process has imported before it runs the sweep (the CLI
+    # and the modules run_sweep and the scenario's preparation import lazily): import time
+    # is a cost of starting Python, not of the sweep. The compiled kernel is not loaded.
+    import pyarrow.parquet  # noqa: F401
+    import scipy.interpolate  # noqa: F401
+
+    import vei.cli.main  # noqa: F401
+    import vei.experiments.timeshift  # noqa: F401
+    import vei.io.scenario  # noqa: F401
+    import vei.sim.engine  # noqa: F401
+    import vei.sim.state  # noqa: F401
     from vei.experiments.sweep import run_sweep
 
-    with PeakMemory() as mem:
-        t0 = time.perf_counter()
-        res = run_sweep(scen, spec, out, workers=workers, progress=False)
-        wall = time.perf_counter() - t0
-    return wall, res, mem
+    spec = _spec(side)
+    t0 = time.perf_counter()
+    res = run_sweep(Path(scen), spec, Path(out), workers=workers, progress=False)
+    wall = time.perf_counter() - t0
+    print(json.dumps({"wall": wall, "n_run": res.n_run, "timings": res.timings}))
 
 
 def _engine_rate(scen: Path, spec, workers: int) -> tuple[float, int]:
@@ -165,13 +217,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--million", action="store_true", help="also the 10^6-variant sweep")
     ap.add_argument("--side", type=int, default=SIDE, help="grid side of the 10^5 sweep")
     ap.add_argument("--skip-small", action="store_true", help="only the 10^6 sweep")
+    ap.add_argument("--child", nargs=4, metavar=("SCEN", "OUT", "WORKERS", "SIDE"),
+                    help=argparse.SUPPRESS)  # fmt: skip
     args = ap.parse_args(argv)
+    if args.child:
+        scen, out, w, side = args.child
+        _child(scen, out, int(w), int(side))
+        return 0
 
     import matplotlib
 
     matplotlib.use("Agg")
     from vei.experiments.demo_data import demo_interaction
-    from vei.experiments.sweep_runners import set_numba_threads, threads_per_worker
+    from vei.experiments.sweep_runners import threads_per_worker
     from vei.io.scenario import write_scenario
     from vei.recon.pipeline import reconstruct
 
@@ -186,14 +244,12 @@ def main(argv: list[str] | None = None) -> int:
             spec = _spec(args.side)
             n = args.side**2
             rate_engine, size = _engine_rate(scen, spec, workers)
-            rows = []
-            set_numba_threads(1)
-            rows.append(("1 (1 thread)", *_timed_sweep(scen, spec, Path(tmp) / "w1", 1)))
-            set_numba_threads(cpus)
-            rows.append(
-                (f"{workers} (1 thread each)", *_timed_sweep(scen, spec, Path(tmp) / "wn", workers))
-            )
-            rows.append((f"1 ({cpus} threads)", *_timed_sweep(scen, spec, Path(tmp) / "w1t", 1)))
+            side, base = args.side, Path(tmp)
+            rows = [
+                ("1 (1 thread)", *_timed_sweep(scen, side, base / "w1", 1, threads=1)),
+                (f"{workers} (1 thread each)", *_timed_sweep(scen, side, base / "wn", workers)),
+                (f"1 ({cpus} threads)", *_timed_sweep(scen, side, base / "w1t", 1)),
+            ]
             print(f"\n{n} variants ({args.side} x {args.side}), chunks of {size}")
             print(
                 f"{'workers':>20} {'prepare':>8} {'evaluate':>9} {'results':>8} {'post':>6} "
@@ -225,8 +281,7 @@ def main(argv: list[str] | None = None) -> int:
             if speedup < SPEEDUP_TARGET:
                 missed.append("speed-up")
         if args.million:
-            spec = _spec(MILLION_SIDE)
-            wall, res, mem = _timed_sweep(scen, spec, Path(tmp) / "million", workers)
+            wall, res, mem = _timed_sweep(scen, MILLION_SIDE, Path(tmp) / "million", workers)
             n_run = res.n_run
             ok_t, ok_m = wall < MILLION_TARGET_S, mem.total_mb < MILLION_TARGET_MB
             print(f"\n{n_run} variants ({MILLION_SIDE} x {MILLION_SIDE}), {workers} workers")

@@ -67,5 +67,8 @@ def cmdline(pid: int) -> str:
 
 
 def spawned_workers(pid: int) -> list[int]:
-    """Children of ``pid`` started by multiprocessing's spawn method (pool workers)."""
-    return [c for c in children(pid) if "spawn_main" in cmdline(c)]
+    """Children of ``pid`` that are pool workers: started by multiprocessing's spawn method,
+    or forked (the same command line as ``pid``; multiprocessing's resource tracker is
+    spawned with its own)."""
+    mine = cmdline(pid)
+    return [c for c in children(pid) if "spawn_main" in (line := cmdline(c)) or line == mine]

@@ -35,7 +35,8 @@ POOL_SCRIPT = textwrap.dedent(
     from vei.experiments.workers import worker_pool
 
     if __name__ == "__main__":
-        with worker_pool(2, pdeathsig=sys.argv[1] == "1", poll_s=0.2) as pool:
+        with worker_pool(2, pdeathsig=sys.argv[1] == "1", poll_s=0.2,
+                         start_method=sys.argv[2]) as pool:
             futures = [pool.submit(time.sleep, 120) for _ in range(2)]
             print(" ".join(map(str, pool.pids)), flush=True)
             time.sleep(120)
@@ -44,19 +45,21 @@ POOL_SCRIPT = textwrap.dedent(
 
 
 @pytest.mark.parametrize(
-    ("sig", "pdeathsig"),
+    ("sig", "pdeathsig", "method"),
     [
-        (signal.SIGKILL, True),
-        (signal.SIGTERM, True),
-        (signal.SIGKILL, False),  # the portable watchdog alone
-        (signal.SIGTERM, False),
+        (signal.SIGKILL, True, "spawn"),
+        (signal.SIGTERM, True, "spawn"),
+        (signal.SIGKILL, False, "spawn"),  # the portable watchdog alone
+        (signal.SIGTERM, False, "spawn"),
+        (signal.SIGKILL, True, "fork"),  # forked workers (vei sweep's, where safe)
+        (signal.SIGKILL, False, "fork"),
     ],
 )
-def test_workers_end_when_the_parent_is_killed(tmp_path, sig, pdeathsig):
+def test_workers_end_when_the_parent_is_killed(tmp_path, sig, pdeathsig, method):
     script = tmp_path / "pool.py"
     script.write_text(POOL_SCRIPT)
     parent = subprocess.Popen(
-        [sys.executable, str(script), "1" if pdeathsig else "0"],
+        [sys.executable, str(script), "1" if pdeathsig else "0", method],
         cwd=tmp_path,
         stdout=subprocess.PIPE,
         stderr=subprocess.DEVNULL,
@@ -119,6 +122,8 @@ def test_bad_arguments_and_prctl_on_linux():
         WorkerPool(0)
     with pytest.raises(ValueError, match="poll_s"):
         WorkerPool(1, poll_s=0)
+    with pytest.raises(ValueError, match="start_method"):
+        WorkerPool(1, start_method="forkserver")
     with worker_pool(1) as pool:  # asked in a worker, never in the test process itself
         assert pool.submit(set_parent_death_signal, signal.SIGKILL).result() is True
 
@@ -243,3 +248,36 @@ def test_a_failing_initializer_is_an_error_and_leaves_no_worker():
         pass  # int("x") raises ValueError in each worker
     assert time.monotonic() - t0 < 30
     assert not wait_gone(spawned_workers(os.getpid()), timeout_s=5.0)
+
+
+def test_fork_is_safe_only_with_one_thread_and_no_threading_layer():
+    import threading
+
+    from vei.experiments.workers import fork_is_safe
+
+    code = (
+        "import sys\n"
+        "from vei.experiments.workers import fork_is_safe\n"
+        "a = fork_is_safe()\n"
+        "import numpy as np\n"
+        "from vei.sim.engine import simulate\n"
+        "from vei.sim.testing import crossing_scenario\n"
+        "from vei.sim.state import prepare_scenario, VariantParams\n"
+        "from vei.config import case_preset\n"
+        "arrays = prepare_scenario(crossing_scenario())\n"
+        "simulate(arrays, VariantParams.from_case(case_preset('normal-cap'), arrays, 2),\n"
+        "         record='none', kernel='numba')\n"  # numba's threads now run
+        "print(a, fork_is_safe())\n"
+    )
+    run = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
+                         text=True, timeout=300, check=False)  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split() == ["True", "False"]
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait)
+    other.start()
+    try:
+        assert not fork_is_safe()  # a second thread runs here
+    finally:
+        stop.set()
+        other.join()

@@ -305,7 +305,7 @@ def run_sweep(
         del table
         whole = "ego.policy" in spec.names or bool(spec.reconstruction_samples)
         results = read_results(out, columns=None if whole else _post_columns(results_path, spec))
-        crit = _critical_rows(results_path, most_critical(results, k_critical), whole)
+        crit = _critical_rows(results_path, most_critical(results, k_critical), whole, results)
         from vei.io.atomic import write_text
 
         write_text(out / "critical.csv", crit.to_csv(index=False))
@@ -381,14 +381,30 @@ def _post_columns(results_path: Path, spec: SweepSpec) -> list[str]:
     return [c for c in have if c in want]
 
 
-def _critical_rows(results_path: Path, crit: pd.DataFrame, whole: bool) -> pd.DataFrame:
-    """The full rows (every column) of the critical variants ``crit`` (in its order), read
-    by variant id from results.parquet when ``crit`` holds only some columns."""
+def _critical_rows(
+    results_path: Path, crit: pd.DataFrame, whole: bool, results: pd.DataFrame
+) -> pd.DataFrame:
+    """The full rows (every column) of the critical variants ``crit`` (in its order) when
+    ``crit`` holds only some columns: read from results.parquet by their row numbers in
+    ``results`` (the same file read with fewer columns), one row group at a time."""
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
     if whole or crit.empty:
         return crit
-    ids = crit["variant_id"].astype(str).tolist()
-    rows = pd.read_parquet(results_path, filters=[("variant_id", "in", ids)])
-    return rows.set_index("variant_id").loc[ids].reset_index()
+    pos = pd.Index(results["variant_id"]).get_indexer(crit["variant_id"])
+    if np.any(pos < 0):
+        raise RuntimeError("critical variants missing from results.parquet")
+    pf = pq.ParquetFile(results_path)
+    sizes = [pf.metadata.row_group(i).num_rows for i in range(pf.metadata.num_row_groups)]
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    groups = np.searchsorted(starts, pos, side="right") - 1
+    read = {int(g): pf.read_row_group(int(g)) for g in np.unique(groups)}
+    rows = pa.concat_tables(
+        [read[int(g)].slice(int(p - starts[g]), 1) for p, g in zip(pos, groups, strict=True)]
+    )
+    return rows.to_pandas()
 
 
 def _run_jobs(

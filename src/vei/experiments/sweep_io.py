@@ -140,7 +140,7 @@ def write_results(
         try:
             n, written = 0, []
             with atomic_path(target) as tmp:
-                with pq.ParquetWriter(tmp, schema) as writer:
+                with pq.ParquetWriter(tmp, schema, use_dictionary=_dictionary(schema)) as writer:
                     for p in ordered:
                         part = _read_part(p)
                         if np.any(np.diff(part["variant_index"].to_numpy()) <= 0):
@@ -159,8 +159,14 @@ def write_results(
             pass
     whole = assemble_table(out_dir, ids)
     with atomic_path(target) as tmp:
-        pq.write_table(whole, tmp)
+        pq.write_table(whole, tmp, use_dictionary=_dictionary(whole.schema))
     return whole.num_rows
+
+
+def _dictionary(schema: Any) -> list[str]:
+    """Columns worth dictionary-encoding: every column but the variant ids (unique per row:
+    a dictionary of them only costs time)."""
+    return [name for name in schema.names if name != "variant_id"]
 
 
 def assemble_table(out_dir: str | Path, ids: Any = None) -> Any:

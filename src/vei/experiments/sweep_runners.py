@@ -21,6 +21,9 @@ close together. Every fixed cost is paid once per child, not per chunk:
   the chunks need;
 - the children are launched without waiting for them (their imports and initializer run
   while this process prepares a single scenario itself and builds the variants table);
+  they are forked when :func:`vei.experiments.workers.fork_is_safe` (``vei sweep``: this
+  process has run no kernel yet), so they start with its imports (~0.5 s less each),
+  else spawned;
   several scenarios are prepared in the pool, in parallel;
 - each prepared scenario (its ScenarioArrays, possibly MBs) is pickled once into a file of
   a temporary folder; a worker loads it on its first chunk of that scenario and keeps it
@@ -345,10 +348,11 @@ def _runner(engine: str, workers: int, evaluator: Evaluator) -> Iterator[Any]:
     if workers == 1:
         yield _SerialRunner(evaluator)
         return
-    from vei.experiments.workers import WorkerPool
+    from vei.experiments.workers import WorkerPool, fork_is_safe
 
     # Children die with this process (kill -9 included) and ignore Ctrl-C; leaving the
-    # block with an exception (KeyboardInterrupt) kills them at once.
+    # block with an exception (KeyboardInterrupt) kills them at once. Forked where that is
+    # safe (vei sweep: before any kernel ran here): they start with this process's imports.
     threads = threads_per_worker(workers)
     with (
         tempfile.TemporaryDirectory(prefix="vei-sweep-") as scratch,
@@ -358,6 +362,7 @@ def _runner(engine: str, workers: int, evaluator: Evaluator) -> Iterator[Any]:
             initargs=(evaluator, threads),
             wait_ready=False,
             kill_on_exit=True,  # every part is on disk: no wait for the children to exit
+            start_method="fork" if fork_is_safe() else "spawn",
         ) as pool,
     ):
         yield _PoolRunner(evaluator, pool, workers, Path(scratch), threads)

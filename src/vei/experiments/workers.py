@@ -129,6 +129,11 @@ class WorkerPool(ProcessPoolExecutor):
             exception does, instead of waiting for the submitted tasks and for every
             worker to exit (the default): for a caller that has every result it needs
             (a worker still starting is then not waited for either).
+        start_method: 'spawn' (default: a new interpreter that imports what it needs) or
+            'fork' (a copy of this process: its imports and loaded code included, so a
+            worker starts in milliseconds). Fork only where it is safe: Linux, one
+            thread in this process, and no threaded runtime started in it (see
+            :func:`fork_is_safe`).
     Attributes:
         pids: the worker process ids, in the order they became ready (empty before
             :meth:`start`).
@@ -144,12 +149,15 @@ class WorkerPool(ProcessPoolExecutor):
         pdeathsig: bool = True,
         wait_ready: bool = True,
         kill_on_exit: bool = False,
+        start_method: str = "spawn",
     ) -> None:
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
             raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
         if not poll_s > 0:
             raise ValueError(f"poll_s must be > 0, got {poll_s!r}")
-        ctx = mp.get_context("spawn")
+        if start_method not in ("spawn", "fork"):
+            raise ValueError(f"start_method must be 'spawn' or 'fork', got {start_method!r}")
+        ctx = mp.get_context(start_method)
         self._ready = ctx.Queue()
         super().__init__(
             max_workers=workers,
@@ -244,6 +252,17 @@ class WorkerPool(ProcessPoolExecutor):
         return False
 
 
+def fork_is_safe() -> bool:
+    """True when worker processes may be forked from this process: on Linux, with this
+    thread the only one running and numba's threading layer not started yet (GNU OpenMP,
+    numba's layer on Linux, hangs in a child forked after its threads ran; other threads'
+    locks would be copied held)."""
+    if not sys.platform.startswith("linux") or threading.active_count() != 1:
+        return False
+    parallel = sys.modules.get("numba.np.ufunc.parallel")
+    return parallel is None or not getattr(parallel, "_is_initialized", True)
+
+
 @contextlib.contextmanager
 def worker_pool(
     workers: int,
@@ -252,6 +271,7 @@ def worker_pool(
     initargs: tuple = (),
     poll_s: float = DEFAULT_POLL_S,
     pdeathsig: bool = True,
+    start_method: str = "spawn",
 ) -> Iterator[WorkerPool]:
     """``with worker_pool(n) as pool``: a started :class:`WorkerPool` (same arguments).
 
@@ -259,8 +279,9 @@ def worker_pool(
     included) kills the workers at once and re-raises.
     """
     with WorkerPool(
-        workers, initializer=initializer, initargs=initargs, poll_s=poll_s, pdeathsig=pdeathsig
-    ) as pool:
+        workers, initializer=initializer, initargs=initargs, poll_s=poll_s, pdeathsig=pdeathsig,
+        start_method=start_method,
+    ) as pool:  # fmt: skip
         yield pool
 
 
