@@ -157,6 +157,8 @@ def _timed_sweep(
     if run.returncode != 0:
         raise RuntimeError(f"sweep process failed: {run.stderr[-2000:]}")
     doc = json.loads(run.stdout.strip().splitlines()[-1])
+    if "results" not in doc["timings"]:
+        raise RuntimeError(f"the sweep in {out} did not complete: {doc}; {run.stderr[-2000:]}")
     return float(doc["wall"]), _Run(doc), mem
 
 

@@ -203,3 +203,27 @@ def test_phase_timings_and_throughput(tmp_path):
     assert os.getpid() in pids and len(pids) <= 2
     again = run_sweep(scen, _spec(), out, workers=2, chunk_size=7, evaluator=FakeEvaluator())
     assert again.n_run == 0 and math.isnan(again.variants_per_s)  # nothing ran this time
+
+
+class _FailingWarmUp(FakeEvaluator):
+    """A fake whose workers fail while starting (their warm-up raises)."""
+
+    def warm_up(self, load_kernel: bool = False) -> None:
+        raise RuntimeError("warm-up failed on purpose")
+
+
+def test_a_worker_that_fails_to_start_stops_the_sweep_and_loses_nothing(tmp_path):
+    """The sweep's process computes chunks itself, but a child that dies while starting
+    is an error (not chunks silently left undone); a rerun completes the sweep."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    import pytest
+
+    (scen,) = fake_scenarios(tmp_path, ["one"])
+    out = tmp_path / "out"
+    with pytest.raises(BrokenProcessPool):
+        run_sweep(scen, _spec(), out, workers=2, chunk_size=5, evaluator=_FailingWarmUp())
+    assert not (out / "results.parquet").exists()
+    res = run_sweep(scen, _spec(), out, workers=2, chunk_size=5, evaluator=FakeEvaluator())
+    assert res.n_run + res.n_skipped == N
+    assert len(read_results(out)) == N

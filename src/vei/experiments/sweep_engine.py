@@ -187,6 +187,12 @@ def variant_params(
     return params if np.array_equal(perm, np.arange(b)) else params.take(inverse)
 
 
+def _fused_metrics() -> tuple[str, ...]:
+    from vei.metrics.fused_layout import FUSED_METRICS
+
+    return FUSED_METRICS
+
+
 class EngineEvaluator:
     """Evaluates sweep chunks with the built-in batched engine and the metrics registry.
 
@@ -272,19 +278,36 @@ class EngineEvaluator:
         }
         return summarize(trace, names=self.metrics, params=run_params)
 
-    def warm_up(self) -> None:
+    def warm_up(self, load_kernel: bool = False) -> None:
         """Import the modules :meth:`evaluate` and a part file's writer need (a sweep's
-        pool workers call it while their parent prepares the scenario)."""
+        pool workers call it while their parent prepares the scenario).
+
+        Args:
+            load_kernel: also load the compiled kernel's machine code (~0.3 s, paid by the
+                first chunk otherwise) by scoring one variant of a small synthetic scene
+                (:func:`vei.sim.testing.crossing_scenario`): for a forked worker, which
+                has nothing else to do meanwhile.
+        """
         import pyarrow.parquet  # noqa: F401
 
         import vei.metrics.timeseries  # noqa: F401
         import vei.sim.engine  # noqa: F401
         from vei.sim import kernel
 
-        if kernel.available():
-            import vei.metrics.fused  # noqa: F401
+        if not kernel.available():
+            return
+        import vei.metrics.fused  # noqa: F401
 
-            kernel._build()
+        kernel._build()
+        if load_kernel and all(n in _fused_metrics() for n in self.metrics):
+            from vei.config import case_preset
+            from vei.sim.engine import simulate_metrics
+            from vei.sim.state import VariantParams, prepare_scenario
+            from vei.sim.testing import crossing_scenario
+
+            arrays = prepare_scenario(crossing_scenario(), self.sim)
+            one = VariantParams.from_case(case_preset("normal-cap"), arrays, 1)
+            simulate_metrics(arrays, one, names=self.metrics, kernel=self.sim.kernel)
 
     def scenario_id(self, prepared: PreparedScenario) -> str:
         """The scenario's id."""

@@ -138,9 +138,10 @@ def _prepare_job(evaluator: Evaluator, scenario_dir: str) -> Any:
 # --------------------------------------------------------------------------- pool workers
 
 
-def _init_sweep_worker(evaluator: Evaluator, numba_threads: int) -> None:
+def _init_sweep_worker(evaluator: Evaluator, numba_threads: int, forked: bool = False) -> None:
     """Initializer of a sweep's pool worker: keep the evaluator, set the numba threads,
-    and let the evaluator import what its chunks need (its optional ``warm_up()``), while
+    and let the evaluator import what its chunks need (its optional
+    ``warm_up(load_kernel=forked)``; a forked worker loads the compiled kernel too) while
     the parent prepares the scenario."""
     if numba_threads > 0:
         set_numba_threads(numba_threads)
@@ -148,7 +149,7 @@ def _init_sweep_worker(evaluator: Evaluator, numba_threads: int) -> None:
     _WORKER.update(evaluator=evaluator, prepared=OrderedDict())
     warm_up = getattr(evaluator, "warm_up", None)
     if callable(warm_up):
-        warm_up()
+        warm_up(load_kernel=forked)
 
 
 def _cache(key: str, prepared: Any) -> Any:
@@ -234,6 +235,7 @@ class _PoolRunner:
         finished: queue.SimpleQueue = queue.SimpleQueue()
         in_flight = [0]
         stopped = threading.Event()
+        errors: list[BaseException] = []
 
         def take() -> Job | None:
             with lock:
@@ -256,9 +258,10 @@ class _PoolRunner:
                 in_flight[0] += 1
             try:
                 f = self.pool.submit(_pool_job, d, self.files[d], chunk, str(part))
-            except RuntimeError:  # the pool shut down meanwhile (the chunk stays to do)
+            except RuntimeError as exc:  # a broken pool (a child died) or one shut down
                 with lock:
                     in_flight[0] -= 1
+                errors.append(exc)  # raised by the loop below: the chunk was not run
                 return
             f.add_done_callback(finished.put)
             f.add_done_callback(feed)
@@ -274,6 +277,8 @@ class _PoolRunner:
             for _ in range(2 * self.children):  # one computing, one queued per child
                 feed()
             while True:
+                if errors:
+                    raise errors[0]
                 while not finished.empty():
                     with lock:
                         in_flight[0] -= 1
@@ -286,6 +291,8 @@ class _PoolRunner:
                 with lock:
                     busy = in_flight[0]
                 if busy == 0:
+                    if errors:
+                        raise errors[0]
                     return
                 with lock:
                     in_flight[0] -= 1
@@ -354,15 +361,16 @@ def _runner(engine: str, workers: int, evaluator: Evaluator) -> Iterator[Any]:
     # block with an exception (KeyboardInterrupt) kills them at once. Forked where that is
     # safe (vei sweep: before any kernel ran here): they start with this process's imports.
     threads = threads_per_worker(workers)
+    method = "fork" if fork_is_safe() else "spawn"
     with (
         tempfile.TemporaryDirectory(prefix="vei-sweep-") as scratch,
         WorkerPool(
             workers - 1,
             initializer=_init_sweep_worker,
-            initargs=(evaluator, threads),
+            initargs=(evaluator, threads, method == "fork"),
             wait_ready=False,
             kill_on_exit=True,  # every part is on disk: no wait for the children to exit
-            start_method="fork" if fork_is_safe() else "spawn",
+            start_method=method,
         ) as pool,
     ):
         yield _PoolRunner(evaluator, pool, workers, Path(scratch), threads)
