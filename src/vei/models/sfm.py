@@ -23,7 +23,6 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from vei.boxes import closest_point_on_box
 from vei.models import sfm_core as core
 
 FloatArray = npt.NDArray[np.float64]
@@ -108,19 +107,15 @@ def influential_point(
     Returns:
         (qx_m, qy_m) [...].
     """
-    fb = np.asarray(front_bumper, dtype=bool)
-    if fb.ndim == 0 and bool(fb):
-        hl = 0.5 * np.asarray(ego_length_m, dtype=np.float64)
-        return ego_x_m + hl * np.cos(ego_yaw_rad), ego_y_m + hl * np.sin(ego_yaw_rad)
-    qx, qy = closest_point_on_box(
-        px_m, py_m, ego_x_m, ego_y_m, ego_yaw_rad, ego_length_m, ego_width_m
-    )
-    if fb.ndim == 0 or not fb.any():
-        return qx, qy
-    hl = 0.5 * np.asarray(ego_length_m, dtype=np.float64)
-    fx = ego_x_m + hl * np.cos(ego_yaw_rad)
-    fy = ego_y_m + hl * np.sin(ego_yaw_rad)
-    return np.where(fb, fx, qx), np.where(fb, fy, qy)
+    qx, qy = core.influential_point_core(
+        np.asarray(px_m, dtype=np.float64), np.asarray(py_m, dtype=np.float64),
+        np.asarray(ego_x_m, dtype=np.float64), np.asarray(ego_y_m, dtype=np.float64),
+        np.cos(ego_yaw_rad), np.sin(ego_yaw_rad),
+        0.5 * np.asarray(ego_length_m, dtype=np.float64),
+        0.5 * np.asarray(ego_width_m, dtype=np.float64),
+        np.asarray(front_bumper, dtype=bool),
+    )  # fmt: skip
+    return np.asarray(qx), np.asarray(qy)
 
 
 def vehicle_force(
@@ -146,27 +141,57 @@ def vehicle_force(
     Returns:
         (fx_n, fy_n) [...] force [N].
     """
-    dx = np.subtract(px_m, qx_m, dtype=np.float64)
-    dy = np.subtract(py_m, qy_m, dtype=np.float64)
-    d = np.sqrt(dx * dx + dy * dy)
-    mag = np.asarray(a_veh_n, dtype=np.float64) * np.exp(-np.asarray(b_veh_per_m) * d)
-    tiny = d < 1e-9
+    mag, nx, ny, tiny = core.repulsion_core(
+        np.asarray(px_m, dtype=np.float64), np.asarray(py_m, dtype=np.float64),
+        np.asarray(qx_m, dtype=np.float64), np.asarray(qy_m, dtype=np.float64),
+        np.asarray(a_veh_n, dtype=np.float64), np.asarray(b_veh_per_m, dtype=np.float64),
+    )  # fmt: skip
     if np.any(tiny):
         if ego_x_m is None or ego_y_m is None or ego_yaw_rad is None:
-            ux, uy = np.ones_like(dx), np.zeros_like(dy)
+            ux, uy = np.ones_like(nx), np.zeros_like(ny)
         else:
-            ex = np.subtract(px_m, ego_x_m, dtype=np.float64)
-            ey = np.subtract(py_m, ego_y_m, dtype=np.float64)
-            de = np.sqrt(ex * ex + ey * ey)
-            ok = de > 1e-9
-            ux = np.where(ok, ex / np.where(ok, de, 1.0), np.cos(ego_yaw_rad))
-            uy = np.where(ok, ey / np.where(ok, de, 1.0), np.sin(ego_yaw_rad))
-        safe = np.where(tiny, 1.0, d)
-        nx = np.where(tiny, ux, dx / safe)
-        ny = np.where(tiny, uy, dy / safe)
-    else:
-        nx, ny = dx / d, dy / d
-    return mag * nx, mag * ny
+            ux, uy = core.away_from_centre_core(
+                np.asarray(px_m, dtype=np.float64), np.asarray(py_m, dtype=np.float64),
+                np.asarray(ego_x_m, dtype=np.float64), np.asarray(ego_y_m, dtype=np.float64),
+                np.cos(ego_yaw_rad), np.sin(ego_yaw_rad),
+            )  # fmt: skip
+        nx, ny = np.where(tiny, ux, nx), np.where(tiny, uy, ny)
+    return np.asarray(mag * nx), np.asarray(mag * ny)
+
+
+def cap_force(fx_n: ArrayLike, fy_n: ArrayLike, fmax_n: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """The rider's force capped at the magnitude fmax (max_accel m) [N]: scaled by
+    :func:`vei.models.sfm_core.cap_factor_core` where |F| > fmax, unchanged elsewhere.
+
+    Args:
+        fx_n, fy_n: force [...] (N). fmax_n: cap [...] (N, > 0).
+    Returns:
+        (fx_n, fy_n) [...].
+    """
+    fx, fy = np.asarray(fx_n, dtype=np.float64), np.asarray(fy_n, dtype=np.float64)
+    fmag = np.sqrt(fx * fx + fy * fy)
+    scale = np.where(fmag > fmax_n, core.cap_factor_core(fmag, fmax_n), 1.0)
+    return fx * scale, fy * scale
+
+
+def cap_speed(
+    x0_m: ArrayLike, y0_m: ArrayLike, px_m: ArrayLike, py_m: ArrayLike, vx_mps: ArrayLike,
+    vy_mps: ArrayLike, speed_mps: ArrayLike, vmax_mps: ArrayLike, dt_s: float,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:  # fmt: skip
+    """After a step from (x0, y0) to (px, py) [m] with velocity (vx, vy) and speed [m/s]:
+    the velocity capped at vmax [m/s] (:func:`vei.models.sfm_core.cap_factor_core`) and,
+    where capped, the position stepped again with it (``p0 + v dt``, as the step).
+
+    Returns:
+        (px_m, py_m, vx_mps, vy_mps, speed_mps) [...].
+    """
+    speed = np.asarray(speed_mps, dtype=np.float64)
+    over = speed > vmax_mps
+    sc = np.where(over, core.cap_factor_core(speed, vmax_mps), 1.0)
+    vx, vy, sp = np.asarray(vx_mps) * sc, np.asarray(vy_mps) * sc, speed * sc
+    px = np.where(over, np.asarray(x0_m) + vx * dt_s, px_m)
+    py = np.where(over, np.asarray(y0_m) + vy * dt_s, py_m)
+    return px, py, vx, vy, sp
 
 
 def point_mass_step(

@@ -1,5 +1,5 @@
 """The rider's social-force laws shared by both engines: desired velocity, destination force,
-semi-implicit Euler step.
+semi-implicit Euler step, the ego's repulsion, the limits' factor.
 
 Like :mod:`vei.models.ego_core`: NumPy ufuncs, arithmetic and
 :func:`vei.models.ego_core.select` only, so that the same source runs vectorised on arrays
@@ -7,11 +7,14 @@ Like :mod:`vei.models.ego_core`: NumPy ufuncs, arithmetic and
 scalars (:mod:`vei.sim._kernel_sfm`, the compiled kernel's primary and extra riders), in the
 compiled kernel's order of operations (pinned by tests/sim/test_kernel_regression.py).
 
-The vehicle repulsion, the rider-rider repulsion and the force / speed limits stay written
-twice (:mod:`vei.models.sfm` and :mod:`vei.sim._kernel_sfm` / ``_kernel_scalar``): the
-compiled kernel skips their work by branches (no exp beyond the cutoff, no rescaling
-division unless a limit binds) that a branch-free form would put on every step's critical
-path (a sqrt and a division before the velocity update).
+The ego's repulsion (influential point, magnitude and direction) and the force / speed
+limits are here too. Their rare cases are separate functions that the caller gates: the
+direction away from the ego's centre where the rider is on the influential point
+(:func:`away_from_centre_core`: the compiled kernel calls it behind ``if tiny``, the NumPy
+step where any variant needs it), and the limits' factor (:func:`cap_factor_core`, taken
+where a limit binds: behind a branch in the kernel, by ``np.where`` in the NumPy step).
+The rider-rider repulsion stays written twice (:func:`vei.models.sfm.rider_force` and
+``_kernel_scalar``): the kernel skips its exp beyond the cutoff by a branch.
 
 Units: positions [m], velocities [m/s], forces [N], masses [kg], times [s].
 """
@@ -22,7 +25,11 @@ from typing import Any
 
 import numpy as np
 
-from vei.models.ego_core import select
+from vei.models.ego_core import maximum, minimum, select
+
+#: Distance below which a direction is undefined [m] (the rider on the influential point,
+#: or on the ego's centre).
+TINY_M = 1e-9
 
 
 def desired_velocity_core(
@@ -54,3 +61,57 @@ def point_mass_core(
     vx = vx_mps + fx_n * inv_m * dt_s
     vy = vy_mps + fy_n * inv_m * dt_s
     return px_m + vx * dt_s, py_m + vy * dt_s, vx, vy
+
+
+def cap_factor_core(magnitude: Any, cap: Any) -> Any:
+    """The factor ``cap / magnitude`` that brings a vector of ``magnitude`` > ``cap`` (> 0)
+    down to the cap: the rider's force cap (max_accel m [N]) and speed cap [m/s]. Callers
+    apply it only where the magnitude exceeds the cap (elsewhere the vector is unchanged);
+    a zero magnitude gives ``cap`` (never used: it cannot exceed a positive cap)."""
+    return cap / select(magnitude > 0.0, magnitude, 1.0)
+
+
+def influential_point_core(
+    px_m: Any, py_m: Any, ex_m: Any, ey_m: Any, cos_yaw: Any, sin_yaw: Any,
+    half_length_m: Any, half_width_m: Any, front_bumper: Any,
+) -> tuple[Any, Any]:  # fmt: skip
+    """The ego's point that repels a rider at p [m]: the centre of the front bumper
+    (``front_bumper``) or the point of the ego's box (centre e, heading (cos, sin), half
+    length / width [m]) closest to p. Returns (qx, qy) [m]."""
+    ddx = px_m - ex_m
+    ddy = py_m - ey_m
+    lx = minimum(maximum(ddx * cos_yaw + ddy * sin_yaw, -half_length_m), half_length_m)
+    ly = minimum(maximum(-ddx * sin_yaw + ddy * cos_yaw, -half_width_m), half_width_m)
+    lx = select(front_bumper, half_length_m, lx)
+    ly = select(front_bumper, 0.0, ly)
+    return ex_m + lx * cos_yaw - ly * sin_yaw, ey_m + lx * sin_yaw + ly * cos_yaw
+
+
+def repulsion_core(
+    px_m: Any, py_m: Any, qx_m: Any, qy_m: Any, a_n: Any, b_per_m: Any
+) -> tuple[Any, Any, Any, Any]:
+    """``a exp(-b d)`` [N] and the unit vector from q to p, d = |p - q| [m].
+
+    Returns (magnitude [N], nx, ny, tiny): where ``tiny`` (d < :data:`TINY_M`) the
+    direction is undefined (returned as (dx, dy)) and the caller replaces it
+    (:func:`away_from_centre_core`).
+    """
+    dx = px_m - qx_m
+    dy = py_m - qy_m
+    d = np.sqrt(dx * dx + dy * dy)
+    tiny = d < TINY_M
+    safe = select(tiny, 1.0, d)
+    return a_n * np.exp(-b_per_m * d), dx / safe, dy / safe, tiny
+
+
+def away_from_centre_core(
+    px_m: Any, py_m: Any, ex_m: Any, ey_m: Any, cos_yaw: Any, sin_yaw: Any
+) -> tuple[Any, Any]:
+    """Unit vector from the ego's centre e to p [m], or the ego's heading (cos, sin) where
+    they coincide: the direction of the ego's repulsion on a rider inside its box."""
+    ex = px_m - ex_m
+    ey = py_m - ey_m
+    de = np.sqrt(ex * ex + ey * ey)
+    ok = de > TINY_M
+    safe = select(ok, de, 1.0)
+    return select(ok, ex / safe, cos_yaw), select(ok, ey / safe, sin_yaw)

@@ -1,10 +1,11 @@
 """Social-force pieces of the compiled kernel: path-following drive, ego repulsion, limits.
 
 Imported only when numba is used. For one rider of one variant: the desired velocity,
-destination force and Euler step are :mod:`vei.models.sfm_core`'s functions compiled on
-scalars (the NumPy step runs them on arrays); the goal on the path, the ego repulsion and
-the limits follow :mod:`vei.models.sfm` formula for formula (see sfm_core for why they
-stay written twice). Shared by the
+destination force, Euler step, the ego's repulsion and the limits' factor are
+:mod:`vei.models.sfm_core`'s functions compiled on scalars (the NumPy step runs them on
+arrays); this module only gates them by branches (a limit where it binds, the direction
+from the ego's centre when the rider is on the source point) and follows the goal on the
+rider's path. Shared by the
 primary rider (:mod:`vei.sim._kernel_numba`) and the extra riders
 (:mod:`vei.sim._kernel_riders`), inlined into the kernel's loop (``inline="always"``).
 SI units (m, s, m/s, N, kg).
@@ -24,6 +25,10 @@ _inline = numba.njit(cache=True, inline="always")
 desired_velocity = _inline(core.desired_velocity_core)
 destination_force = _inline(core.destination_force_core)
 point_mass = _inline(core.point_mass_core)
+cap_factor = _inline(core.cap_factor_core)
+influential_point = _inline(core.influential_point_core)
+repulsion = _inline(core.repulsion_core)
+away_from_centre = _inline(core.away_from_centre_core)
 
 
 @numba.njit(cache=True, inline="always")
@@ -52,7 +57,7 @@ def drive_force(x0, y0, vx0, vy0, prog0, rpath, ps0, pds, pn, plen, look, sigma,
 
 @numba.njit(cache=True, inline="always")
 def vehicle_force(x0, y0, ex, ey, eyaw, Le, We, front, aveh, bveh):  # type: ignore[no-untyped-def]
-    """Repulsion of the ego's box on a rider at (x0, y0) [m].
+    """Repulsion of the ego's box on a rider at (x0, y0) [m] (sfm_core's laws).
 
     Args: ego centre [m], yaw [rad], length Le and width We [m]; front: from the front
     bumper's centre (else from the closest point of the box); aveh [N], bveh [1/m].
@@ -60,28 +65,10 @@ def vehicle_force(x0, y0, ex, ey, eyaw, Le, We, front, aveh, bveh):  # type: ign
     (from the ego's centre, or along the ego's heading, when d = 0).
     """
     c, sn = math.cos(eyaw), math.sin(eyaw)
-    hl, hw = 0.5 * Le, 0.5 * We
-    if front:
-        bx = ex + hl * c
-        by = ey + hl * sn
-    else:
-        ddx, ddy = x0 - ex, y0 - ey
-        lx = min(max(ddx * c + ddy * sn, -hl), hl)
-        ly = min(max(-ddx * sn + ddy * c, -hw), hw)
-        bx = ex + lx * c - ly * sn
-        by = ey + lx * sn + ly * c
-    dx2, dy2 = x0 - bx, y0 - by
-    d = math.sqrt(dx2 * dx2 + dy2 * dy2)
-    mag = aveh * math.exp(-bveh * d)
-    if d < 1e-9:
-        e2x, e2y = x0 - ex, y0 - ey
-        de = math.sqrt(e2x * e2x + e2y * e2y)
-        if de > 1e-9:
-            nx_, ny_ = e2x / de, e2y / de
-        else:
-            nx_, ny_ = c, sn
-    else:
-        nx_, ny_ = dx2 / d, dy2 / d
+    bx, by = influential_point(x0, y0, ex, ey, c, sn, 0.5 * Le, 0.5 * We, front)
+    mag, nx_, ny_, tiny = repulsion(x0, y0, bx, by, aveh, bveh)
+    if tiny:  # the rider on the source point: rare, so behind a branch here
+        nx_, ny_ = away_from_centre(x0, y0, ex, ey, c, sn)
     return mag * nx_, mag * ny_
 
 
@@ -97,13 +84,12 @@ def integrate(x0, y0, vx0, vy0, fx, fy, m, amax, vmax, dt, limits):  # type: ign
         fmag = math.sqrt(fx * fx + fy * fy)
         fmax = amax * m
         if fmag > fmax:
-            sc = fmax / fmag if fmag > 0 else 1.0
+            sc = cap_factor(fmag, fmax)
             fx, fy = fx * sc, fy * sc
     x2, y2, vx2, vy2 = point_mass(x0, y0, vx0, vy0, fx, fy, m, dt)
     sp2 = math.sqrt(vx2 * vx2 + vy2 * vy2)
-    if limits:
-        if sp2 > vmax:
-            sc = vmax / sp2 if sp2 > 0 else 1.0
-            vx2, vy2, sp2 = vx2 * sc, vy2 * sc, sp2 * sc
-            x2, y2 = x0 + vx2 * dt, y0 + vy2 * dt
+    if limits and sp2 > vmax:
+        sc = cap_factor(sp2, vmax)
+        vx2, vy2, sp2 = vx2 * sc, vy2 * sc, sp2 * sc
+        x2, y2 = x0 + vx2 * dt, y0 + vy2 * dt
     return x2, y2, vx2, vy2, sp2

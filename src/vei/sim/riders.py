@@ -446,18 +446,10 @@ def _sfm_extra(
     rx_, ry_ = repulsion(x0, y0, float(ex.radius_m[j]), ps, sources + peds)
     fx, fy = fx + rx_, fy + ry_
     mass = ps.mass_kg
-    fmag = np.sqrt(fx * fx + fy * fy)
-    fmax = ps.max_accel_mps2 * mass
-    scale = np.where(fmag > fmax, fmax / np.where(fmag > 0, fmag, 1.0), 1.0)
-    fx, fy = fx * scale, fy * scale
+    fx, fy = sfm_model.cap_force(fx, fy, ps.max_accel_mps2 * mass)
     nx, ny, nvx, nvy = sfm_model.point_mass_step(x0, y0, vx0, vy0, fx, fy, mass, dt)
     nsp = np.sqrt(nvx * nvx + nvy * nvy)
-    over = nsp > vmax
-    if over.any():
-        sc = np.where(over, vmax / np.where(nsp > 0, nsp, 1.0), 1.0)
-        nvx, nvy, nsp = nvx * sc, nvy * sc, nsp * sc
-        nx = np.where(over, x0 + nvx * dt, nx)
-        ny = np.where(over, y0 + nvy * dt, ny)
+    nx, ny, nvx, nvy, nsp = sfm_model.cap_speed(x0, y0, nx, ny, nvx, nvy, nsp, vmax, dt)
     nyaw = np.where(nsp > 0.05, np.arctan2(nvy, nvx), st.extra_yaw_rad[sel, j])
     arrived = (nx - rp.end_x_m) ** 2 + (ny - rp.end_y_m) ** 2 <= np.square(ps.arrive_radius_m)
     leaving = arrived & (t_new > ex.tracks[j].t_end_s + _SPAN_EPS)

@@ -545,17 +545,13 @@ def _social_force_update(
         fx, fy = fx + hx, fy + hy
     mass = g(p.mass_kg, sel)
     if blk.rider_limits:
-        fmag = np.sqrt(fx * fx + fy * fy)
-        fmax = g(p.max_accel_mps2, sel) * mass
-        scale = np.where(fmag > fmax, fmax / np.where(fmag > 0, fmag, 1.0), 1.0)
-        fx, fy = fx * scale, fy * scale
+        fx, fy = sfm_model.cap_force(fx, fy, g(p.max_accel_mps2, sel) * mass)
     nx, ny, nvx, nvy = sfm_model.point_mass_step(x0, y0, vx0, vy0, fx, fy, mass, dt)
     nsp = np.sqrt(nvx * nvx + nvy * nvy)
     if blk.rider_limits:
-        vmax = g(p.max_speed_mps, sel)
-        sc = np.where(nsp > vmax, vmax / np.where(nsp > 0, nsp, 1.0), 1.0)
-        nvx, nvy, nsp = nvx * sc, nvy * sc, nsp * sc
-        nx, ny = x0 + nvx * dt, y0 + nvy * dt
+        nx, ny, nvx, nvy, nsp = sfm_model.cap_speed(
+            x0, y0, nx, ny, nvx, nvy, nsp, g(p.max_speed_mps, sel), dt
+        )
     nyaw = np.where(nsp > 0.05, np.arctan2(nvy, nvx), g(st.rider_yaw_rad, sel))
     # Leaves once at the final point of its path and the recording's span is over.
     fxe, fye = float(rp.end_x_m), float(rp.end_y_m)
