@@ -6,7 +6,7 @@ executor evaluates it, joins the metrics to the variant rows and writes the part
 (atomically); :meth:`run` yields the number of rows of each part once it is on disk.
 
 With ``workers`` = N > 1, N processes evaluate chunks: the sweep's own process and a pool
-of N - 1 spawned children. The sweep's process has the scenario prepared and the kernel
+of N - 1 children (forked or spawned, below). The sweep's process has the scenario prepared and the kernel
 loaded already, so it computes from the first chunk on while the children start, and
 one process start fewer is paid; each child is handed its next chunk from the pool's
 manager thread the moment it finishes one (the compiled kernel releases the GIL, so this
@@ -17,8 +17,8 @@ close together. Every fixed cost is paid once per child, not per chunk:
 - the evaluator reaches each child once (the pool's initializer), with the number of
   numba threads of each process (:func:`threads_per_worker`: the cores shared out, so two
   workers on two cores run one thread each instead of fighting over both; the sweep's
-  process uses as many while it computes), and its optional ``warm_up()`` imports what
-  the chunks need;
+  process uses as many while it computes), and its optional ``warm_up(load_kernel)``
+  imports what the chunks need (a forked child also loads the compiled kernel);
 - the children are launched without waiting for them (their imports and initializer run
   while this process prepares a single scenario itself and builds the variants table);
   they are forked when :func:`vei.experiments.workers.fork_is_safe` (``vei sweep``: this
@@ -202,9 +202,10 @@ class _SerialRunner:
 
 class _PoolRunner:
     """``workers`` processes evaluate chunks: this one and a pool of ``workers - 1``
-    spawned processes (module docstring). This process hands every child up to 2 chunks
-    at a time and evaluates the next chunk itself while they compute: no core waits while
-    the children start, and one process start fewer is paid."""
+    children (module docstring). Every child has up to 2 chunks at a time (one computing,
+    one queued), refilled as each finishes; this process evaluates the next chunk itself
+    meanwhile: no core waits while the children start, and one process start fewer is
+    paid."""
 
     def __init__(
         self, evaluator: Evaluator, pool: Any, workers: int, scratch: Path, threads: int
@@ -250,12 +251,12 @@ class _PoolRunner:
                 done is not None and (done.cancelled() or done.exception() is not None)
             ):
                 return
-            job = take()
-            if job is None:
-                return
-            d, chunk, part = job
-            with lock:
+            with lock:  # taken and counted at once, so the loop below never misses it
+                job = next(it, None)
+                if job is None:
+                    return
                 in_flight[0] += 1
+            d, chunk, part = job
             try:
                 f = self.pool.submit(_pool_job, d, self.files[d], chunk, str(part))
             except RuntimeError as exc:  # a broken pool (a child died) or one shut down
