@@ -136,13 +136,27 @@ def closest_point_on_box(
     Returns:
         (qx_m, qy_m) [...]: the closest point; equals the point itself when it lies inside.
     """
-    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
-    dx = np.subtract(px_m, cx_m, dtype=np.float64)
-    dy = np.subtract(py_m, cy_m, dtype=np.float64)
-    hl, hw = 0.5 * np.asarray(length_m), 0.5 * np.asarray(width_m)
-    lx = np.clip(dx * c + dy * s, -hl, hl)
-    ly = np.clip(-dx * s + dy * c, -hw, hw)
-    return cx_m + lx * c - ly * s, cy_m + lx * s + ly * c
+    return closest_point_core(
+        np.asarray(px_m, dtype=np.float64), np.asarray(py_m, dtype=np.float64),
+        np.asarray(cx_m, dtype=np.float64), np.asarray(cy_m, dtype=np.float64),
+        np.cos(yaw_rad), np.sin(yaw_rad),
+        0.5 * np.asarray(length_m, dtype=np.float64), 0.5 * np.asarray(width_m, dtype=np.float64),
+    )  # fmt: skip
+
+
+def closest_point_core(px, py, cx, cy, c, s, hl, hw):  # type: ignore[no-untyped-def]
+    """:func:`closest_point_on_box` on float64 arrays or scalars, the box given by its
+    centre (cx, cy) [m], heading (c, s) = (cos, sin) and half length / width hl, hw [m].
+
+    NumPy ufuncs only, so that the same source runs vectorised on arrays and compiled by
+    numba on scalars (the compiled kernel's rider repulsion, through
+    :func:`vei.models.sfm_core.influential_point_core`). Returns (qx, qy) [m].
+    """
+    dx = px - cx
+    dy = py - cy
+    lx = np.minimum(np.maximum(dx * c + dy * s, -hl), hl)
+    ly = np.minimum(np.maximum(-dx * s + dy * c, -hw), hw)
+    return cx + lx * c - ly * s, cy + lx * s + ly * c
 
 
 def box_gap(

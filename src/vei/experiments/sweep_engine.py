@@ -187,12 +187,6 @@ def variant_params(
     return params if np.array_equal(perm, np.arange(b)) else params.take(inverse)
 
 
-def _fused_metrics() -> tuple[str, ...]:
-    from vei.metrics.fused_layout import FUSED_METRICS
-
-    return FUSED_METRICS
-
-
 class EngineEvaluator:
     """Evaluates sweep chunks with the built-in batched engine and the metrics registry.
 
@@ -297,9 +291,10 @@ class EngineEvaluator:
         if not kernel.available():
             return
         import vei.metrics.fused  # noqa: F401
+        from vei.metrics.fused_layout import FUSED_METRICS
 
         kernel._build()
-        if load_kernel and all(n in _fused_metrics() for n in self.metrics):
+        if load_kernel and all(n in FUSED_METRICS for n in self.metrics):
             from vei.config import case_preset
             from vei.sim.engine import simulate_metrics
             from vei.sim.state import VariantParams, prepare_scenario

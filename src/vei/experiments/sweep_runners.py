@@ -238,9 +238,13 @@ class _PoolRunner:
         stopped = threading.Event()
         errors: list[BaseException] = []
 
-        def take() -> Job | None:
+        def take(for_child: bool) -> Job | None:
+            # Taken and (for a child) counted at once, so the loop below never misses it.
             with lock:
-                return next(it, None)
+                job = next(it, None)
+                if job is not None and for_child:
+                    in_flight[0] += 1
+                return job
 
         def feed(done: Any = None) -> None:
             # Runs here and in the pool's manager thread (a child's chunk is done): the
@@ -251,11 +255,9 @@ class _PoolRunner:
                 done is not None and (done.cancelled() or done.exception() is not None)
             ):
                 return
-            with lock:  # taken and counted at once, so the loop below never misses it
-                job = next(it, None)
-                if job is None:
-                    return
-                in_flight[0] += 1
+            job = take(for_child=True)
+            if job is None:
+                return
             d, chunk, part = job
             try:
                 f = self.pool.submit(_pool_job, d, self.files[d], chunk, str(part))
@@ -284,7 +286,7 @@ class _PoolRunner:
                     with lock:
                         in_flight[0] -= 1
                     yield finished.get().result()
-                job = take()
+                job = take(for_child=False)
                 if job is not None:  # this process's own chunk
                     d, chunk, part = job
                     yield _write_part(part, evaluate_rows(self.evaluator, prepared[d], chunk))

@@ -18,7 +18,7 @@ import pandas as pd
 
 from vei.errors import ConfigError
 from vei.metrics.config import MetricsConfig
-from vei.metrics.severity import SIDES, STRIKING, injury_risk_of_speed
+from vei.metrics.severity import SIDES, STRIKING, injury_risk_at_impact
 
 #: The scalar metrics computed here, in the order of a fused output row.
 FUSED_METRICS: tuple[str, ...] = (
@@ -72,7 +72,7 @@ def metrics_frame(
     for none, float otherwise).
 
     The injury risk is taken here from the rows' impact speed [m/s] and collision with
-    :func:`vei.metrics.severity.injury_risk_of_speed` (``cfg``'s coefficients; paper
+    :func:`vei.metrics.severity.injury_risk_at_impact` (``cfg``'s coefficients; paper
     defaults when None): the compiled pass leaves it out because NumPy's SIMD exp, which
     summarize uses, and the C library's exp, which compiled code calls, differ in the last
     bit on some CPUs (AVX-512).
@@ -83,7 +83,7 @@ def metrics_frame(
         if name == "injury_risk":
             hit = rows[:, FUSED_METRICS.index("collision")] != 0.0
             speed = rows[:, FUSED_METRICS.index("impact_speed_mps")]
-            cols[name] = np.where(hit, injury_risk_of_speed(speed, cfg), 0.0)
+            cols[name] = injury_risk_at_impact(hit, speed, cfg)
             continue
         v = rows[:, FUSED_METRICS.index(name)]
         if name in _BOOL_COLUMNS:

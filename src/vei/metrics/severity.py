@@ -217,9 +217,15 @@ def injury_risk(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) ->
     is ``cfg.injury_outcome``); 0 without collision (no impact, no injury); NaN for a
     collision without an approach (impact speed unknown)."""
     a = arrays(trace)
-    v = impact_speed(a, cfg)
-    hit = a.collided.any(axis=1)
-    return np.where(hit, injury_risk_of_speed(v, cfg), 0.0)
+    return injury_risk_at_impact(a.collided.any(axis=1), impact_speed(a, cfg), cfg)
+
+
+def injury_risk_at_impact(
+    collided: npt.ArrayLike, speed_mps: npt.ArrayLike, cfg: MetricsConfig | None = None
+) -> FloatArray:
+    """[B] the rider's injury risk of B runs from whether each collided and its impact
+    speed [m/s]: :func:`injury_risk_of_speed` where it collided (NaN speed: NaN), else 0."""
+    return np.where(collided, injury_risk_of_speed(speed_mps, cfg), 0.0)
 
 
 def verdict(

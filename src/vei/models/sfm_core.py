@@ -25,7 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from vei.models.ego_core import maximum, minimum, select
+from vei.boxes import closest_point_core
+from vei.models.ego_core import select
 
 #: Distance below which a direction is undefined [m] (the rider on the influential point,
 #: or on the ego's centre).
@@ -77,14 +78,14 @@ def influential_point_core(
 ) -> tuple[Any, Any]:  # fmt: skip
     """The ego's point that repels a rider at p [m]: the centre of the front bumper
     (``front_bumper``) or the point of the ego's box (centre e, heading (cos, sin), half
-    length / width [m]) closest to p. Returns (qx, qy) [m]."""
-    ddx = px_m - ex_m
-    ddy = py_m - ey_m
-    lx = minimum(maximum(ddx * cos_yaw + ddy * sin_yaw, -half_length_m), half_length_m)
-    ly = minimum(maximum(-ddx * sin_yaw + ddy * cos_yaw, -half_width_m), half_width_m)
-    lx = select(front_bumper, half_length_m, lx)
-    ly = select(front_bumper, 0.0, ly)
-    return ex_m + lx * cos_yaw - ly * sin_yaw, ey_m + lx * sin_yaw + ly * cos_yaw
+    length / width [m]) closest to p (:func:`vei.boxes.closest_point_core`). Returns
+    (qx, qy) [m]."""
+    qx, qy = closest_point_core(
+        px_m, py_m, ex_m, ey_m, cos_yaw, sin_yaw, half_length_m, half_width_m
+    )
+    fx = ex_m + half_length_m * cos_yaw
+    fy = ey_m + half_length_m * sin_yaw
+    return select(front_bumper, fx, qx), select(front_bumper, fy, qy)
 
 
 def repulsion_core(

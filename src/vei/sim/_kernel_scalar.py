@@ -15,7 +15,7 @@ import numba
 from numba import types
 from numba.extending import overload
 
-from vei.boxes import overlap_core
+from vei.boxes import closest_point_core, overlap_core
 from vei.models import ego_core as core
 
 # The model cores (vei.models.ego_core, sfm_core) are written with these three helpers;
@@ -49,6 +49,15 @@ def _minimum_scalar(a, b):  # type: ignore[no-untyped-def]
     """numba: :func:`vei.models.ego_core.minimum` on scalars is Python's ``min(a, b)``."""
     if all(isinstance(t, types.Number) for t in (a, b)):
         return lambda a, b: min(a, b)
+    return None
+
+
+@overload(closest_point_core)
+def _closest_point_scalar(px, py, cx, cy, c, s, hl, hw):  # type: ignore[no-untyped-def]
+    """numba: :func:`vei.boxes.closest_point_core` on scalars, compiled from its own source
+    (a core that calls it, vei.models.sfm_core.influential_point_core, then compiles)."""
+    if all(isinstance(t, types.Number) for t in (px, py, cx, cy, c, s, hl, hw)):
+        return closest_point_core
     return None
 
 
