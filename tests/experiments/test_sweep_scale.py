@@ -13,8 +13,10 @@ import shutil
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from tests.experiments.sweep_fakes import FakeEvaluator, fake_scenarios
+from vei.calibrate.columns import RIDER_COLUMN, RIDER_PARAM_COLUMNS
 from vei.experiments.sweep import (
     MAX_AUTO_CHUNK,
     assemble_results,
@@ -24,10 +26,16 @@ from vei.experiments.sweep import (
     run_sweep,
     write_results,
 )
-from vei.experiments.sweep_ids import variant_id, variant_ids, variant_seed, variant_seeds
+from vei.experiments.sweep_ids import (
+    name_variants,
+    variant_id,
+    variant_ids,
+    variant_seed,
+    variant_seeds,
+)
 from vei.experiments.sweep_io import _existing_parts, _in_order
 from vei.experiments.sweep_runners import threads_per_worker
-from vei.experiments.sweep_spec import spec_from_dict
+from vei.experiments.sweep_spec import SAMPLE_COLUMN, row_params, spec_from_dict, variants_table
 
 N = 60  # variants of the fake sweeps: time_shift_s in [-3, 3] (61 points minus one)
 
@@ -61,6 +69,61 @@ def test_whole_design_ids_and_seeds_equal_one_at_a_time():
     want = hashlib.sha256(text.encode()).hexdigest()[:16]
     assert variant_ids("s", pd.DataFrame({"time_shift_s": [0.5]})) == [want]
     assert variant_ids("s", pd.DataFrame(index=range(2))) == [variant_id("s", {})] * 2
+
+
+@pytest.mark.parametrize(
+    "raw",
+    [
+        {"design": "grid", "parameters": {"time_shift_s": {"min": -3, "max": 3, "num": 7},
+                                          "rider_model": {"choices": ["normal", "aggressive"]}}},
+        {"design": "random", "n_samples": 40, "seed": 3,
+         "parameters": {"ego.cruise_speed_mps": {"min": 3, "max": 9},
+                        "sfm.use_vehicle_force": {"choices": [True, False]},
+                        "ego.policy": {"choices": ["none", "paper-cap"]}}},
+        {"design": "grid", "seed": 4, "parameters": {"time_shift_s": {"choices": [-1.0, 1.0]}},
+         "rider": {"profile": "calibrated", "sample": 3}},
+        {"design": "grid", "parameters": {"time_shift_s": {"choices": [0.5]}},
+         "reconstruction": {"samples": 3}},
+    ],
+)  # fmt: skip
+def test_unnamed_variants_named_later_equal_the_named_table(raw):
+    """A fresh sweep's table leaves the ids to the workers: naming any slice of it later
+    gives the named table's rows (ids, seeds, columns, dtypes)."""
+    spec = spec_from_dict(raw)
+    named = variants_table(spec, "scen")
+    bare = variants_table(spec, "scen", named=False)
+    assert "variant_id" not in bare and "seed" not in bare
+    pd.testing.assert_frame_equal(name_variants(bare, spec.seed), named)
+    lo, hi = 1, len(named) - 1
+    part = name_variants(bare.iloc[lo:hi], spec.seed)  # a chunk, named by its worker
+    pd.testing.assert_frame_equal(part, named.iloc[lo:hi])
+    for i in (0, len(named) - 1):  # = the id of the row's own parameters
+        row = named.iloc[i]
+        assert row["variant_id"] == variant_id("scen", row_params(row, spec) | extra(row))
+
+
+def extra(row):
+    """The columns beside the spec's parameters that enter a variant's id."""
+    return {
+        c: row[c] for c in row.index if c in (SAMPLE_COLUMN, RIDER_COLUMN, *RIDER_PARAM_COLUMNS)
+    }
+
+
+def test_repeated_design_points_are_named_and_kept_once():
+    """Equal points (random draws of sets repeat) are named and de-duplicated up front;
+    rows of several scenarios are each named with their own scenario id."""
+    spec = spec_from_dict(
+        {"design": "random", "n_samples": 30, "seed": 1,
+         "parameters": {"time_shift_s": {"choices": [-1.0, 0.0, 1.0]},
+                        "rider_model": {"choices": ["normal", "aggressive"]}}}
+    )  # fmt: skip
+    table = variants_table(spec, "scen", named=False)
+    assert "variant_id" in table and len(table) == 6  # 30 draws of 3 x 2 points
+    assert table.equals(variants_table(spec, "scen"))
+    two = pd.concat([variants_table(spec, s) for s in ("a", "b")], ignore_index=True)
+    named = name_variants(two.drop(columns=["variant_id", "seed"]), spec.seed)
+    pd.testing.assert_frame_equal(named, two)
+    assert not set(two["variant_id"][:6]) & set(two["variant_id"][6:])
 
 
 def test_auto_chunk_size_and_threads_per_worker():

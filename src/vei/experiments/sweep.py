@@ -76,7 +76,7 @@ from vei.experiments.sweep_io import (
     write_variant_configs,
 )
 from vei.experiments.sweep_runners import _key_of, _runner
-from vei.experiments.sweep_spec import SAMPLE_COLUMN, SweepSpec, variants_table
+from vei.experiments.sweep_spec import SAMPLE_COLUMN, SweepSpec, name_variants, variants_table
 from vei.io.atomic import write_json
 
 __all__ = [
@@ -301,7 +301,12 @@ def run_sweep(
         t_results = time.perf_counter()
         # streamed part by part into results.parquet, then read back (only the columns
         # the critical ranking and the maps need, unless policies or samples are compared)
-        write_results(out, results_path, table)
+        # restricted to the table's ids where it has them (the rows of a fresh sweep's
+        # parts are this call's: the count is checked)
+        named = "variant_id" in table
+        n_rows = write_results(out, results_path, table if named else None)
+        if n_rows != n_variants:
+            raise RuntimeError(f"results.parquet has {n_rows} rows, the sweep {n_variants}")
         del table
         whole = "ego.policy" in spec.names or bool(spec.reconstruction_samples)
         results = read_results(out, columns=None if whole else _post_columns(results_path, spec))
@@ -426,18 +431,23 @@ def _run_jobs(
     starts before the runner is opened)."""
     t0 = time.perf_counter()
     parts_dir = out / "parts"
+    existing = _existing_parts(parts_dir)
     prepared = runner.prepare_all(dirs)
     tables = []
     scen_meta = []
     for d in dirs:
         sid = evaluator.scenario_id(prepared[str(d)])
-        t = variants_table(spec, sid)
-        tables.append(t.assign(_dir=str(d)))
-        scen_meta.append({"id": sid, "path": str(Path(d).resolve()), "n_variants": len(t)})
+        # a fresh sweep leaves the naming of its variants to the workers (no ids up front)
+        tables.append(variants_table(spec, sid, named=bool(existing)))
+        scen_meta.append({"id": sid, "path": str(Path(d).resolve()), "n_variants": len(tables[-1])})
     ids_seen = [m["id"] for m in scen_meta]
     if len(set(ids_seen)) != len(ids_seen):
         raise InputError(f"two scenario folders share a scenario id: {ids_seen}", path=out)
-    table = pd.concat(tables, ignore_index=True)
+    if any("variant_id" in t for t in tables):  # all named or none
+        tables = [t if "variant_id" in t else name_variants(t, spec.seed) for t in tables]
+    table = pd.concat([t.assign(_dir=str(d)) for t, d in zip(tables, dirs, strict=True)])
+    table = table.reset_index(drop=True)
+    id_seed = None if "variant_id" in table else spec.seed
 
     manifest_path = out / "sweep.json"
     digest = spec.digest()
@@ -463,15 +473,13 @@ def _run_jobs(
     }
     write_json(manifest_path, manifest)
 
-    done = done_ids(out)
-    todo = table[~table["variant_id"].isin(done)]
+    todo = table[~table["variant_id"].isin(done_ids(out))] if existing else table
     n_skipped = len(table) - len(todo)
-    existing = _existing_parts(parts_dir)
     next_seq = 1 + max((int(PART_RE.match(p.name).group(1)) for p in existing), default=-1)
 
     size = chunk_size or auto_chunk_size(len(todo), workers)
 
-    def jobs() -> Iterator[tuple[str, pd.DataFrame, Path]]:
+    def jobs() -> Iterator[tuple[str, pd.DataFrame, Path, int | None]]:
         # Made as the runner asks for them (a few chunks ahead), not all at once.
         nonlocal next_seq
         n = 0
@@ -479,7 +487,7 @@ def _run_jobs(
             for chunk in _chunks(grp.drop(columns="_dir"), size, 2 * workers if workers > 1 else 0):
                 if max_chunks is not None and n >= max_chunks:
                     return
-                yield str(d), chunk, parts_dir / f"part-{next_seq:06d}.parquet"
+                yield str(d), chunk, parts_dir / f"part-{next_seq:06d}.parquet", id_seed
                 next_seq += 1
                 n += 1
 

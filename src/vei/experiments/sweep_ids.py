@@ -106,3 +106,35 @@ def variant_seeds(ids: Sequence[str], spec_seed: int) -> np.ndarray:
     suffix = f":{spec_seed}"
     head = b"".join([sha((v + suffix).encode()).digest()[:4] for v in ids])
     return np.frombuffer(head, dtype="<u4").astype(np.int64) & 0x7FFFFFFF
+
+
+#: Columns of a variants table that are not parameters of its variants (so not in the id).
+UNNAMED_COLUMNS: tuple[str, ...] = ("scenario_id", "variant_index")
+
+
+def name_variants(rows: pd.DataFrame, spec_seed: int) -> pd.DataFrame:
+    """Rows of a variants table without their names, named: ``variant_id`` inserted first
+    and ``seed`` after ``variant_index`` (the columns of ``variants_table(...,
+    named=True)``).
+
+    Args:
+        rows: [N rows] columns scenario_id, variant_index, then every parameter of the
+            variant (the columns its id is taken over); one or several scenarios.
+        spec_seed: the sweep spec's seed (:func:`variant_seed`).
+    Returns:
+        a new DataFrame [N rows], same index; ids equal :func:`variant_id` of each row's
+        parameters (:func:`variant_ids`).
+    """
+    params = rows.drop(columns=list(UNNAMED_COLUMNS))
+    sids = rows["scenario_id"].to_numpy(object)
+    if len(rows) and (sids == sids[0]).all():
+        ids = variant_ids(str(sids[0]), params)
+    else:  # several scenarios: each its own
+        ids = [""] * len(rows)
+        for sid, pos in pd.Series(range(len(rows))).groupby(sids, sort=False):
+            for p, v in zip(pos, variant_ids(str(sid), params.iloc[pos.to_numpy()]), strict=True):
+                ids[p] = v
+    out = rows.copy(deep=False)
+    out.insert(0, "variant_id", ids)
+    out.insert(3, "seed", variant_seeds(ids, spec_seed))
+    return out

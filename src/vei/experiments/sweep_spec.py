@@ -69,6 +69,7 @@ from vei.config import CASE_PRESETS, RiderPopulationConfig
 from vei.config_perception import PerceptionConfig
 from vei.errors import ConfigError, InputError
 from vei.experiments.sweep_ids import (  # noqa: F401 - variant_id/_seed part of this API
+    name_variants,
     variant_id,
     variant_ids,
     variant_seed,
@@ -527,7 +528,7 @@ def design_points(spec: SweepSpec) -> pd.DataFrame:
 VARIANT_COLUMNS: tuple[str, ...] = ("variant_id", "scenario_id", "variant_index", "seed")
 
 
-def variants_table(spec: SweepSpec, scenario_id: str) -> pd.DataFrame:
+def variants_table(spec: SweepSpec, scenario_id: str, *, named: bool = True) -> pd.DataFrame:
     """The variants of one scenario: one row per distinct design point.
 
     Columns: variant_id (str, :func:`variant_id`), scenario_id (str), variant_index (int,
@@ -539,6 +540,12 @@ def variants_table(spec: SweepSpec, scenario_id: str) -> pd.DataFrame:
     a rider population of N riders, every point is repeated for riders 0..N-1 (column
     RIDER_COLUMN, int, and the rider's parameters in RIDER_PARAM_COLUMNS, float; part of
     the variant id); the same N riders for every scenario (seeded).
+
+    With ``named=False`` the rows are not named (no variant_id and seed columns) when no
+    two design points are equal: a sweep's workers name their own chunks
+    (:func:`vei.experiments.sweep_ids.name_variants`, the same ids and seeds; ~1 us per
+    row saved up front). Points that repeat one another are named here and de-duplicated
+    by id, so the result has variant_id exactly when ``named`` or such points exist.
     """
     pts = design_points(spec)
     if spec.reconstruction_samples is not None:
@@ -547,14 +554,8 @@ def variants_table(spec: SweepSpec, scenario_id: str) -> pd.DataFrame:
         pts[SAMPLE_COLUMN] = np.tile(np.arange(n_rec, dtype=np.int64), len(pts) // n_rec)
     if spec.rider is not None:
         pts = with_population(pts, spec.rider)
-    ids = variant_ids(scenario_id, pts)  # = variant_id of each row (sweep_ids)
     df = pd.DataFrame(
-        {
-            "variant_id": ids,
-            "scenario_id": scenario_id,
-            "variant_index": np.arange(len(pts), dtype=np.int64),
-            "seed": variant_seeds(ids, spec.seed),
-        }
+        {"scenario_id": scenario_id, "variant_index": np.arange(len(pts), dtype=np.int64)}
     )
     df = pd.concat([df, pts.reset_index(drop=True)], axis=1)
     for p in spec.parameters:
@@ -565,7 +566,11 @@ def variants_table(spec: SweepSpec, scenario_id: str) -> pd.DataFrame:
             df[p.name] = df[p.name].astype(bool)
         else:
             df[p.name] = df[p.name].astype(str)
-    df = df.drop_duplicates("variant_id", keep="first").reset_index(drop=True)
+    # Equal values (pandas: -0.0 == 0.0, NaN == NaN) include every pair of equal ids
+    # (ids encode the repr of each value), so without them every id is distinct.
+    if named or len(pts.columns) == 0 or df.duplicated(list(pts.columns)).any():
+        df = name_variants(df, spec.seed)  # = variant_id of each row (sweep_ids)
+        df = df.drop_duplicates("variant_id", keep="first").reset_index(drop=True)
     check_aeb_rows(df, spec.base)  # what vei run refuses, a sweep refuses before it runs
     return df
 
