@@ -125,6 +125,8 @@ def write_results(
     alone the file is as small (measured: 3 % smaller on a 10^5-variant sweep) and ~20 %
     faster to write.
     """
+    from concurrent.futures import ThreadPoolExecutor
+
     import numpy as np
     import pyarrow as pa
     import pyarrow.compute as pc
@@ -141,16 +143,22 @@ def write_results(
         )
         try:
             n, written = 0, []
-            with atomic_path(target) as tmp:
-                with pq.ParquetWriter(tmp, schema, use_dictionary=False) as writer:
-                    for p in ordered:
-                        part = _read_part(p)
-                        if np.any(np.diff(part["variant_index"].to_numpy()) <= 0):
-                            raise _Unordered(p)
-                        part = part.select(schema.names).cast(schema)
-                        writer.write_table(part)
-                        written.extend(part["variant_id"].chunks)
-                        n += part.num_rows
+            with (
+                atomic_path(target) as tmp,
+                pq.ParquetWriter(tmp, schema, use_dictionary=False) as writer,
+                ThreadPoolExecutor(1) as reader,  # reads the next part while one is written
+            ):
+                nxt = reader.submit(_read_part, ordered[0])
+                for i in range(len(ordered)):
+                    part, p = nxt.result(), ordered[i]
+                    if i + 1 < len(ordered):
+                        nxt = reader.submit(_read_part, ordered[i + 1])
+                    if np.any(np.diff(part["variant_index"].to_numpy()) <= 0):
+                        raise _Unordered(p)
+                    part = part.select(schema.names).cast(schema)
+                    writer.write_table(part)
+                    written.extend(part["variant_id"].chunks)
+                    n += part.num_rows
                 # one lookup table for all rows (not one per part)
                 vid = pa.chunked_array(written, schema.field("variant_id").type)
                 lookup = None if ids is None else ids.cast(vid.type)
