@@ -57,7 +57,17 @@ def inputs() -> dict[str, np.ndarray]:
         "ahead": rng.random(N) < 0.5,
         "margin": mix(rng.uniform(0, 4, N), [2.0]),
         "tol": mix(rng.uniform(0, 1, N), [0.2]),
-    }
+        # the corridor: arc lengths, positions [m], headings (cos, sin), sizes [m]
+        "s": rng.uniform(0, 200, N), "x": rng.uniform(-60, 60, N), "y": rng.uniform(-60, 60, N),
+        "px": rng.uniform(-60, 60, N), "py": rng.uniform(-60, 60, N),
+        "cp": np.cos(yp := rng.uniform(-np.pi, np.pi, N)), "sp": np.sin(yp),
+        "cr": np.cos(yr := rng.uniform(-np.pi, np.pi, N)), "sr": np.sin(yr),
+        "lat": mix(rng.normal(0, 3, N), [0.0, -1.5, 1.5]),
+        "dfront": mix(rng.normal(5, 20, N), [0.0, -0.9]),
+        "len": rng.uniform(1, 6, N), "wid": rng.uniform(0.4, 2.2, N),
+        "halfw": mix(rng.uniform(0.5, 3, N), [1.5]), "ext": rng.uniform(0.2, 3, N),
+        "range": mix(rng.uniform(5, 80, N), [np.inf]),
+    }  # fmt: skip
 
 
 # (core function name, input names); dt is passed as a scalar where the core takes one.
@@ -73,6 +83,11 @@ CASES = (
     ("gap_braking_core", ("v", "gap", "dbuf", "amin")),
     ("paper_braking_core", ("v", "dsafe", "dbuf", "amin")),
     ("cap_transition_core", ("cap", "v", "v2", "ahead", "gap", "dsafe", "margin", "tol")),
+    ("path_foot_core", ("s", "x", "y", "px", "py", "cp", "sp")),
+    ("half_diagonal_core", ("len", "wid")),
+    ("corridor_entry_core", ("dfront", "lat", "s", "len", "halfw", "ext")),
+    ("box_extent_core", ("cr", "sr", "cp", "sp", "len", "wid")),
+    ("corridor_gap_core", ("dfront", "ext", "range")),
 )
 CASES_EXP = (("pid_decay", ("dt", "window")), ("lag_factor", ("lag", "dt")))
 DT = 0.05
@@ -90,6 +105,9 @@ def _compiled(name: str):
         "safe_distance_core": kernel_ego.safe_distance,
         "gap_braking_core": kernel_ego.gap_braking, "paper_braking_core": kernel_ego.paper_braking,
         "cap_transition_core": kernel_ego.cap_transition,
+        "path_foot_core": kernel_ego.path_foot, "half_diagonal_core": kernel_ego.half_diagonal,
+        "corridor_entry_core": kernel_ego.corridor_entry, "box_extent_core": kernel_ego.box_extent,
+        "corridor_gap_core": kernel_ego.corridor_gap,
     }  # fmt: skip
     return table[name]
 
@@ -162,3 +180,33 @@ def test_cores_hand_values() -> None:
     assert int(tr(1, 10.0, 5.6, False, np.inf, 23.0, 2.0, 0.2)[0]) == core.RECOVER
     assert int(tr(2, 5.7, 5.6, False, np.inf, 23.0, 2.0, 0.2)[0]) == core.CRUISE
     assert int(tr(2, 5.0, 5.6, False, np.inf, 23.0, 2.0, 0.2)[0]) == core.RECOVER
+
+
+def test_corridor_cores_hand_values() -> None:
+    # Path through (10, 0) heading +y at arc 4 m: the point (7, 9) is 9 m further along
+    # (arc 13) and 3 m to the left (-x is left of +y).
+    s_f, lat = core.path_foot_core(4.0, 7.0, 9.0, 10.0, 0.0, 0.0, 1.0)
+    assert (float(s_f), float(lat)) == (13.0, 3.0)
+    # heading +x: (7, 9) from (10, 0) is 3 m behind and 9 m to the left
+    assert tuple(map(float, core.path_foot_core(4.0, 7.0, 9.0, 10.0, 0.0, 1.0, 0.0))) == (1.0, 9.0)
+    assert float(core.half_diagonal_core(6.0, 8.0)) == 5.0
+    # Ego 4.5 m long at arc 10: a foot at arc 20 is 20 - 10 - 2.25 = 7.75 m ahead of the
+    # bumper; lateral 1.2 within a 1.5 m half width: in; lateral 1.6: out.
+    d, entry = core.corridor_entry_core(20.0, 1.2, 10.0, 4.5, 1.5, 0.95)
+    assert (float(d), bool(entry)) == (7.75, True)
+    assert not bool(core.corridor_entry_core(20.0, 1.6, 10.0, 4.5, 1.5, 0.95)[1])
+    # ... and a foot 1 m behind the bumper whose circle (0.95 m) does not reach past it: out
+    assert not bool(core.corridor_entry_core(11.25, 0.0, 10.0, 4.5, 1.5, 0.95)[1])
+    # A 1.8 x 0.6 m rider along the path: half-extent 0.9; across it: 0.3; at 45 deg:
+    # (0.9 + 0.3) / sqrt(2).
+    assert float(core.box_extent_core(1.0, 0.0, 1.0, 0.0, 1.8, 0.6)) == pytest.approx(0.9)
+    assert float(core.box_extent_core(0.0, 1.0, 1.0, 0.0, 1.8, 0.6)) == pytest.approx(0.3)
+    c = math.sqrt(0.5)
+    assert float(core.box_extent_core(c, c, 1.0, 0.0, 1.8, 0.6)) == pytest.approx(1.2 * c)
+    # gap = d_front - extent, clipped at 0, within range
+    ahead, gap = core.corridor_gap_core(7.75, 0.9, 50.0)
+    assert (bool(ahead), float(gap)) == (True, pytest.approx(6.85))
+    ahead, gap = core.corridor_gap_core(0.5, 0.9, 50.0)  # overlapping the bumper: gap 0
+    assert (bool(ahead), float(gap)) == (True, 0.0)
+    assert not bool(core.corridor_gap_core(60.0, 0.9, 50.0)[0])  # beyond range
+    assert not bool(core.corridor_gap_core(-1.0, 0.9, 50.0)[0])  # wholly behind the bumper

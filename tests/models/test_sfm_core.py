@@ -1,8 +1,8 @@
 """vei.models.sfm_core: the riders' desired velocity, destination force, Euler step, the
-ego's repulsion and the limits' factor, one implementation for both engines (NumPy on
-arrays, numba on scalars): bit for bit equal on random inputs (the repulsion's magnitude
-to 2 ulp: NumPy's SIMD exp may round differently from the C library's on AVX-512 CPUs), and
-hand-computed answers."""
+ego's repulsion, the limits' factor and the rider-rider repulsion, one implementation for
+both engines (NumPy on arrays, numba on scalars): bit for bit equal on random inputs (the
+repulsions to 2 and 4 ulp: NumPy's SIMD exp may round differently from the C library's on
+AVX-512 CPUs), and hand-computed answers."""
 
 from __future__ import annotations
 
@@ -137,3 +137,44 @@ def test_cores_hand_values() -> None:
     # 100 N on 50 kg for 0.1 s from rest at the origin: v = 0.2 m/s, x = 0.02 m (semi-implicit).
     x, y, vx, vy = core.point_mass_core(0.0, 0.0, 0.0, 0.0, 100.0, 0.0, 50.0, 0.1)
     assert (float(x), float(vx), float(y), float(vy)) == pytest.approx((0.02, 0.2, 0.0, 0.0))
+
+
+def test_rider_repulsion_numpy_and_compiled(rng_inputs) -> None:
+    """vei.models.sfm.rider_force (NumPy, masked) and the kernel's rforce (a branch) run the
+    same cores: zero where they do not act (cutoff, coincident centres), elsewhere equal to
+    4 ulp (the exp to 1 ulp, then a product, a division and a product round it)."""
+    kernel_scalar = pytest.importorskip("vei.sim._kernel_scalar")
+    from vei.models import sfm
+
+    rng = np.random.default_rng(5)
+    px, py = rng_inputs["px"] / 4, rng_inputs["py"] / 4  # within ~25 m: some beyond the cutoff
+    qx, qy = rng_inputs["gx"] / 4, rng_inputs["gy"] / 4
+    qx[:20], qy[:20] = px[:20], py[:20]  # coincident centres: no direction, no force
+    radii = rng.uniform(0.3, 1.5, N)
+    a, b = rng_inputs["a"], rng_inputs["b"]
+    fx, fy = sfm.rider_force(px, py, qx, qy, radii, a, b)
+    rows = [
+        kernel_scalar.rforce(px[i], py[i], qx[i], qy[i], radii[i], a[i], b[i]) for i in range(N)
+    ]
+    gx, gy = np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
+    np.testing.assert_array_max_ulp(fx, gx, maxulp=4)
+    np.testing.assert_array_max_ulp(fy, gy, maxulp=4)
+    gap = np.hypot(px - qx, py - qy) - radii
+    off = (gap > core.RIDER_FORCE_CUTOFF_M) | (np.arange(N) < 20)
+    assert off.sum() > 100 and (~off).sum() > 100
+    assert not fx[off].any() and not gx[off].any() and fx[~off].all()
+
+
+def test_rider_repulsion_hand_values() -> None:
+    # Centres 3 m apart along +x, radii 1 m: gap 2 m, 2 exp(-2) N along (1, 0).
+    dx, dy, dc, gap, acts = core.rider_gap_core(3.0, 0.0, 0.0, 0.0, 1.0)
+    assert (float(dx), float(dy), float(dc), float(gap), bool(acts)) == (3.0, 0.0, 3.0, 2.0, True)
+    inv = core.rider_repulsion_core(dc, gap, 2.0, 1.0)
+    assert float(inv * dx) == pytest.approx(2.0 * math.exp(-2.0))
+    # overlapping discs (gap -0.5): the force keeps growing, 2 exp(0.5) N
+    dx, dy, dc, gap, acts = core.rider_gap_core(0.0, 1.5, 0.0, 0.0, 2.0)
+    assert bool(acts) and float(core.rider_repulsion_core(dc, gap, 2.0, 1.0) * dy) == (
+        pytest.approx(2.0 * math.exp(0.5))
+    )
+    assert not bool(core.rider_gap_core(12.0, 0.0, 0.0, 0.0, 1.0)[4])  # gap 11 m > cutoff
+    assert not bool(core.rider_gap_core(1.0, 1.0, 1.0, 1.0, 1.0)[4])  # same centre

@@ -470,16 +470,16 @@ def corridor_check(
     s_e, rx, ry = flat(ego_s_m), flat(rider_x_m), flat(rider_y_m)
     i, w = path.index(s_e)
     ex, ey, ec, es = path.values_at(i, w, "x", "y", "cos", "sin")
-    s_q = s_e + (rx - ex) * ec + (ry - ey) * es
+    s_q, _ = core.path_foot_core(s_e, rx, ry, ex, ey, ec, es)
     i, w = path.index(s_q)
     px, py, pc, ps = path.values_at(i, w, "x", "y", "cos", "sin")
-    ddx, ddy = rx - px, ry - py
-    s_q = s_q + ddx * pc + ddy * ps
-    lat = ddy * pc - ddx * ps
-    d_front = s_q - s_e - 0.5 * flat(ego_length_m)
+    s_q, lat = core.path_foot_core(s_q, rx, ry, px, py, pc, ps)
     l_r, w_r = flat(rider_length_m), flat(rider_width_m)
+    d_front, cand = core.corridor_entry_core(
+        s_q, lat, s_e, flat(ego_length_m), flat(corridor_half_width_m),
+        core.half_diagonal_core(l_r, w_r),
+    )  # fmt: skip
     active = np.asarray(rider_active, dtype=bool)
-    cand = (np.abs(lat) <= flat(corridor_half_width_m)) & (d_front + 0.5 * np.hypot(l_r, w_r) > 0.0)
     if active.ndim or not bool(active):
         cand &= np.broadcast_to(active, shape).reshape(-1)
     ahead = np.zeros(cand.shape, dtype=bool)
@@ -492,14 +492,10 @@ def corridor_check(
         def at(a: FloatArray) -> FloatArray:
             return a if a.ndim == 0 else a[idx]
 
-        ext = 0.5 * at(l_r) * np.abs(cr * pci + sr * psi) + 0.5 * at(w_r) * np.abs(
-            sr * pci - cr * psi
-        )
-        dfc = d_front[idx]
-        g = dfc - ext
-        ok = (dfc + ext > 0.0) & (g <= at(flat(detection_range_m)))
+        ext = core.box_extent_core(cr, sr, pci, psi, at(l_r), at(w_r))
+        ok, g = core.corridor_gap_core(d_front[idx], ext, at(flat(detection_range_m)))
         ahead[idx] = ok
-        gap[idx] = np.where(ok, np.maximum(g, 0.0), np.inf)
+        gap[idx] = np.where(ok, g, np.inf)
     return ahead.reshape(shape), gap.reshape(shape)
 
 

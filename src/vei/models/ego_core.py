@@ -163,3 +163,56 @@ def cap_transition_core(
     )
     new = select(trigger, BRAKE, select(release, RECOVER, select(recovered, CRUISE, cap_state)))
     return new, release
+
+
+# The CAP's corridor test (vei.models.ego.corridor_check on arrays, the compiled kernel on
+# scalars): the rider's centre projected onto the ego's path, then its box against the
+# corridor. The path lookups differ between the engines (vei.sim.tables.PathTable vs the
+# kernel's packed table); the geometry after them is this.
+
+
+def path_foot_core(
+    s_m: Any, x_m: Any, y_m: Any, px_m: Any, py_m: Any, cos_p: Any, sin_p: Any
+) -> tuple[Any, Any]:
+    """One projection step of the point (x, y) [m] onto the path through p [m] with heading
+    (cos_p, sin_p) at arc length s [m]: the foot's arc length ``s + (x - px) cos + (y - py)
+    sin`` [m] and the signed lateral offset ``(y - py) cos - (x - px) sin`` [m] (left > 0)."""
+    dx = x_m - px_m
+    dy = y_m - py_m
+    return s_m + dx * cos_p + dy * sin_p, dy * cos_p - dx * sin_p
+
+
+def half_diagonal_core(length_m: Any, width_m: Any) -> Any:
+    """Half the diagonal of a box [m]: the radius of the circle around it."""
+    return 0.5 * np.hypot(length_m, width_m)
+
+
+def corridor_entry_core(
+    s_foot_m: Any, lateral_m: Any, s_ego_m: Any, ego_length_m: Any, half_width_m: Any,
+    rider_half_diag_m: Any,
+) -> tuple[Any, Any]:  # fmt: skip
+    """(d_front [m], may be ahead): the foot's distance ahead of the ego's front bumper, and
+    whether the rider's centre is within the corridor's half width and its circle reaches
+    past the bumper (the cheap test before its box is oriented)."""
+    d_front = s_foot_m - s_ego_m - 0.5 * ego_length_m
+    entry = np.logical_and(np.abs(lateral_m) <= half_width_m, d_front + rider_half_diag_m > 0.0)
+    return d_front, entry
+
+
+def box_extent_core(
+    cos_yaw: Any, sin_yaw: Any, cos_p: Any, sin_p: Any, length_m: Any, width_m: Any
+) -> Any:
+    """Half-extent [m] along the path direction (cos_p, sin_p) of a box with heading
+    (cos_yaw, sin_yaw): ``l/2 |cos dpsi| + w/2 |sin dpsi|``, dpsi its heading relative to
+    the path."""
+    along = np.abs(cos_yaw * cos_p + sin_yaw * sin_p)
+    across = np.abs(sin_yaw * cos_p - cos_yaw * sin_p)
+    return 0.5 * length_m * along + 0.5 * width_m * across
+
+
+def corridor_gap_core(d_front_m: Any, extent_m: Any, range_m: Any) -> tuple[Any, Any]:
+    """(ahead, gap [m]): part of the rider's box lies ahead of the bumper and its near side
+    within the detection range; the gap from the bumper to that side, clipped at 0."""
+    g = d_front_m - extent_m
+    ahead = np.logical_and(d_front_m + extent_m > 0.0, g <= range_m)
+    return ahead, maximum(g, 0.0)

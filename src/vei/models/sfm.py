@@ -29,7 +29,7 @@ FloatArray = npt.NDArray[np.float64]
 ArrayLike = npt.ArrayLike
 
 #: Gap [m] beyond which another rider / pedestrian exerts no repulsion (rider_force).
-RIDER_FORCE_CUTOFF_M = 10.0
+RIDER_FORCE_CUTOFF_M = core.RIDER_FORCE_CUTOFF_M
 
 
 def desired_velocity(
@@ -296,17 +296,19 @@ def rider_force(
     Returns:
         (fx_n, fy_n) [...] force [N].
     """
-    dx = np.subtract(px_m, qx_m, dtype=np.float64)
-    dy = np.subtract(py_m, qy_m, dtype=np.float64)
-    dc = np.sqrt(dx * dx + dy * dy)
-    gap = dc - np.asarray(radii_m, dtype=np.float64)
-    ok = (dc >= 1e-9) & (gap <= RIDER_FORCE_CUTOFF_M)
-    mag = np.where(
-        ok,
-        np.asarray(a_rider_n, dtype=np.float64) * np.exp(-np.asarray(b_rider_per_m) * gap),
+    dx, dy, dc, gap, acts = core.rider_gap_core(
+        np.asarray(px_m, dtype=np.float64), np.asarray(py_m, dtype=np.float64),
+        np.asarray(qx_m, dtype=np.float64), np.asarray(qy_m, dtype=np.float64),
+        np.asarray(radii_m, dtype=np.float64),
+    )  # fmt: skip
+    inv = np.where(
+        acts,
+        core.rider_repulsion_core(
+            np.where(acts, dc, 1.0), gap,
+            np.asarray(a_rider_n, dtype=np.float64), np.asarray(b_rider_per_m, dtype=np.float64),
+        ),
         0.0,
-    )
-    inv = mag / np.where(ok, dc, 1.0)
+    )  # fmt: skip
     return inv * dx, inv * dy
 
 

@@ -13,8 +13,10 @@ direction away from the ego's centre where the rider is on the influential point
 (:func:`away_from_centre_core`: the compiled kernel calls it behind ``if tiny``, the NumPy
 step where any variant needs it), and the limits' factor (:func:`cap_factor_core`, taken
 where a limit binds: behind a branch in the kernel, by ``np.where`` in the NumPy step).
-The rider-rider repulsion stays written twice (:func:`vei.models.sfm.rider_force` and
-``_kernel_scalar``): the kernel skips its exp beyond the cutoff by a branch.
+The repulsion between riders / pedestrians is split the same way: :func:`rider_gap_core`
+says where it acts (beyond :data:`RIDER_FORCE_CUTOFF_M` it does not), and
+:func:`rider_repulsion_core` is taken there (behind a branch in the kernel, so the exp is
+skipped for far agents; masked in :func:`vei.models.sfm.rider_force`).
 
 Units: positions [m], velocities [m/s], forces [N], masses [kg], times [s].
 """
@@ -29,8 +31,12 @@ from vei.boxes import closest_point_core
 from vei.models.ego_core import select
 
 #: Distance below which a direction is undefined [m] (the rider on the influential point,
-#: or on the ego's centre).
+#: or on the ego's centre, or two riders' centres).
 TINY_M = 1e-9
+
+#: Gap [m] beyond which another rider / pedestrian exerts no repulsion (less than
+#: A_r exp(-10 b_r): 2e-6 N at the defaults).
+RIDER_FORCE_CUTOFF_M = 10.0
 
 
 def desired_velocity_core(
@@ -116,3 +122,26 @@ def away_from_centre_core(
     ok = de > TINY_M
     safe = select(ok, de, 1.0)
     return select(ok, ex / safe, cos_yaw), select(ok, ey / safe, sin_yaw)
+
+
+def rider_gap_core(
+    px_m: Any, py_m: Any, qx_m: Any, qy_m: Any, radii_m: Any
+) -> tuple[Any, Any, Any, Any, Any]:
+    """Where an agent at q [m] repels a rider at p [m]: (dx, dy) = p - q [m], the centre
+    distance dc [m], the gap ``dc - radii`` [m] between their discs (radii: the sum of both
+    radii; negative where they overlap) and ``acts``: the centres apart (dc >=
+    :data:`TINY_M`, else the direction is undefined) and the gap within
+    :data:`RIDER_FORCE_CUTOFF_M`."""
+    dx = px_m - qx_m
+    dy = py_m - qy_m
+    dc = np.sqrt(dx * dx + dy * dy)
+    gap = dc - radii_m
+    acts = np.logical_and(dc >= TINY_M, gap <= RIDER_FORCE_CUTOFF_M)
+    return dx, dy, dc, gap, acts
+
+
+def rider_repulsion_core(dc_m: Any, gap_m: Any, a_n: Any, b_per_m: Any) -> Any:
+    """The factor [N/m] that turns p - q into the repulsion ``a exp(-b gap) (p - q) / dc``
+    [N] where :func:`rider_gap_core` says it acts (dc > 0 there; not clipped where the discs
+    overlap)."""
+    return a_n * np.exp(-b_per_m * gap_m) / dc_m

@@ -3,8 +3,8 @@
 Imported only when numba is used. The PID, actuator, CAP laws and CAP state machine are
 :mod:`vei.models.ego_core`'s functions, compiled here on scalars (the NumPy reference step
 runs the same functions on arrays through :mod:`vei.models.ego`); this module adds the
-per-variant control flow and the CAP's corridor test on the packed path table, for one
-variant, inlined into the kernel's loop (``inline="always"``: no call per variant and
+per-variant control flow and the path lookups of the CAP's corridor test (its geometry is
+ego_core's too) on the packed path table, for one variant, inlined into the kernel's loop (``inline="always"``: no call per variant and
 step). SI units (m, s, m/s, m/s^2).
 """
 
@@ -51,6 +51,11 @@ safe_distance = _inline(core.safe_distance_core)
 gap_braking = _inline(core.gap_braking_core)
 paper_braking = _inline(core.paper_braking_core)
 cap_transition = _inline(core.cap_transition_core)
+path_foot = _inline(core.path_foot_core)
+half_diagonal = _inline(core.half_diagonal_core)
+corridor_entry = _inline(core.corridor_entry_core)
+box_extent = _inline(core.box_extent_core)
+corridor_gap = _inline(core.corridor_gap_core)
 
 
 @numba.njit(cache=True, inline="always")
@@ -68,7 +73,7 @@ def ego_consts(P, b, dt, Lr, Wr):  # type: ignore[no-untyped-def]
         P[P_AMAX, b], P[P_DMAX, b], P[P_HALFW, b], P[P_RANGE, b], P[P_AMIN, b], P[P_DBUF, b],
         P[P_TSAFE, b], P[P_RELEASE, b], P[P_RECTOL, b], P[P_PAPERLAW, b] > 0.5,
         pid_decay(dt, P[P_IWIN, b]), ki, pid_limit(P[P_ILIM, b], ki),
-        P[P_KP, b], P[P_KD, b], lag_factor(P[P_LAG, b], dt), 0.5 * math.hypot(Lr, Wr),
+        P[P_KP, b], P[P_KD, b], lag_factor(P[P_LAG, b], dt), half_diagonal(Lr, Wr),
     )  # fmt: skip
 
 
@@ -143,23 +148,19 @@ def ego_step_c(  # type: ignore[no-untyped-def]
                 qy = egeo[0][1, i] + w * egeo[0][6, i]
                 qc = egeo[0][3, i] + w * egeo[0][8, i]
                 qs = egeo[0][4, i] + w * egeo[0][9, i]
-                s_q = s + (px - qx) * qc + (py - qy) * qs
+                s_q, _ = path_foot(s, px, py, qx, qy, qc, qs)
                 i, w = idx(p_s0, p_ds, n_p, s_q)
                 fx_ = egeo[0][0, i] + w * egeo[0][5, i]
                 fy_ = egeo[0][1, i] + w * egeo[0][6, i]
                 pc = egeo[0][3, i] + w * egeo[0][8, i]
                 ps = egeo[0][4, i] + w * egeo[0][9, i]
-                ddx, ddy = px - fx_, py - fy_
-                s_q = s_q + ddx * pc + ddy * ps
-                lat = ddy * pc - ddx * ps
-                d_front = s_q - s - 0.5 * Le
-                if abs(lat) <= halfw and d_front + half_diag_r > 0.0:
-                    cr, sr = math.cos(pyaw), math.sin(pyaw)
-                    ext = 0.5 * Lr * abs(cr * pc + sr * ps) + 0.5 * Wr * abs(sr * pc - cr * ps)
-                    g = d_front - ext
-                    if d_front + ext > 0.0 and g <= rng:
-                        ahead = True
-                        gap = max(g, 0.0)
+                s_q, lat = path_foot(s_q, px, py, fx_, fy_, pc, ps)
+                d_front, entry = corridor_entry(s_q, lat, s, Le, halfw, half_diag_r)
+                if entry:
+                    ext = box_extent(math.cos(pyaw), math.sin(pyaw), pc, ps, Lr, Wr)
+                    ahead, g = corridor_gap(d_front, ext, rng)
+                    if ahead:
+                        gap = g
             d_safe = safe_distance(v, tsafe, d_buf, a_min)
             new, release = cap_transition(cap, v, vd, ahead, gap, d_safe, rel_m, rectol)
             braking = new == core.BRAKE

@@ -1,5 +1,5 @@
 """Scalar numba helpers of the compiled kernel: interpolation index, box overlap (vei.boxes),
-repulsion, and the scalar forms of the model cores' select / maximum / minimum.
+rider-rider repulsion (vei.models.sfm_core), and the scalar forms of the model cores' select / maximum / minimum.
 
 Imported only when numba is used (by :mod:`vei.sim._kernel_numba` and the other kernel
 helper modules). Every function is compiled at module level with ``cache=True`` so that
@@ -9,14 +9,13 @@ numba's on-disk cache works across processes. Scalars in SI units (m, s, rad, N)
 # ruff: noqa: N803
 from __future__ import annotations
 
-import math
-
 import numba
 from numba import types
 from numba.extending import overload
 
 from vei.boxes import closest_point_core, overlap_core
 from vei.models import ego_core as core
+from vei.models import sfm_core
 
 # The model cores (vei.models.ego_core, sfm_core) are written with these three helpers;
 # on scalars numba compiles them to what the hand-written kernel used.
@@ -61,25 +60,22 @@ def _closest_point_scalar(px, py, cx, cy, c, s, hl, hw):  # type: ignore[no-unty
     return None
 
 
-#: Gap [m] beyond which riders / pedestrians do not repel (vei.models.sfm.RIDER_FORCE_CUTOFF_M).
-CUTOFF_M = 10.0
+_rider_gap = numba.njit(cache=True, inline="always")(sfm_core.rider_gap_core)
+_rider_repulsion = numba.njit(cache=True, inline="always")(sfm_core.rider_repulsion_core)
 
 
 @numba.njit(cache=True)
 def rforce(px, py, qx, qy, rs, a, bb):  # type: ignore[no-untyped-def]
-    """Rider repulsion on p from q (vei.models.sfm.rider_force).
+    """Rider repulsion on p from q (vei.models.sfm.rider_force, the same cores).
 
     Args: positions p, q [m]; rs the sum of both radii [m]; a the strength [N]; bb the
-    decay [1/m]. Returns the force (fx, fy) [N]: a exp(-bb gap) along q -> p; zero when the
-    centres coincide or the gap exceeds :data:`CUTOFF_M`.
+    decay [1/m]. Returns the force (fx, fy) [N]: a exp(-bb gap) along q -> p; zero (and
+    no exp taken) where :func:`vei.models.sfm_core.rider_gap_core` says it does not act.
     """
-    dx = px - qx
-    dy = py - qy
-    dc = math.sqrt(dx * dx + dy * dy)
-    gap = dc - rs
-    if dc < 1e-9 or gap > CUTOFF_M:
+    dx, dy, dc, gap, acts = _rider_gap(px, py, qx, qy, rs)
+    if not acts:
         return 0.0, 0.0
-    inv = a * math.exp(-bb * gap) / dc
+    inv = _rider_repulsion(dc, gap, a, bb)
     return inv * dx, inv * dy
 
 
