@@ -127,9 +127,9 @@ def test_repeated_design_points_are_named_and_kept_once():
 
 
 def test_auto_chunk_size_and_threads_per_worker():
-    assert auto_chunk_size(1_000_000, 2) == MAX_AUTO_CHUNK == 4096  # 10^6 / 32 > the cap
-    assert auto_chunk_size(100_000, 2) == 3125  # 16 chunks per worker
-    assert auto_chunk_size(10_016, 2) == 313 and auto_chunk_size(10_017, 2) == 314
+    assert auto_chunk_size(100_000, 2) == MAX_AUTO_CHUNK == 4096  # 10^5 / 16 > the cap
+    assert auto_chunk_size(50_000, 2) == 3125  # 8 chunks per worker
+    assert auto_chunk_size(10_016, 2) == 626 and auto_chunk_size(10_017, 2) == 627
     assert auto_chunk_size(3, 4) == 1 and auto_chunk_size(0, 1) == 1
     assert threads_per_worker(2, cpus=2) == 1
     assert threads_per_worker(2, cpus=16) == 8

@@ -289,6 +289,15 @@ def test_variant_params_validation(crossing_arrays) -> None:
         VariantParams.from_case(case_preset("normal"), crossing_arrays, 2, nonsense=1.0)
     with pytest.raises(ConfigError):
         p.with_values(a_min_mps2=1.0)
+    # rows of checked params are not checked again, and equal the checked construction
+    fields = [f.name for f in dataclasses.fields(VariantParams)]
+    for q in (p.take([3, 1]), p.take(slice(1, 3)), VariantParams.concat([p, p.take([0])])):
+        again = VariantParams(**{f: getattr(q, f) for f in fields})
+        assert all(np.array_equal(getattr(q, f), getattr(again, f)) for f in fields)
+    assert p.take([3, 1]).mass_kg.tolist() == [105.0, 95.0]
+    assert VariantParams.concat([p, p]).batch_size == 8
+    with pytest.raises(ConfigError, match="at least one variant"):
+        p.take(np.array([], dtype=np.intp))
 
 
 def test_scenario_without_primary_threat_is_an_input_error() -> None:

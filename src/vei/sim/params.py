@@ -294,12 +294,25 @@ class VariantParams:
         return cls(**out)
 
     @classmethod
+    def _of_checked(cls, values: dict[str, Any]) -> VariantParams:
+        """A VariantParams of rows of checked ones (take / concat): every field a 1-D
+        array of the same B >= 1, every value from a checked VariantParams, so not checked
+        again (the checks cost ~1 ms per call, several calls per sweep chunk)."""
+        sizes = {v.shape[0] for v in values.values()}
+        if sizes == {0} or len(sizes) != 1:
+            return cls(**values)  # the checks say what is wrong
+        out = object.__new__(cls)
+        for name, v in values.items():
+            object.__setattr__(out, name, v)
+        return out
+
+    @classmethod
     def concat(cls, parts: Sequence[VariantParams]) -> VariantParams:
         """Stack several VariantParams along the batch axis (in order)."""
         if not parts:
             raise ConfigError("concat needs at least one VariantParams")
-        return cls(
-            **{
+        return cls._of_checked(
+            {
                 f.name: np.concatenate([getattr(p, f.name) for p in parts])
                 for f in dataclasses.fields(cls)
             }
@@ -308,12 +321,12 @@ class VariantParams:
     def take(self, index: npt.ArrayLike) -> VariantParams:
         """The variants at ``index`` (int array, slice or bool mask) as a new VariantParams."""
         if isinstance(index, slice):
-            return VariantParams(
-                **{f.name: getattr(self, f.name)[index].copy() for f in dataclasses.fields(self)}
+            return self._of_checked(
+                {f.name: getattr(self, f.name)[index].copy() for f in dataclasses.fields(self)}
             )
         idx = np.atleast_1d(np.asarray(index))
-        return VariantParams(
-            **{f.name: getattr(self, f.name)[idx] for f in dataclasses.fields(self)}
+        return self._of_checked(
+            {f.name: getattr(self, f.name)[idx] for f in dataclasses.fields(self)}
         )
 
     def with_values(self, **values: npt.ArrayLike) -> VariantParams:
