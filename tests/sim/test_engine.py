@@ -298,6 +298,8 @@ def test_variant_params_validation(crossing_arrays) -> None:
     assert VariantParams.concat([p, p]).batch_size == 8
     with pytest.raises(ConfigError, match="at least one variant"):
         p.take(np.array([], dtype=np.intp))
+    with pytest.raises(ConfigError, match="1-D"):
+        p.take(np.array([[0, 1]]))
 
 
 def test_scenario_without_primary_threat_is_an_input_error() -> None:

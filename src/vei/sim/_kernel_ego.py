@@ -2,10 +2,10 @@
 
 Imported only when numba is used. The PID, actuator, CAP laws and CAP state machine are
 :mod:`vei.models.ego_core`'s functions, compiled here on scalars (the NumPy reference step
-runs the same functions on arrays through :mod:`vei.models.ego`); this module adds the
-per-variant control flow and the path lookups of the CAP's corridor test (its geometry is
-ego_core's too) on the packed path table, for one variant, inlined into the kernel's loop (``inline="always"``: no call per variant and
-step). SI units (m, s, m/s, m/s^2).
+runs the same functions on arrays through :mod:`vei.models.ego`), and so is the geometry
+of the CAP's corridor test; this module adds the per-variant control flow and the
+corridor's lookups on the packed path table, for one variant, inlined into the kernel's
+loop (``inline="always"``: no call per variant and step). SI units (m, s, m/s, m/s^2).
 """
 
 # ruff: noqa: N803

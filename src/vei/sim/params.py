@@ -298,9 +298,9 @@ class VariantParams:
         """A VariantParams of rows of checked ones (take / concat): every field a 1-D
         array of the same B >= 1, every value from a checked VariantParams, so not checked
         again (the checks cost ~1 ms per call, several calls per sweep chunk)."""
-        sizes = {v.shape[0] for v in values.values()}
-        if sizes == {0} or len(sizes) != 1:
-            return cls(**values)  # the checks say what is wrong
+        sizes = {v.shape[0] if v.ndim == 1 else -1 for v in values.values()}
+        if len(sizes) != 1 or sizes & {0, -1}:
+            return cls(**values)  # the checks say what is wrong (B = 0, an index of ndim 2)
         out = object.__new__(cls)
         for name, v in values.items():
             object.__setattr__(out, name, v)
