@@ -84,7 +84,7 @@ def sweep(
         typer.Option(
             "--chunk-size",
             help="Variants per engine batch; bounds memory (one chunk per worker). "
-            "Default: >= 16 chunks per worker, at most 4096 variants each.",
+            "Default: >= 8 chunks per worker, at most 4096 variants each.",
         ),
     ] = None,
     max_chunks: Annotated[
