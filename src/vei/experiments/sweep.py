@@ -161,7 +161,7 @@ MAX_AUTO_CHUNK = 4096
 
 #: Chunks per worker the automatic size aims at. The last 2 x workers chunks are split in
 #: quarters (:func:`_chunks`), so the workers finish within ~1/32 of a share of each other;
-#: more, smaller chunks would only add their fixed cost (~9 ms each: parameters, naming,
+#: more, smaller chunks would only add their fixed cost (~8 ms each: parameters, naming,
 #: rows, part file; measured on the demo).
 _CHUNKS_PER_WORKER = 8
 

@@ -4,7 +4,8 @@ A sweep scores every variant in the compiled kernel's pass without recording tim
 (:func:`vei.sim.engine.simulate_metrics`). Once the most critical variants are ranked,
 :func:`record_critical` runs just those k variants again with ``record='full'`` -- same
 scenario arrays (or reconstruction sample), same per-variant engine parameters
-(:meth:`EngineEvaluator.params` of their rows, scored by :meth:`EngineEvaluator.score`) -- and writes::
+(:meth:`EngineEvaluator.params` of their rows, scored by :meth:`EngineEvaluator.score`)
+-- and writes::
 
     critical/timeseries.parquet   long time series (scenario_id + vei.types.TIMESERIES_COLUMNS;
                                   ``config`` = the variant id), every critical variant

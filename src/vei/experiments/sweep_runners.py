@@ -8,13 +8,13 @@ evaluates them, joins the metrics to the variant rows and writes the part file
 (atomically); :meth:`run` yields the number of rows of each part once it is on disk.
 
 With ``workers`` = N > 1, N processes evaluate chunks: the sweep's own process and a pool
-of N - 1 children (forked or spawned, below). The sweep's process has the scenario prepared and the kernel
-loaded already, so it computes from the first chunk on while the children start, and
-one process start fewer is paid; each child is handed its next chunk from the pool's
-manager thread the moment it finishes one (the compiled kernel releases the GIL, so this
-goes on while the sweep's process computes its own chunk). The last chunks of a sweep
-are a quarter of the size (``vei.experiments.sweep._chunks``), so the processes finish
-close together. Every fixed cost is paid once per child, not per chunk:
+of N - 1 children (forked or spawned, below). The sweep's process has the scenario
+prepared and the kernel loaded already, so it computes from the first chunk on while the
+children start, and one process start fewer is paid; each child is handed its next chunk
+from the pool's manager thread the moment it finishes one (the compiled kernel releases
+the GIL, so this goes on while the sweep's process computes its own chunk). The last
+chunks of a sweep are a quarter of the size (``vei.experiments.sweep._chunks``), so the
+processes finish close together. Every fixed cost is paid once per child, not per chunk:
 
 - the evaluator reaches each child once (the pool's initializer), with the number of
   numba threads of each process (:func:`threads_per_worker`: the cores shared out, so two
@@ -268,6 +268,12 @@ class _PoolRunner:
                     in_flight[0] += 1
                 return job
 
+        def collect() -> int:
+            # A child's finished chunk (its rows on disk), counted off.
+            with lock:
+                in_flight[0] -= 1
+            return finished.get().result()
+
         def feed(done: Any = None) -> None:
             # Runs here and in the pool's manager thread (a child's chunk is done): the
             # child gets its next chunk at once, while this process computes its own (the
@@ -305,9 +311,7 @@ class _PoolRunner:
                 if errors:
                     raise errors[0]
                 while not finished.empty():
-                    with lock:
-                        in_flight[0] -= 1
-                    yield finished.get().result()
+                    yield collect()
                 job = take(for_child=False)
                 if job is not None:  # this process's own chunk
                     d, chunk, part, id_seed = job
@@ -320,9 +324,7 @@ class _PoolRunner:
                     if errors:
                         raise errors[0]
                     return
-                with lock:
-                    in_flight[0] -= 1
-                yield finished.get().result()
+                yield collect()
         finally:
             stopped.set()
             if numba is not None:

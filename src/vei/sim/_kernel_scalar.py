@@ -1,5 +1,6 @@
 """Scalar numba helpers of the compiled kernel: interpolation index, box overlap (vei.boxes),
-rider-rider repulsion (vei.models.sfm_core), and the scalar forms of the model cores' select / maximum / minimum.
+rider-rider repulsion (vei.models.sfm_core), and the scalar forms of the model cores'
+select / maximum / minimum.
 
 Imported only when numba is used (by :mod:`vei.sim._kernel_numba` and the other kernel
 helper modules). Every function is compiled at module level with ``cache=True`` so that
