@@ -3,9 +3,11 @@ kill a parent and look for what it leaves behind; psutil is not a dependency."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 
@@ -64,6 +66,30 @@ def cmdline(pid: int) -> str:
         return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
     except OSError:
         return ""
+
+
+def default_sigint() -> None:
+    """``preexec_fn`` of a child that must see Ctrl-C: SIGINT restored to its default action.
+
+    A process started from a background job without job control (``cmd &`` in a script,
+    ``nohup``, some CI runners) inherits SIGINT as ignored, and Python then installs no
+    KeyboardInterrupt handler. vei rightly keeps such an inherited "ignore" (that is what
+    ``nohup`` asks for), so a test of vei's Ctrl-C handling starts its child with the
+    default disposition, whatever started pytest. (Python's ``restore_signals`` resets
+    SIGPIPE, SIGXFZ and SIGXFSZ only.)"""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+@contextlib.contextmanager
+def python_sigint() -> Iterator[None]:
+    """Within the block, this process handles SIGINT as Python does by default (raising
+    KeyboardInterrupt), so that the children it starts see SIGINT at its default action
+    even where pytest inherited it as ignored (see :func:`default_sigint`)."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
 
 
 def spawned_workers(pid: int) -> list[int]:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.procs import children, kill_all, spawned_workers, wait_gone
+from tests.procs import children, default_sigint, kill_all, spawned_workers, wait_gone
 from vei.catalogue.store import done_encounters
 
 REPO = Path(__file__).resolve().parents[2]
@@ -30,8 +30,13 @@ def test_sigint_says_how_to_resume_and_leaves_no_worker(tmp_path, trafficmonitor
         "--recording", "audi_08_klinikum_rechtsabbiegen_02", "--n-variants", "8",
         "--no-figures", "--no-report", "--workers", "2",
     ]  # fmt: skip
-    proc = subprocess.Popen(
-        cmd, cwd=REPO, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    proc = subprocess.Popen(  # SIGINT at its default action, whatever started pytest
+        cmd,
+        cwd=REPO,
+        start_new_session=True,
+        preexec_fn=default_sigint,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
     )
     everyone: list[int] = []
     deadline = time.monotonic() + 240

@@ -19,7 +19,15 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from tests.procs import children, kill_all, running, spawned_workers, wait_gone
+from tests.procs import (
+    children,
+    default_sigint,
+    kill_all,
+    python_sigint,
+    running,
+    spawned_workers,
+    wait_gone,
+)
 from vei.experiments.workers import WorkerPool, set_parent_death_signal, worker_pool
 
 REPO = Path(__file__).resolve().parents[2]
@@ -82,7 +90,8 @@ def test_workers_end_when_the_parent_is_killed(tmp_path, sig, pdeathsig, method)
 
 
 def test_pool_starts_every_worker_once_and_they_ignore_sigint():
-    with worker_pool(2) as pool:
+    # workers started while SIGINT is handled here, so that their ignoring it is their own
+    with python_sigint(), worker_pool(2) as pool:
         assert len(pool.pids) == 2 and len(set(pool.pids)) == 2
         for p in pool.pids:
             os.kill(p, signal.SIGINT)
@@ -163,10 +172,16 @@ def _sweep_cmd(scenario: Path, spec: Path, out: Path) -> list[str]:
 
 
 def _start_and_wait_for_parts(cmd: list[str], out: Path, n_parts: int) -> tuple:
-    """Start the CLI in its own session; once ``n_parts`` part files exist, return (process,
-    its worker pids, all its child pids)."""
+    """Start the CLI in its own session, with SIGINT at its default action (whatever started
+    pytest); once ``n_parts`` part files exist, return (process, its worker pids, all its
+    child pids)."""
     proc = subprocess.Popen(
-        cmd, cwd=REPO, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        cmd,
+        cwd=REPO,
+        start_new_session=True,
+        preexec_fn=default_sigint,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
     )
     deadline = time.monotonic() + 120
     workers: list[int] = []
