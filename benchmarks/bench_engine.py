@@ -161,7 +161,7 @@ def _partial_run(arrays, params, n_steps: int) -> None:
 def _sweep_chunk_peak(arrays, auto: float) -> float:
     import pandas as pd
 
-    from vei.experiments.sweep import EngineEvaluator, PreparedScenario
+    from vei.sweep.run import EngineEvaluator, PreparedScenario
 
     ev = EngineEvaluator(time_shift_reference="auto", base="normal-cap")
     prep = PreparedScenario(arrays.scenario_id, "", arrays, auto)

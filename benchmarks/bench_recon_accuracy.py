@@ -22,7 +22,7 @@ Then where the error comes from: per track the keyframes' own error, the error o
 through the noise-free denoised truth at the keyframe times (the 1 FPS sampling floor),
 the best smoothing parameter in hindsight, the Student-t smoother; pooled by condition
 (at / between keyframes, long gaps, track ends, turns, stops). Then the turn-aware
-coordinated-turn smoother (:mod:`vei.recon.turn_compare`) against 'kalman', with the
+coordinated-turn smoother (:mod:`benchmarks.recon_research.turn_compare`) against 'kalman', with the
 hindsight bound of any per-sample mix of the two.
 
 Targets (issue 13): 'kalman' mean RMSE vs denoised ground truth <= 0.25 m; pooled 95 %
@@ -69,16 +69,16 @@ def main() -> int:
     the targets are met, else 1."""
     import pandas as pd
 
-    from vei.recon.calibration import POSTERIOR_STD_INFLATION
-    from vei.recon.compare import (
+    from benchmarks.recon_research.compare import (
         compare_methods,
         error_breakdown,
         floor_table,
         leave_one_recording_out,
         summarise,
     )
+    from benchmarks.recon_research.turn_compare import turn_table
+    from vei.recon.calibration import POSTERIOR_STD_INFLATION
     from vei.recon.pipeline import ReconstructionConfig, reconstruct
-    from vei.recon.turn_compare import turn_table
 
     root = _data_root()
     if root is None:

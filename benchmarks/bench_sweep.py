@@ -49,7 +49,7 @@ MILLION_TARGET_MB = 2000.0
 
 
 def _spec(side: int):
-    from vei.experiments.sweep_spec import spec_from_dict
+    from vei.sweep.spec import spec_from_dict
 
     return spec_from_dict(
         {
@@ -180,7 +180,7 @@ def _child(scen: str, out: str, workers: int, side: int) -> None:
     import vei.io.scenario  # noqa: F401
     import vei.sim.engine  # noqa: F401
     import vei.sim.state  # noqa: F401
-    from vei.experiments.sweep import run_sweep
+    from vei.sweep.run import run_sweep
 
     spec = _spec(side)
     t0 = time.perf_counter()
@@ -192,9 +192,9 @@ def _child(scen: str, out: str, workers: int, side: int) -> None:
 def _engine_rate(scen: Path, spec, workers: int) -> tuple[float, int]:
     """variants/s of the engine alone (record='none') on the sweep's variants, in the
     sweep's chunks, this process (numba on every core)."""
-    from vei.experiments.sweep import EngineEvaluator, auto_chunk_size, variant_params
-    from vei.experiments.sweep_spec import variants_table
     from vei.sim.engine import simulate
+    from vei.sweep.run import EngineEvaluator, auto_chunk_size, variant_params
+    from vei.sweep.spec import variants_table
 
     ev = EngineEvaluator(time_shift_reference="auto", base=spec.base)
     prep = ev.prepare(scen)
@@ -231,9 +231,9 @@ def main(argv: list[str] | None = None) -> int:
 
     matplotlib.use("Agg")
     from vei.experiments.demo_data import demo_interaction
-    from vei.experiments.sweep_runners import threads_per_worker
     from vei.io.scenario import write_scenario
     from vei.recon.pipeline import reconstruct
+    from vei.sweep.runners import threads_per_worker
 
     cpus = threads_per_worker(1)
     workers = max(2, cpus)

@@ -102,7 +102,7 @@ def test_the_import_graph_is_read():
     assert "vei.errors" in graph["vei.cli.main"]
     assert "vei.io.atomic" in graph["vei.catalogue.store"]
     # a function-level import counts too (run.py imports the pool inside executor())
-    assert "vei.experiments.workers" in graph["vei.catalogue.run"]
+    assert "vei.sweep.workers" in graph["vei.catalogue.run"]
 
 
 def test_no_two_modules_import_each_other():
@@ -123,7 +123,7 @@ def test_no_two_modules_import_each_other():
 
 
 def _is_config(module: str) -> bool:
-    return module == "vei.config" or module.startswith("vei.config_")
+    return module == "vei.config" or module.startswith("vei.config.")
 
 
 def test_config_imports_nothing_above_it():
@@ -132,7 +132,7 @@ def test_config_imports_nothing_above_it():
     functions and under TYPE_CHECKING too)."""
     graph = import_graph()
     configs = [m for m in graph if _is_config(m)]
-    assert "vei.config_perception" in graph["vei.config"]  # guard: edges are read
+    assert "vei.config.perception" in graph["vei.config"]  # guard: edges are read
     upward = sorted(
         (a, b)
         for a in configs
@@ -207,8 +207,8 @@ def test_direction_rules_catch_each_kind_of_violation():
         "vei.metrics.ttc": {"vei.boxes", "vei.models.geometry", "vei.metrics.geometry"},
         "vei.models.sfm": {"vei.boxes", "vei.sim.engine"},
         "vei.export.openscenario": {"vei.io.atomic", "vei.sim"},
-        "vei.experiments.sweep": {"vei.sim.engine", "vei.cli.main"},
-        "vei.cli.main": {"vei.experiments.sweep", "vei.cli.run"},
+        "vei.sweep.run": {"vei.sim.engine", "vei.cli.main"},
+        "vei.cli.main": {"vei.sweep.run", "vei.cli.run"},
         "vei.boxes": {"vei.errors", "vei.types", "vei.config"},
         "vei.types": {"vei.errors"},
     }
@@ -217,7 +217,7 @@ def test_direction_rules_catch_each_kind_of_violation():
         "vei.metrics.ttc -> vei.models.geometry",
         "vei.models.sfm -> vei.sim.engine",
         "vei.export.openscenario -> vei.sim",
-        "vei.experiments.sweep -> vei.cli.main",
+        "vei.sweep.run -> vei.cli.main",
         "vei.boxes -> vei.config",
     ]
 

@@ -12,7 +12,7 @@ import pandas as pd
 from typer.testing import CliRunner
 
 from vei.cli.main import app
-from vei.experiments.sweep import DEFAULT_METRICS
+from vei.sweep.run import DEFAULT_METRICS
 
 
 def same_value(sweep_value, run_value) -> bool:

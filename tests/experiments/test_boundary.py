@@ -156,11 +156,11 @@ def test_search_boundary_on_the_demo_scenario(demo_scenario, tmp_path):
 
     from vei.config import RunConfig, load_config
     from vei.experiments.boundary import search_boundary
-    from vei.experiments.sweep_spec import spec_from_dict
     from vei.io.scenario import read_scenario
     from vei.metrics import summarize
     from vei.sim.engine import simulate
     from vei.sim.state import VariantParams, prepare_scenario
+    from vei.sweep.spec import spec_from_dict
 
     spec = spec_from_dict(
         {
@@ -230,7 +230,7 @@ def test_search_boundary_on_the_demo_scenario(demo_scenario, tmp_path):
 
 def test_search_boundary_rejects_a_varying_third_parameter(demo_scenario, tmp_path):
     from vei.experiments.boundary import search_boundary
-    from vei.experiments.sweep_spec import spec_from_dict
+    from vei.sweep.spec import spec_from_dict
 
     spec = spec_from_dict(
         {

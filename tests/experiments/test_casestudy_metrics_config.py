@@ -69,8 +69,8 @@ def test_run_config_metrics_typo_is_an_error(scenario_dir, tmp_path, capsys):
 
 def test_a_sweep_over_the_rider_mass_changes_the_delta_v(scenario_dir, tmp_path):
     """A sweep scores each variant with its own sfm.mass_kg (as vei run does)."""
-    from vei.experiments.sweep import read_results, run_sweep
-    from vei.experiments.sweep_spec import spec_from_dict
+    from vei.sweep.run import read_results, run_sweep
+    from vei.sweep.spec import spec_from_dict
 
     spec = spec_from_dict(
         {

@@ -18,18 +18,18 @@ import pytest
 
 from tests.experiments.rerun import assert_runs_equal_sweep
 from vei.config import CASE_PRESETS, SFM_PRESETS, CaseConfig
-from vei.config_perception import PerceptionConfig
-from vei.experiments.sweep import (
+from vei.config.perception import PerceptionConfig
+from vei.policy.perception_random import label_keys
+from vei.sim.engine import _RECORDED, simulate
+from vei.sim.params import VariantParams
+from vei.sweep.run import (
     DEFAULT_METRICS,
     EngineEvaluator,
     read_results,
     run_sweep,
     write_variant_configs,
 )
-from vei.experiments.sweep_spec import spec_from_dict
-from vei.policy.perception_random import label_keys
-from vei.sim.engine import _RECORDED, simulate
-from vei.sim.params import VariantParams
+from vei.sweep.spec import spec_from_dict
 
 NOISY = PerceptionConfig(
     enabled=True,

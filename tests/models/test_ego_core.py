@@ -1,7 +1,7 @@
 """vei.models.ego_core: one implementation of the ego's laws for both engines.
 
 The NumPy engine runs the cores on arrays (through vei.models.ego), the compiled kernel
-runs numba's scalar compilation of the same source (vei.sim._kernel_ego). Here the two
+runs numba's scalar compilation of the same source (vei.sim.kernel.ego). Here the two
 agree bit for bit on random and edge-case inputs (the exp / expm1 of the PID decay and
 the actuator lag to 1 ulp: NumPy's vectorised exp may round differently from the C
 library's), and the cores give hand-computed answers.
@@ -94,7 +94,7 @@ DT = 0.05
 
 
 def _compiled(name: str):
-    kernel_ego = pytest.importorskip("vei.sim._kernel_ego")  # needs numba
+    kernel_ego = pytest.importorskip("vei.sim.kernel.ego")  # needs numba
     table = {
         "pid_core": kernel_ego.pid_core, "pid_limit": kernel_ego.pid_limit,
         "pid_decay": kernel_ego.pid_decay, "lag_factor": kernel_ego.lag_factor,

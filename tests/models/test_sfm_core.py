@@ -49,7 +49,7 @@ CASES = (
 
 @pytest.mark.parametrize(("name", "compiled", "args"), CASES, ids=[c[0] for c in CASES])
 def test_numpy_and_compiled_cores_are_bit_identical(name, compiled, args, rng_inputs) -> None:
-    kernel_sfm = pytest.importorskip("vei.sim._kernel_sfm")  # needs numba
+    kernel_sfm = pytest.importorskip("vei.sim.kernel.sfm")  # needs numba
     vec = [0.05 if a == "dt" else rng_inputs[a] for a in args]
     out_np = getattr(core, name)(*vec)
     fn = getattr(kernel_sfm, compiled)
@@ -64,7 +64,7 @@ def test_numpy_and_compiled_cores_are_bit_identical(name, compiled, args, rng_in
 def test_repulsion_core_numpy_and_compiled(rng_inputs) -> None:
     """Direction and the tiny flag bit for bit; the magnitude a exp(-b d) to 2 ulp (the
     exp to 1, then the product's rounding)."""
-    kernel_sfm = pytest.importorskip("vei.sim._kernel_sfm")
+    kernel_sfm = pytest.importorskip("vei.sim.kernel.sfm")
     px, py = rng_inputs["px"].copy(), rng_inputs["py"].copy()
     qx, qy = rng_inputs["gx"].copy(), rng_inputs["gy"].copy()
     qx[:50], qy[:50] = px[:50], py[:50]  # the rider on the source point: tiny
@@ -143,7 +143,7 @@ def test_rider_repulsion_numpy_and_compiled(rng_inputs) -> None:
     """vei.models.sfm.rider_force (NumPy, masked) and the kernel's rforce (a branch) run the
     same cores: zero where they do not act (cutoff, coincident centres), elsewhere equal to
     4 ulp (the exp to 1 ulp, then a product, a division and a product round it)."""
-    kernel_scalar = pytest.importorskip("vei.sim._kernel_scalar")
+    kernel_scalar = pytest.importorskip("vei.sim.kernel.scalar")
     from vei.models import sfm
 
     rng = np.random.default_rng(5)

@@ -5,14 +5,14 @@ a sweep over reconstruction samples."""
 import numpy as np
 import pandas as pd
 import pytest
+from benchmarks.recon_research.compare import leave_one_recording_out
 
 from vei.errors import ConfigError, InputError
-from vei.experiments.sweep_spec import SAMPLE_COLUMN, spec_from_dict, variants_table
 from vei.io.interaction import read_interaction
 from vei.recon.calibration import POSTERIOR_STD_INFLATION
-from vei.recon.compare import leave_one_recording_out
 from vei.recon.pipeline import PRESETS, reconstruct
 from vei.recon.samples import rider_band, sample_rider, scenario_with_sample
+from vei.sweep.spec import SAMPLE_COLUMN, spec_from_dict, variants_table
 
 #: The seven shared recordings with riders (the other two have none and are refused).
 RECORDINGS = (
@@ -147,8 +147,8 @@ def test_spec_reconstruction_samples():
 def test_sweep_over_reconstruction_samples_of_a_real_recording(probabilistic, tmp_path):
     # The must-show runs 200 samples (docs/reconstruction.md); here 6 samples of the same
     # recording near its collision boundary (replayed rider, no avoidance).
-    from vei.experiments.sweep import run_sweep
     from vei.io.scenario import write_scenario
+    from vei.sweep.run import run_sweep
 
     folder = write_scenario(probabilistic[STADTMITTE], tmp_path / "scenario")
     spec = spec_from_dict(

@@ -15,11 +15,11 @@ import pytest
 pytest.importorskip("numba")
 
 from vei.config import SimConfig, case_preset  # noqa: E402
-from vei.experiments.sweep_engine import DEFAULT_METRICS  # noqa: E402
 from vei.metrics import MetricsConfig, as_timeseries_trace, summarize  # noqa: E402
 from vei.metrics.fused_layout import FUSED_METRICS  # noqa: E402
 from vei.sim.engine import simulate, simulate_metrics  # noqa: E402
 from vei.sim.state import VariantParams, prepare_scenario  # noqa: E402
+from vei.sweep.evaluator import DEFAULT_METRICS  # noqa: E402
 
 OTHER_CFG = MetricsConfig(ttc_scope="all", drac_ceiling_mps2=2.0, rider_mass_kg=80.0)
 
@@ -150,10 +150,10 @@ def test_memory_does_not_grow_with_steps_times_variants(demo) -> None:
 def test_sweep_chunk_rows_unchanged(demo, tmp_path) -> None:
     """EngineEvaluator.evaluate (the fused path) gives the rows of the recorded path."""
     from vei.experiments.demo_data import demo_interaction
-    from vei.experiments.sweep_engine import EngineEvaluator, variant_params
-    from vei.experiments.sweep_spec import spec_from_dict, variants_table
     from vei.io.scenario import write_scenario
     from vei.recon.pipeline import reconstruct
+    from vei.sweep.evaluator import EngineEvaluator, variant_params
+    from vei.sweep.spec import spec_from_dict, variants_table
 
     write_scenario(reconstruct(demo_interaction()), tmp_path / "scen")
     spec = spec_from_dict(

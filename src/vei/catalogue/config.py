@@ -110,10 +110,10 @@ class CatalogueConfig:
         resolve_cases(list(self.cases))
 
     def sweep_spec(self):
-        """The sweep as a vei.experiments.sweep_spec.SweepSpec (None without a sweep)."""
+        """The sweep as a vei.sweep.spec.SweepSpec (None without a sweep)."""
         if self.sweep is None:
             return None
-        from vei.experiments.sweep_spec import spec_from_dict
+        from vei.sweep.spec import spec_from_dict
 
         return spec_from_dict(self.sweep, source="catalogue sweep")
 

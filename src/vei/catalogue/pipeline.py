@@ -240,8 +240,8 @@ def process_encounter(
 
 def _encounter(out: Path, enc: Encounter, config: CatalogueConfig) -> int:
     from vei.experiments.casestudy import run_casestudy, write_casestudy
-    from vei.experiments.sweep import run_sweep
     from vei.io.scenario import read_scenario, write_scenario
+    from vei.sweep.run import run_sweep
 
     edir = encounter_dir(out, enc.encounter_id)
     edir.mkdir(parents=True, exist_ok=True)

@@ -97,7 +97,7 @@ def executor(engine: str, workers: int) -> Iterator[Any]:
     """A job executor with ``map(fn, calls)`` yielding results as jobs finish.
 
     'local': this process (workers == 1) or a pool of ``workers`` spawned processes
-    (:class:`vei.experiments.workers.WorkerPool`: they die with this process, ignore
+    (:class:`vei.sweep.workers.WorkerPool`: they die with this process, ignore
     SIGINT, and are killed at once when the block ends with an exception);
     'ray': Ray tasks (``ray.init(num_cpus=workers)`` unless Ray is initialised already,
     e.g. ``ray.init(address='auto')`` on a cluster: then the cluster's CPUs are used).
@@ -107,7 +107,7 @@ def executor(engine: str, workers: int) -> Iterator[Any]:
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ConfigError(f"workers must be an integer >= 1, got {workers!r}")
     if engine == "ray":
-        from vei.experiments.workers import ray_session
+        from vei.sweep.workers import ray_session
 
         with ray_session(workers) as ray:
             yield _Ray(ray)
@@ -115,7 +115,7 @@ def executor(engine: str, workers: int) -> Iterator[Any]:
     if workers == 1:
         yield _Serial()
         return
-    from vei.experiments.workers import WorkerPool
+    from vei.sweep.workers import WorkerPool
 
     with WorkerPool(workers) as pool:
         yield _Pool(pool)

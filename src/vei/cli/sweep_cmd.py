@@ -32,7 +32,7 @@ def interrupted_message(out: Path) -> str:
 
     import pyarrow.parquet as pq
 
-    from vei.experiments.sweep import PART_RE
+    from vei.sweep.run import PART_RE
 
     parts_dir = Path(out) / "parts"
     parts = [p for p in parts_dir.iterdir() if PART_RE.match(p.name)] if parts_dir.is_dir() else []
@@ -159,8 +159,8 @@ def sweep(
     from rich.console import Console
     from rich.table import Table
 
-    from vei.experiments.sweep import find_scenarios, read_results, run_sweep
-    from vei.experiments.sweep_spec import load_spec
+    from vei.sweep.run import find_scenarios, read_results, run_sweep
+    from vei.sweep.spec import load_spec
 
     console = Console()
     sweep_spec = load_spec(spec)

@@ -40,7 +40,7 @@ import pandas as pd
 from vei.errors import ConfigError
 
 if TYPE_CHECKING:
-    from vei.experiments.sweep_spec import SweepSpec
+    from vei.sweep.spec import SweepSpec
 
 #: Oracle: points [N, 2] (x, y) -> {'collision': bool [N], other metric columns [N] ...}.
 Oracle = Callable[[np.ndarray], Mapping[str, Any]]
@@ -414,11 +414,11 @@ def search_boundary(
     """
     import sys
 
-    from vei.experiments.sweep_engine import EngineEvaluator
-    from vei.experiments.sweep_io import json_records, most_critical, write_variant_configs
-    from vei.experiments.sweep_spec import PARAMETERS, check_name, variant_id, variant_seed
     from vei.io.atomic import write_json, write_parquet, write_text
     from vei.report.riskmap import write_risk_map
+    from vei.sweep.evaluator import EngineEvaluator
+    from vei.sweep.io import json_records, most_critical, write_variant_configs
+    from vei.sweep.spec import PARAMETERS, check_name, variant_id, variant_seed
 
     for axis in (x, y):
         check_name(axis, "boundary axis")  # an old spelling: say the new one

@@ -198,7 +198,7 @@ def param_of(a: TraceArrays, key: str, override: float | None) -> FloatArray:
         return np.full(n, float(override))
     if key in a.params:
         return a.params[key]
-    from vei.config_models import EgoConfig, SFMConfig
+    from vei.config.models import EgoConfig, SFMConfig
 
     default = SFMConfig.mass_kg if key == "rider_mass_kg" else EgoConfig.max_decel_mps2
     return np.full(n, float(default))

@@ -59,7 +59,7 @@ run of the same variant: 'avoided' (no collision), 'mitigated' (impact speed at 
 ``mitigation_share`` below the no-avoidance run's), 'not-mitigated' otherwise -- which
 includes a collision the no-avoidance run did not have. The no-avoidance run itself is
 not judged against itself: case studies and sweeps label its row 'reference'
-(vei.experiments.casestudy.add_verdicts, vei.experiments.sweep_compare).
+(vei.experiments.casestudy.add_verdicts, vei.sweep.compare).
 The risk curve is a pedestrian, car-front one; it is applied to every rider impact,
 also to a rider running into the side of a car, which it was not fitted to.
 """

@@ -3,9 +3,9 @@
 Every function here uses NumPy ufuncs, arithmetic and :func:`select` only, so the same
 source runs vectorised on arrays ``[B]`` (the NumPy reference step through
 :mod:`vei.models.ego`) and compiled by numba on scalars (the compiled kernel,
-:mod:`vei.sim._kernel_ego`), like :func:`vei.boxes.overlap_core` for the box overlap.
+:mod:`vei.sim.kernel.ego`), like :func:`vei.boxes.overlap_core` for the box overlap.
 The order of operations is the compiled kernel's (its outputs are pinned bit for bit by
-tests/sim/test_kernel_regression.py); on arrays NumPy's vectorised ``exp`` / ``expm1`` may
+tests/sim/kernel/test_kernel_regression.py); on arrays NumPy's vectorised ``exp`` / ``expm1`` may
 differ from the C library's in the last bit, nothing else does.
 
 Three helpers stand for what NumPy and numba spell differently: :func:`select`

@@ -4,8 +4,8 @@ semi-implicit Euler step, the ego's repulsion, the limits' factor.
 Like :mod:`vei.models.ego_core`: NumPy ufuncs, arithmetic and
 :func:`vei.models.ego_core.select` only, so that the same source runs vectorised on arrays
 (:mod:`vei.models.sfm`, the NumPy engine and its extra riders) and compiled by numba on
-scalars (:mod:`vei.sim._kernel_sfm`, the compiled kernel's primary and extra riders), in the
-compiled kernel's order of operations (pinned by tests/sim/test_kernel_regression.py).
+scalars (:mod:`vei.sim.kernel.sfm`, the compiled kernel's primary and extra riders), in the
+compiled kernel's order of operations (pinned by tests/sim/kernel/test_kernel_regression.py).
 
 The ego's repulsion (influential point, magnitude and direction) and the force / speed
 limits are here too. Their rare cases are separate functions that the caller gates: the

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from vei.config_perception import PerceptionConfig
+from vei.config.perception import PerceptionConfig
 from vei.policy import perception_geometry as geom
 from vei.policy.perception_random import (
     STREAM_DETECTION,

@@ -154,7 +154,7 @@ def kalman_filter(
         batch: the tracks (observations [B, T, k, D]).
         h: [k, n] observation matrix (e.g. [[1, 0]] for position only).
         r: [B, k, k] observation noise covariance per track, or [B, T, k, k] per step
-            (heteroscedastic: e.g. the reweighted keyframes of :mod:`vei.recon.robust`).
+            (heteroscedastic: e.g. the reweighted keyframes of :mod:`benchmarks.recon_research.robust`).
         psd: [B] spectral density of the driving noise per track.
         order: state dimension n (2 or 3), see :func:`transition`.
     Returns:

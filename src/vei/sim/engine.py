@@ -70,7 +70,7 @@ from vei.types import Scenario
 if TYPE_CHECKING:
     import pandas as pd
 
-    from vei.config_metrics import MetricsConfig
+    from vei.config.metrics import MetricsConfig
 
 FloatArray = npt.NDArray[np.float64]
 _XNAMES = tuple(name for name, _, _ in _RECORDED_EXTRA)
@@ -340,7 +340,7 @@ def simulate_metrics(
     """
     import pandas as pd
 
-    from vei.config_metrics import MetricsConfig
+    from vei.config.metrics import MetricsConfig
     from vei.metrics import as_timeseries_trace, summarize
     from vei.sim import kernel as compiled
 

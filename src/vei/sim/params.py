@@ -12,7 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from vei.config import AUTO, MAX_RUN_UP_M, MEDIAN_MOVING, CaseConfig
-from vei.config_settings import BY_FIELD, SETTINGS, config_value
+from vei.config.settings import BY_FIELD, SETTINGS, config_value
 from vei.errors import ConfigError, InputError
 from vei.sim.tables import TimeTable
 
@@ -73,7 +73,7 @@ class VariantParams:
     per-variant overrides), :meth:`concat` (stack several) or directly.
 
     Attributes:
-        One per engine setting, declared in :data:`vei.config_settings.SETTINGS` (same
+        One per engine setting, declared in :data:`vei.config.settings.SETTINGS` (same
         names, same order): its unit, bounds (checked here, messages naming the run-config
         path), the run-config field it comes from and how (:meth:`from_case`), and what it
         is. Bools are bool arrays, ``ego_mode`` int8 (:data:`EGO_MODE_CODES`), ``policy``
@@ -151,7 +151,7 @@ class VariantParams:
                 raise ConfigError(f"VariantParams.{f.name} has NaN or -inf values")
         if b == 0:
             raise ConfigError("VariantParams needs at least one variant")
-        for s in SETTINGS:  # the declared bounds (vei.config_settings)
+        for s in SETTINGS:  # the declared bounds (vei.config.settings)
             v = getattr(self, s.field)
             where = f"VariantParams.{s.field}" + (f" ({s.path})" if s.path else "")
             if s.kind == "float" and not s.allows_inf and np.any(np.isposinf(v)):
@@ -241,7 +241,7 @@ class VariantParams:
             v0, vmax = speed_from_recording(
                 tr.data[:, tr.col("speed_mps")], sfm.lookahead_m, sfm.sigma_m, v0, vmax
             )
-        # Every declared setting read from the configuration (vei.config_settings), then
+        # Every declared setting read from the configuration (vei.config.settings), then
         # those derived from the scenario, the run or the policy.
         base: dict[str, Any] = {
             s.field: config_value(s, case)

@@ -1,0 +1,462 @@
+"""numba-compiled loop of the built-in engine (imported only when numba is used).
+
+See :mod:`vei.sim.kernel` for the contract; the layout of the packed arrays is in
+:mod:`vei.sim.kernel.layout`. This module holds the ``prange`` loop over variants and
+steps; the model pieces it inlines live in :mod:`vei.sim.kernel.scalar` (interpolation,
+box overlap, repulsion), :mod:`vei.sim.kernel.ego` (replay / PID / CAP),
+:mod:`vei.sim.kernel.sfm` (social force) and :mod:`vei.sim.kernel.riders` (extra
+riders). Every compiled function is at module level so that numba's on-disk cache
+(``cache=True``) works across processes; :func:`vei.sim.kernel._build` drops the cache
+when any of these modules changes (numba only checks the kernel's own file).
+"""
+
+# ruff: noqa: E501, N803, N806
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from vei.metrics.fused import run_metrics
+from vei.metrics.fused_layout import (
+    CH_EA,
+    CH_EV,
+    CH_EX,
+    CH_EY,
+    CH_EYAW,
+    CH_RACT,
+    CH_RCOL,
+    CH_RSP,
+    CH_RX,
+    CH_RY,
+    CH_RYAW,
+    N_CH,
+)
+from vei.sim.kernel.ego import ego_consts, ego_step_c
+from vei.sim.kernel.layout import (
+    N_OUT,
+    O_A,
+    O_RA,
+    O_RSP,
+    O_RVX,
+    O_RVY,
+    O_RX,
+    O_RY,
+    O_RYAW,
+    O_S,
+    O_U,
+    O_V,
+    O_X,
+    O_Y,
+    O_YAW,
+    P_AMAX_R,
+    P_ARR,
+    P_ARRIVE,
+    P_AVEH,
+    P_BRR,
+    P_BVEH,
+    P_DELAY,
+    P_DMAX,
+    P_FRONTB,
+    P_KDES,
+    P_LOOK,
+    P_MASS,
+    P_MODE,
+    P_PAPERV,
+    P_SFM,
+    P_SFR,
+    P_SHIFT,
+    P_SIGMA,
+    P_USERF,
+    P_USEVF,
+    P_V0,
+    P_VD,
+    P_VMAX,
+)
+from vei.sim.kernel.riders import extra_riders_step
+from vei.sim.kernel.scalar import idx, ped_forces, rforce, sat
+from vei.sim.kernel.sfm import drive_force, integrate, vehicle_force
+
+__all__ = ["N_OUT", "kernel"]
+
+
+# parallel=True: variants are independent (per-variant scratch, no reduction across them),
+# so the prange loop spreads them over the cores without changing any result. nogil: a
+# sweep's parent runs chunks itself while its pool's manager thread feeds the workers.
+@numba.njit(cache=True, parallel=True, nogil=True)
+def kernel(  # type: ignore[no-untyped-def]
+    T, dt, hist_len, record,
+    path, p_s0, p_ds,  # ego path [10, N]: x y yaw cos sin, then their slopes
+    etab, e_t0, e_dt,  # ego track [4, M]: s, speed, slopes
+    rtab, r_t0, r_dt, r_tend,  # rider track [14, M]: x y yaw sp vx vy arc, slopes
+    rpath, rp_s0, rp_ds, rp_len, rp_ex, rp_ey,  # rider path [10, N]
+    Le, We, Lr, Wr,
+    oX, oY, oYAW, oACT, oL, oW,  # others [T, no], [no]
+    P,  # params [N_PARAMS, B]
+    S0,  # initial float state [19, B] (layout of FS)
+    B0,  # initial bool state [4, B] (active, started, collided, done) as uint8
+    OUT,  # out float [B, N_OUT, T] (record) or [B, N_OUT, 1]
+    OB,  # out uint8 [B, 3, T]: cap_state, rider_active, collided
+    OH,  # out uint8 [B, T, no]: hit_other latch
+    H0,  # initial hit_other [B, no] uint8
+    FS,  # final float state [19, B]: s x y yaw v a_rep a_act u pid_i pid_e cap rx ry ryaw rvx rvy rsp racc prog
+    FB,  # final bool state [4, B]
+    FH,  # final hist [4, hist_len, B]
+    coll_t, min_d,  # [B]
+    R, xtab, xt0, xdt, xtend, xnr,  # extra riders: tracks [R, 14, M], [R] (vei.sim.riders)
+    xpath, xps0, xpds, xpn, xplen, xpex, xpey,  # their paths [R, 10, N], [R]
+    xL, xW, xrad, xmed, xp99, prad, rep_on,  # footprints, radii, recorded speeds, mode
+    ped_idx, ped_rad,  # pedestrian obstacles: indices into the others, radii
+    XS0, XB0,  # initial extra state [8, B, R] floats, [4, B, R] uint8 (act, started, done, hit)
+    OX, OXB,  # out [B, 5, T, R] (x y yaw speed accel), [B, 2, T, R] uint8 (active, hit)
+    XFS, XFB,  # final extra state [8, B, R], [4, B, R]
+    metrics, t_m, dt_m, MCFG, M,  # fused metrics (vei.metrics.fused): on?, t [T], dt, cfg, out [B, N_FUSED]
+):  # fmt: skip
+    B = P.shape[1]
+    n_p = path.shape[1]
+    n_e = etab.shape[1]
+    n_r = rtab.shape[1]
+    n_rp = rpath.shape[1]
+    no = oL.shape[0]
+    reach = 0.5 * (math.hypot(Le, We) + math.hypot(Lr, Wr))
+    # Squared contact radius of the ego with each replayed other (constant over the run).
+    o_rr2 = np.empty(no)
+    for j in range(no):
+        rr = 0.5 * (math.hypot(Le, We) + math.hypot(oL[j], oW[j]))
+        o_rr2[j] = rr * rr
+    for b in numba.prange(B):
+        use_rf = rep_on and P[P_USERF, b] > 0.5
+        a_rr = P[P_ARR, b]
+        b_rr = P[P_BRR, b]
+        xs = np.empty((8, R))
+        xb = np.empty((4, R), dtype=np.bool_)
+        nxs = np.empty((8, R))
+        nxb = np.empty((4, R), dtype=np.bool_)
+        xv0 = np.empty(R)
+        xvmax = np.empty(R)
+        for j in range(R):
+            for f in range(8):
+                xs[f, j] = XS0[f, b, j]
+            for f in range(4):
+                xb[f, j] = XB0[f, b, j] > 0
+            med = xmed[j]
+            if P[P_SFR, b] > 0.5 and math.isfinite(med):
+                lk = P[P_LOOK, b]
+                xv0[j] = med * math.hypot(lk, P[P_SIGMA, b]) / lk
+                xvmax[j] = max(xp99[j], med)
+            else:
+                xv0[j] = P[P_V0, b]
+                xvmax[j] = P[P_VMAX, b]
+        shift = P[P_SHIFT, b]
+        sfm = P[P_SFM, b] > 0.5
+        mode = int(P[P_MODE, b])
+        delay = int(P[P_DELAY, b])
+        vd = P[P_VD, b]
+        # the primary rider's social-force constants, once per variant (same values)
+        p_look, p_sigma, p_paperv = P[P_LOOK, b], P[P_SIGMA, b], P[P_PAPERV, b] > 0.5
+        p_v0, p_kdes, p_usevf = P[P_V0, b], P[P_KDES, b], P[P_USEVF, b] > 0.5
+        p_frontb, p_aveh, p_bveh = P[P_FRONTB, b] > 0.5, P[P_AVEH, b], P[P_BVEH, b]
+        p_mass, p_amax, p_vmax = P[P_MASS, b], P[P_AMAX_R, b], P[P_VMAX, b]
+        p_limits = math.isfinite(p_vmax) or math.isfinite(p_amax)
+        p_arrive2 = P[P_ARRIVE, b] ** 2
+        ec = ego_consts(P, b, dt, Lr, Wr)  # the ego's per-variant constants, once per variant
+        # state
+        s = S0[0, b]
+        ex = S0[1, b]
+        ey = S0[2, b]
+        eyaw = S0[3, b]
+        v = S0[4, b]
+        a_rep = S0[5, b]
+        a_act = S0[6, b]
+        u = S0[7, b]
+        pid_i = S0[8, b]
+        pid_e = S0[9, b]
+        cap = int(S0[10, b])
+        rx = S0[11, b]
+        ry = S0[12, b]
+        ryaw = S0[13, b]
+        rvx = S0[14, b]
+        rvy = S0[15, b]
+        rsp = S0[16, b]
+        r_acc = S0[17, b]
+        prog = S0[18, b]
+        r_act = B0[0, b] > 0
+        r_started = B0[1, b] > 0
+        collided = B0[2, b] > 0
+        r_done = B0[3, b] > 0
+        hit = np.empty(no, dtype=np.bool_)
+        for j in range(no):
+            hit[j] = H0[b, j] > 0
+        hx = np.zeros(hist_len)
+        hy = np.zeros(hist_len)
+        hyaw = np.zeros(hist_len)
+        hact = np.zeros(hist_len)
+        hx[0], hy[0], hyaw[0], hact[0] = rx, ry, ryaw, 1.0 if r_act else 0.0
+        # Argument groups of the inlined steps (Python compiles a call of > 30 arguments
+        # to CALL_FUNCTION_EX, which numba cannot inline).
+        hist = (hx, hy, hyaw, hact)
+        egeo = (path, p_s0, p_ds, n_p, etab, e_t0, e_dt, n_e, Le, Lr, Wr)
+        xst = (xs, xb, nxs, nxb, xv0, xvmax)
+        xtrk = (xtab, xt0, xdt, xtend, xnr)
+        xpth = (xpath, xps0, xpds, xpn, xplen, xpex, xpey)
+        xgeo = (xL, xW, xrad)
+        peds = (ped_idx, ped_rad, oX, oY, oACT)
+        ct = np.nan
+        if collided:
+            ct = 0.0
+        # the least squared centre distance; its root at the end is the least distance
+        # (sqrt is monotone: min of the roots = root of the min, NaN kept, ties the same)
+        md2 = np.inf
+        if r_act:
+            md2 = (rx - ex) ** 2 + (ry - ey) ** 2
+        # Fused metrics: this variant's [T] channels (scratch, never [B, T]), scored at the end.
+        ch = np.empty((N_CH, T if metrics else 1))
+        if metrics:
+            _channels(ch, 0, ex, ey, eyaw, v, a_rep, rx, ry, ryaw, rsp, r_act, collided)
+        for k in range(T - 1):
+            t_new = (k + 1) * dt
+            # ---------------- ego
+            s_new, v_new, a_act_n, a_rep_n, u, pid_i, pid_e, cap = ego_step_c(
+                k, t_new, dt, ec, mode, delay, vd, hist_len,
+                s, v, a_act, pid_i, pid_e, cap, collided,
+                rx, ry, ryaw, r_act, hist, egeo,
+            )  # fmt: skip
+            i, w = idx(p_s0, p_ds, n_p, s_new)
+            ex_n = path[0, i] + w * path[5, i]
+            ey_n = path[1, i] + w * path[6, i]
+            eyaw_n = path[2, i] + w * path[7, i]
+            # ---------------- rider
+            t_rec = t_new - shift
+            in_span = t_rec >= r_t0 - 1e-9 and t_rec <= r_tend + 1e-9
+            prev_x, prev_y, prev_yaw, prev_sp, prev_act = rx, ry, ryaw, rsp, r_act
+            if not sfm:
+                if in_span:
+                    i, w = idx(r_t0, r_dt, n_r, t_rec)
+                    nrx = rtab[0, i] + w * rtab[7, i]
+                    nry = rtab[1, i] + w * rtab[8, i]
+                    nryaw = rtab[2, i] + w * rtab[9, i]
+                    nrsp = rtab[3, i] + w * rtab[10, i]
+                    nrvx = rtab[4, i] + w * rtab[11, i]
+                    nrvy = rtab[5, i] + w * rtab[12, i]
+                else:
+                    j0 = 0 if t_rec < r_t0 else n_r - 1
+                    nrx, nry, nryaw = rtab[0, j0], rtab[1, j0], rtab[2, j0]
+                    nrsp = nrvx = nrvy = 0.0
+                n_act = in_span
+                if r_started and not in_span:
+                    r_done = True
+                r_started = r_started or in_span
+                nprog = prog
+            else:
+                nrx, nry, nryaw, nrvx, nrvy, nrsp, nprog, n_act = (
+                    rx,
+                    ry,
+                    ryaw,
+                    rvx,
+                    rvy,
+                    rsp,
+                    prog,
+                    r_act,
+                )
+                if r_act and not collided:
+                    fx, fy, pr = drive_force(
+                        rx, ry, rvx, rvy, prog, rpath, rp_s0, rp_ds, n_rp, rp_len,
+                        p_look, p_sigma, p_paperv, p_v0, p_kdes,
+                    )  # fmt: skip
+                    if p_usevf:
+                        vfx, vfy = vehicle_force(
+                            rx, ry, ex, ey, eyaw, Le, We, p_frontb, p_aveh, p_bveh
+                        )  # fmt: skip
+                        fx = fx + vfx
+                        fy = fy + vfy
+                    if use_rf:
+                        sx = 0.0
+                        sy = 0.0
+                        for mm in range(R):
+                            if xb[0, mm]:
+                                hx_, hy_ = rforce(
+                                    rx, ry, xs[0, mm], xs[1, mm], prad + xrad[mm], a_rr, b_rr
+                                )
+                                sx += hx_
+                                sy += hy_
+                        sx, sy = ped_forces(
+                            sx, sy, rx, ry, prad, k, ped_idx, ped_rad, oX, oY, oACT, a_rr, b_rr
+                        )
+                        fx = fx + sx
+                        fy = fy + sy
+                    x2, y2, vx2, vy2, sp2 = integrate(
+                        rx, ry, rvx, rvy, fx, fy, p_mass, p_amax, p_vmax, dt, p_limits
+                    )  # fmt: skip
+                    yaw2 = math.atan2(vy2, vx2) if sp2 > 0.05 else ryaw
+                    arrived = (x2 - rp_ex) ** 2 + (y2 - rp_ey) ** 2 <= p_arrive2
+                    leaving = arrived and t_rec > r_tend + 1e-9
+                    nrx, nry, nryaw = x2, y2, yaw2
+                    if leaving:
+                        nrvx = nrvy = nrsp = 0.0
+                    else:
+                        nrvx, nrvy, nrsp = vx2, vy2, sp2
+                    nprog = pr
+                    n_act = not leaving
+                    if r_act and not n_act:
+                        r_done = True
+                if not r_started and in_span:
+                    i, w = idx(r_t0, r_dt, n_r, t_rec)
+                    nrx = rtab[0, i] + w * rtab[7, i]
+                    nry = rtab[1, i] + w * rtab[8, i]
+                    nryaw = rtab[2, i] + w * rtab[9, i]
+                    nrsp = rtab[3, i] + w * rtab[10, i]
+                    nrvx = rtab[4, i] + w * rtab[11, i]
+                    nrvy = rtab[5, i] + w * rtab[12, i]
+                    nprog = rtab[6, i] + w * rtab[13, i]
+                    n_act = True
+                    r_started = True
+            if collided:
+                nrx, nry, nryaw = prev_x, prev_y, prev_yaw
+                nrvx = nrvy = nrsp = 0.0
+                n_act = prev_act
+            r_acc = (nrsp - prev_sp) / dt if (n_act and prev_act) else 0.0
+            if collided:
+                r_acc = 0.0
+            # ---------------- extra riders (state at step k; ego contact at k + 1)
+            if R > 0:
+                extra_riders_step(
+                    k, t_new, dt, P, b, sfm, use_rf, a_rr, b_rr,
+                    xst, xtrk, xpth, xgeo, rx, ry, r_act, prad, peds,
+                    ex, ey, eyaw, Le, We, ex_n, ey_n, eyaw_n,
+                )  # fmt: skip
+            # ---------------- collision
+            if n_act and not collided:
+                ddx, ddy = nrx - ex_n, nry - ey_n
+                if ddx * ddx + ddy * ddy <= reach * reach:
+                    if sat(ex_n, ey_n, eyaw_n, Le, We, nrx, nry, nryaw, Lr, Wr):
+                        collided = True
+                        ct = t_new
+                        v_new = 0.0
+                        a_act_n = 0.0
+                        a_rep_n = 0.0
+                        nrvx = nrvy = nrsp = 0.0
+                        r_acc = 0.0
+            for j in range(no):
+                if oACT[k + 1, j] and not hit[j]:
+                    ddx, ddy = oX[k + 1, j] - ex_n, oY[k + 1, j] - ey_n
+                    if ddx * ddx + ddy * ddy <= o_rr2[j]:
+                        if sat(
+                            ex_n,
+                            ey_n,
+                            eyaw_n,
+                            Le,
+                            We,
+                            oX[k + 1, j],
+                            oY[k + 1, j],
+                            oYAW[k + 1, j],
+                            oL[j],
+                            oW[j],
+                        ):
+                            hit[j] = True
+            # ---------------- commit
+            s, ex, ey, eyaw, v, a_act, a_rep = s_new, ex_n, ey_n, eyaw_n, v_new, a_act_n, a_rep_n
+            rx, ry, ryaw, rvx, rvy, rsp, prog, r_act = (
+                nrx,
+                nry,
+                nryaw,
+                nrvx,
+                nrvy,
+                nrsp,
+                nprog,
+                n_act,
+            )
+            if hist_len > 1:
+                slot = (k + 1) % hist_len
+                hx[slot], hy[slot], hyaw[slot] = rx, ry, ryaw
+                hact[slot] = 1.0 if r_act else 0.0
+            if r_act:
+                dd2 = (rx - ex) * (rx - ex) + (ry - ey) * (ry - ey)
+                if dd2 < md2:
+                    md2 = dd2
+            if metrics:
+                _channels(ch, k + 1, ex, ey, eyaw, v, a_rep, rx, ry, ryaw, rsp, r_act, collided)
+            if record:
+                kk = k + 1
+                OUT[b, O_S, kk] = s
+                OUT[b, O_X, kk] = ex
+                OUT[b, O_Y, kk] = ey
+                OUT[b, O_YAW, kk] = eyaw
+                OUT[b, O_V, kk] = v
+                OUT[b, O_A, kk] = a_rep
+                OUT[b, O_U, kk] = u
+                OUT[b, O_RX, kk] = rx
+                OUT[b, O_RY, kk] = ry
+                OUT[b, O_RYAW, kk] = ryaw
+                OUT[b, O_RSP, kk] = rsp
+                OUT[b, O_RVX, kk] = rvx
+                OUT[b, O_RVY, kk] = rvy
+                OUT[b, O_RA, kk] = r_acc
+                OB[b, 0, kk] = cap
+                OB[b, 1, kk] = 1 if r_act else 0
+                OB[b, 2, kk] = 1 if collided else 0
+                for j in range(no):
+                    OH[b, kk, j] = 1 if hit[j] else 0
+                for j in range(R):
+                    OX[b, 0, kk, j] = xs[0, j]
+                    OX[b, 1, kk, j] = xs[1, j]
+                    OX[b, 2, kk, j] = xs[2, j]
+                    OX[b, 3, kk, j] = xs[5, j]
+                    OX[b, 4, kk, j] = xs[6, j]
+                    OXB[b, 0, kk, j] = 1 if xb[0, j] else 0
+                    OXB[b, 1, kk, j] = 1 if xb[3, j] else 0
+        FS[0, b] = s
+        FS[1, b] = ex
+        FS[2, b] = ey
+        FS[3, b] = eyaw
+        FS[4, b] = v
+        FS[5, b] = a_rep
+        FS[6, b] = a_act
+        FS[7, b] = u
+        FS[8, b] = pid_i
+        FS[9, b] = pid_e
+        FS[10, b] = cap
+        FS[11, b] = rx
+        FS[12, b] = ry
+        FS[13, b] = ryaw
+        FS[14, b] = rvx
+        FS[15, b] = rvy
+        FS[16, b] = rsp
+        FS[17, b] = r_acc
+        FS[18, b] = prog
+        FB[0, b] = 1 if r_act else 0
+        FB[1, b] = 1 if r_started else 0
+        FB[2, b] = 1 if collided else 0
+        FB[3, b] = 1 if r_done else 0
+        for h in range(hist_len):
+            FH[0, h, b] = hx[h]
+            FH[1, h, b] = hy[h]
+            FH[2, h, b] = hyaw[h]
+            FH[3, h, b] = hact[h]
+        coll_t[b] = ct
+        min_d[b] = math.sqrt(md2)
+        if metrics:
+            run_metrics(t_m, dt_m, ch, Le, We, Lr, Wr, MCFG, P[P_MASS, b], P[P_DMAX, b], M[b])
+        for j in range(no):
+            H0[b, j] = 1 if hit[j] else 0
+        for j in range(R):
+            for f in range(8):
+                XFS[f, b, j] = xs[f, j]
+            for f in range(4):
+                XFB[f, b, j] = 1 if xb[f, j] else 0
+
+
+@numba.njit(cache=True, inline="always")
+def _channels(ch, k, ex, ey, eyaw, v, a, rx, ry, ryaw, rsp, r_act, collided):  # type: ignore[no-untyped-def]
+    """Step k of the fused metrics' channels (what record='full' writes for that step)."""
+    ch[CH_EX, k] = ex
+    ch[CH_EY, k] = ey
+    ch[CH_EYAW, k] = eyaw
+    ch[CH_EV, k] = v
+    ch[CH_EA, k] = a
+    ch[CH_RX, k] = rx
+    ch[CH_RY, k] = ry
+    ch[CH_RYAW, k] = ryaw
+    ch[CH_RSP, k] = rsp
+    ch[CH_RACT, k] = 1.0 if r_act else 0.0
+    ch[CH_RCOL, k] = 1.0 if collided else 0.0

@@ -1,0 +1,171 @@
+"""The extra riders' step in the compiled kernel (several e-scooters, vei.sim.riders).
+
+Imported only when numba is used. For one variant, each extra rider is replayed from its
+recording or (``sfm``) driven by the social force along its path, repelled by the ego, the
+primary rider, the other extra riders and the pedestrians; then its ego contact latch is
+updated. The same formulas and order as :mod:`vei.sim.riders` in the NumPy reference;
+inlined into the kernel's loop (``inline="always"``: a call with ~50 arguments per variant
+and step would cost several times the step). SI units (m, s, m/s, N).
+"""
+
+# ruff: noqa: N803
+from __future__ import annotations
+
+import math
+
+import numba
+
+from vei.sim.kernel.layout import (
+    P_AMAX_R,
+    P_ARRIVE,
+    P_AVEH,
+    P_BVEH,
+    P_FRONTB,
+    P_KDES,
+    P_LOOK,
+    P_MASS,
+    P_PAPERV,
+    P_SIGMA,
+    P_USEVF,
+)
+from vei.sim.kernel.scalar import idx, ped_forces, rforce, sat
+from vei.sim.kernel.sfm import drive_force, integrate, vehicle_force
+
+
+@numba.njit(cache=True, inline="always")
+def track_pose(xs, j, xtab, i, w, with_prog):  # type: ignore[no-untyped-def]
+    """Set extra rider j's recorded pose in xs from its table xtab [R, 14, M] at cell (i, w).
+
+    Rows of xs [8, R]: x, y, yaw [m, rad], vx, vy [m/s], speed [m/s], accel, progress [m]
+    (progress only when ``with_prog``).
+    """
+    xs[0, j] = xtab[j, 0, i] + w * xtab[j, 7, i]
+    xs[1, j] = xtab[j, 1, i] + w * xtab[j, 8, i]
+    xs[2, j] = xtab[j, 2, i] + w * xtab[j, 9, i]
+    xs[5, j] = xtab[j, 3, i] + w * xtab[j, 10, i]
+    xs[3, j] = xtab[j, 4, i] + w * xtab[j, 11, i]
+    xs[4, j] = xtab[j, 5, i] + w * xtab[j, 12, i]
+    if with_prog:
+        xs[7, j] = xtab[j, 6, i] + w * xtab[j, 13, i]
+
+
+@numba.njit(cache=True, inline="always")
+def extra_riders_step(  # type: ignore[no-untyped-def]
+    k, t_new, dt, P, b, sfm, use_rf, a_rr, b_rr,
+    xst, xtrk, xpth, xgeo, rx, ry, r_act, prad, peds,
+    ex, ey, eyaw, Le, We, ex_n, ey_n, eyaw_n,
+):  # fmt: skip
+    """Advance the R extra riders of variant b from step k to k + 1 (time t_new [s]), in place.
+
+    Args: xst = (xs, xb, nxs, nxb, xv0, xvmax): xs [8, R] floats (x, y, yaw, vx, vy,
+    speed, accel, progress) and xb [4, R] bools (active, started, done, hit) of step k,
+    updated to k + 1 (nxs, nxb scratch of the same shapes), xv0, xvmax [R] desired and
+    maximum speeds [m/s]; xtrk = (xtab, xt0, xdt, xtend, xnr) their recorded tables
+    [R, 14, M] with start, step and end times [s] and lengths; xpth = (xpath, xps0, xpds,
+    xpn, xplen, xpex, xpey) their paths [R, 10, N] (arc grid, length, end point [m]);
+    xgeo = (xL, xW, xrad) footprints and radii [R] [m]; the primary rider's position, active
+    flag and radius prad [m] at step k; peds = (ped_idx, ped_rad, oX, oY, oACT) the
+    pedestrians among the others [T, no]; the ego at step k (ex, ey, eyaw: repulsion) and
+    k + 1 (ex_n, ey_n, eyaw_n: contact), Le x We [m].
+    """
+    xs, xb, nxs, nxb, xv0, xvmax = xst
+    xtab, xt0, xdt, xtend, xnr = xtrk
+    xpath, xps0, xpds, xpn, xplen, xpex, xpey = xpth
+    xL, xW, xrad = xgeo
+    ped_idx, ped_rad, oX, oY, oACT = peds
+    R = xs.shape[1]
+    for j in range(R):
+        for f in range(8):
+            nxs[f, j] = xs[f, j]
+        for f in range(4):
+            nxb[f, j] = xb[f, j]
+        n_j = xnr[j]
+        in_span = t_new >= xt0[j] - 1e-9 and t_new <= xtend[j] + 1e-9
+        if not sfm:
+            if in_span:
+                i, w = idx(xt0[j], xdt[j], n_j, t_new)
+                track_pose(nxs, j, xtab, i, w, False)
+            else:
+                j0 = 0 if t_new < xt0[j] else n_j - 1
+                nxs[0, j] = xtab[j, 0, j0]
+                nxs[1, j] = xtab[j, 1, j0]
+                nxs[2, j] = xtab[j, 2, j0]
+                nxs[3, j] = 0.0
+                nxs[4, j] = 0.0
+                nxs[5, j] = 0.0
+            nxb[0, j] = in_span
+            if xb[1, j] and not in_span:
+                nxb[2, j] = True
+            nxb[1, j] = xb[1, j] or in_span
+        else:
+            if xb[0, j]:
+                x0, y0, vx0, vy0, prog0 = xs[0, j], xs[1, j], xs[3, j], xs[4, j], xs[7, j]
+                fx, fy, pr = drive_force(
+                    x0, y0, vx0, vy0, prog0, xpath[j], xps0[j], xpds[j], xpn[j], xplen[j],
+                    P[P_LOOK, b], P[P_SIGMA, b], P[P_PAPERV, b] > 0.5, xv0[j], P[P_KDES, b],
+                )  # fmt: skip
+                if P[P_USEVF, b] > 0.5:
+                    vfx, vfy = vehicle_force(
+                        x0, y0, ex, ey, eyaw, Le, We, P[P_FRONTB, b] > 0.5, P[P_AVEH, b], P[P_BVEH, b]
+                    )  # fmt: skip
+                    fx = fx + vfx
+                    fy = fy + vfy
+                if use_rf:
+                    sx = 0.0
+                    sy = 0.0
+                    if r_act:
+                        hx_, hy_ = rforce(x0, y0, rx, ry, xrad[j] + prad, a_rr, b_rr)
+                        sx += hx_
+                        sy += hy_
+                    for mm in range(R):
+                        if mm != j and xb[0, mm]:
+                            hx_, hy_ = rforce(
+                                x0, y0, xs[0, mm], xs[1, mm], xrad[j] + xrad[mm], a_rr, b_rr
+                            )
+                            sx += hx_
+                            sy += hy_
+                    sx, sy = ped_forces(
+                        sx, sy, x0, y0, xrad[j], k, ped_idx, ped_rad, oX, oY, oACT, a_rr, b_rr
+                    )
+                    fx = fx + sx
+                    fy = fy + sy
+                x2, y2, vx2, vy2, sp2 = integrate(
+                    x0, y0, vx0, vy0, fx, fy, P[P_MASS, b], P[P_AMAX_R, b], xvmax[j], dt, True
+                )
+                yaw2 = math.atan2(vy2, vx2) if sp2 > 0.05 else xs[2, j]
+                arrived = (x2 - xpex[j]) ** 2 + (y2 - xpey[j]) ** 2 <= P[P_ARRIVE, b] ** 2
+                leaving = arrived and t_new > xtend[j] + 1e-9
+                nxs[0, j] = x2
+                nxs[1, j] = y2
+                nxs[2, j] = yaw2
+                if leaving:
+                    nxs[3, j] = 0.0
+                    nxs[4, j] = 0.0
+                    nxs[5, j] = 0.0
+                    nxb[2, j] = True
+                else:
+                    nxs[3, j] = vx2
+                    nxs[4, j] = vy2
+                    nxs[5, j] = sp2
+                nxs[7, j] = pr
+                nxb[0, j] = not leaving
+            if in_span and not xb[1, j]:
+                i, w = idx(xt0[j], xdt[j], n_j, t_new)
+                track_pose(nxs, j, xtab, i, w, True)
+                nxb[0, j] = True
+                nxb[1, j] = True
+        if nxb[0, j] and xb[0, j]:
+            nxs[6, j] = (nxs[5, j] - xs[5, j]) / dt
+        else:
+            nxs[6, j] = 0.0
+        if nxb[0, j] and not xb[3, j]:
+            ddx, ddy = nxs[0, j] - ex_n, nxs[1, j] - ey_n
+            rr = 0.5 * (math.hypot(Le, We) + math.hypot(xL[j], xW[j]))
+            if ddx * ddx + ddy * ddy <= rr * rr:
+                if sat(ex_n, ey_n, eyaw_n, Le, We, nxs[0, j], nxs[1, j], nxs[2, j], xL[j], xW[j]):
+                    nxb[3, j] = True
+    for j in range(R):
+        for f in range(8):
+            xs[f, j] = nxs[f, j]
+        for f in range(4):
+            xb[f, j] = nxb[f, j]
