@@ -89,7 +89,9 @@ def _crossing(path: FloatArray, length_m: float, buildings: Any, end: EndState) 
     hit = shapely.union_all(blocking).intersection(line)
     if hit.is_empty:
         return None
-    return float(min(line.project(Point(c)) for g in getattr(hit, "geoms", [hit]) for c in g.coords))
+    return float(
+        min(line.project(Point(c)) for g in getattr(hit, "geoms", [hit]) for c in g.coords)
+    )
 
 
 def _candidates(
