@@ -227,6 +227,7 @@ def make_windows(
     horizon_s: float,
     stride_s: float = 0.5,
     dt_s: float = 0.05,
+    starts: list[tuple[int, int]] | None = None,
 ) -> Windows:
     """Every window of ``horizon_s`` starting every ``stride_s`` at a moving sample.
 
@@ -237,13 +238,15 @@ def make_windows(
         tracks: the rider tracks (index = ``Windows.track``). scenes: scenario -> its
             SceneTracks (for the vehicles). paths: :func:`pack_paths` of ``tracks``.
         horizon_s: rollout length [s]. stride_s: spacing of the starts [s]. dt_s: step [s].
+        starts: the windows' (track index, start sample) given (whole-track rollouts of
+            vei.calibrate.decision_validate; standing starts allowed) instead of found.
     Returns:
         The Windows (B may be 0).
     """
     h = int(round(horizon_s / dt_s))
     stride = max(1, int(round(stride_s / dt_s)))
-    rows: list[tuple[int, int]] = []
-    for j, tr in enumerate(tracks):
+    rows: list[tuple[int, int]] = [] if starts is None else list(starts)
+    for j, tr in enumerate(tracks if starts is None else ()):
         sp = tr.speed_mps
         for s in range(0, tr.t_s.size - h, stride):
             if sp[s] > MOVING_MPS:
@@ -323,6 +326,7 @@ def sfm_force(
     prog0: FloatArray,
     p: dict[str, FloatArray],
     veh: tuple[FloatArray, ...] | None,
+    speed_cap: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Social force on riders [B] (capped at m a_max) and their updated progress.
 
@@ -332,6 +336,8 @@ def sfm_force(
         x, y, vx, vy: rider state [B] (m, m/s). prog0: progress before the step [B] (m).
         p: parameters (PARAM_NAMES) [B]. veh: (x, y, yaw, length, width, active) [B, K]
             of the vehicles at this step, or None.
+        speed_cap: [B] a cap on the desired speed [m/s] (the yield decision's,
+            vei.calibrate.decision_validate; +inf = none), or None.
     Returns:
         (fx_n, fy_n, prog_m) [B].
     """
@@ -344,6 +350,8 @@ def sfm_force(
     dx = g[:, 0] - x
     dy = g[:, 1] - y
     f = p["v0_mps"] / np.sqrt(dx * dx + dy * dy + p["sigma_m"] ** 2)
+    if speed_cap is not None:
+        f = f * np.minimum(1.0, speed_cap / np.maximum(f * np.sqrt(dx * dx + dy * dy), 1e-9))
     k = p["k_des_nspm"]
     fx = k * (f * dx - vx)
     fy = k * (f * dy - vy)

@@ -14,6 +14,7 @@ presets, the settings table, and files read into them.
 nothing of vei but vei.errors and vei.types (DESIGN.md, dependency direction).
 """
 
+from vei.config.behaviour import DecisionConfig, TrafficConfig
 from vei.config.continuation import ContinuationConfig
 from vei.config.load import config_to_dict, load_config
 from vei.config.metrics import MetricsConfig
@@ -66,6 +67,7 @@ __all__ = [
     "CAPConfig",
     "CaseConfig",
     "ContinuationConfig",
+    "DecisionConfig",
     "DesiredVelocityForm",
     "EgoConfig",
     "EgoMode",
@@ -77,6 +79,7 @@ __all__ = [
     "RunConfig",
     "SFMConfig",
     "SimConfig",
+    "TrafficConfig",
     "case_preset",
     "config_to_dict",
     "load_config",

@@ -42,6 +42,8 @@ class Block:
         rider_limits: some variant has a finite rider speed / acceleration cap.
         policy: the block's ego policy instance (ego_mode 3), unbound, else None.
         perception: the block's enabled PerceptionConfig, else None.
+        decide: the rider's yield / go decision (VariantParams.decide): True / False if
+            uniform in the block (False for replay blocks), else the [b] mask.
     """
 
     start: int
@@ -57,6 +59,7 @@ class Block:
     rider_limits: bool
     policy: Any = None
     perception: Any = None
+    decide: bool | npt.NDArray[np.bool_] = False
 
 
 @dataclass(frozen=True)
@@ -136,6 +139,7 @@ def batch_flags(params: VariantParams, dt_s: float) -> BatchFlags:
                 and bool((np.isfinite(bp.max_speed_mps) | np.isfinite(bp.max_accel_mps2)).any()),
                 policy=bp.policy[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
                 perception=bp.perception[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
+                decide=_switch(bp.decide) if sfm else False,
             )
         )
     return BatchFlags(

@@ -62,7 +62,7 @@ from vei.errors import ConfigError
 from vei.policy.perception_random import label_keys
 from vei.sim.batch import BatchFlags, Block, batch_flags, group_keys
 from vei.sim.observe import PolicyDriver
-from vei.sim.result import _RECORDED, _RECORDED_EXTRA, SimResult
+from vei.sim.result import _RECORDED, _RECORDED_BEHAVIOUR, _RECORDED_EXTRA, SimResult
 from vei.sim.state import EGO_POLICY, ScenarioArrays, SimState, VariantParams, prepare_scenario
 from vei.sim.step import initial_state, step
 from vei.types import Scenario
@@ -74,6 +74,8 @@ if TYPE_CHECKING:
 
 FloatArray = npt.NDArray[np.float64]
 _XNAMES = tuple(name for name, _, _ in _RECORDED_EXTRA)
+#: Every [B, T] series the engine records (the behaviour's beside the digested ones).
+_SERIES = _RECORDED + _RECORDED_BEHAVIOUR
 Record = Literal["full", "none"]
 Kernel = Literal["numpy", "numba", "auto"]
 
@@ -160,7 +162,7 @@ def simulate(
             }
         )
     series: dict[str, np.ndarray | None] = {
-        name: (bufs[name].T if bufs else None) for name, _, _ in _RECORDED
+        name: (bufs[name].T if bufs else None) for name, _, _ in _SERIES
     }
     return SimResult(
         t_s=arrays.t_s.copy(),
@@ -216,7 +218,7 @@ def _run_sorted(
     n_x = arrays.riders.n
     hit_buf = None
     if record == "full":
-        for name, _, dtype in _RECORDED:
+        for name, _, dtype in _SERIES:
             bufs[name] = np.empty((t_n, b), dtype=dtype)
         hit_buf = np.empty((t_n, b, no), dtype=bool)
         for name, _, dtype in _RECORDED_EXTRA:
@@ -227,7 +229,7 @@ def _run_sorted(
     def _rec(st: SimState) -> None:
         k = st.k
         if bufs:
-            for name, attr, _ in _RECORDED:
+            for name, attr, _ in _SERIES:
                 bufs[name][k] = getattr(st, attr)
             hit_buf[k] = st.hit_other
             for name, attr, _ in _RECORDED_EXTRA:

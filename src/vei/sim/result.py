@@ -55,6 +55,9 @@ class SimResult:
             [B, T, R] their simulated poses (replayed in replay variants); extra_active
             [B, T, R] presence; extra_hit [B, T, R] the ego-contact latch. None without
             time series.
+        rider_decision: [B, T] int8 the social-force rider's decision (vei.models.
+            decision_core: 0 FREE, 1 GO, 2 YIELD; 0 throughout without decisions); None
+            without time series.
     """
 
     t_s: FloatArray
@@ -108,6 +111,7 @@ class SimResult:
     extra_accel_mps2: FloatArray | None = None
     extra_active: npt.NDArray[np.bool_] | None = None
     extra_hit: npt.NDArray[np.bool_] | None = None
+    rider_decision: npt.NDArray[np.int8] | None = None
 
     @property
     def batch_size(self) -> int:
@@ -317,3 +321,8 @@ _RECORDED_EXTRA = (
     ("extra_active", "extra_active", np.bool_),
     ("extra_hit", "extra_hit", np.bool_),
 )
+
+#: (SimResult field, SimState field, dtype) of the [B, T] series of the road users'
+#: behaviour (issue 24), recorded beside :data:`_RECORDED` (whose arrays the kernel's
+#: regression digests hash).
+_RECORDED_BEHAVIOUR = (("rider_decision", "rider_decision", np.int8),)

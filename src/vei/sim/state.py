@@ -27,6 +27,7 @@ from vei.models.drivable_path import (
     recorded_arc_length,
 )
 from vei.models.ego import PathTable, median_moving_speed_mps
+from vei.sim.decisions import Conflicts, find_conflicts
 from vei.sim.params import (
     EGO_CAP,
     EGO_MODE_CODES,
@@ -38,6 +39,7 @@ from vei.sim.params import (
 from vei.sim.riders import (
     RIDER_PATH_STEP_M,
     ExtraRiders,
+    moving_speeds,
     prepare_extra_riders,
     rider_track,
     select_extra_riders,
@@ -92,6 +94,11 @@ class ScenarioArrays:
             by its forces (vei.sim.riders.sfm_entry_s: the track's start, or its first
             recorded sample after a standing run-in, where it waits replayed); -inf =
             whenever it enters.
+        conflicts: where the rider's path crosses the ego's (vei.sim.decisions: the
+            conflict zones of the rider's yield / go decision).
+        rider_moving_speeds_mps: the rider's recorded speeds outside its waits
+            (vei.sim.riders.moving_speeds: the calibrated rider's cruise speed), None
+            where it never waits (every recorded speed counts).
     """
 
     scenario_id: str
@@ -123,6 +130,8 @@ class ScenarioArrays:
     riders: ExtraRiders = field(default_factory=ExtraRiders)
     rider_recorded_span_s: tuple[float, float] = (-math.inf, math.inf)
     rider_sfm_entry_s: float = -math.inf
+    conflicts: Conflicts = field(default_factory=Conflicts)
+    rider_moving_speeds_mps: FloatArray | None = None
 
     @property
     def n_steps(self) -> int:
@@ -238,6 +247,8 @@ def prepare_scenario(
 
     rider_len = float(sim.rider_length_m or rinfo.length_m)
     rider_wid = float(sim.rider_width_m or rinfo.width_m)
+    ego_len = float(sim.ego_length_m or ego_info.length_m)
+    ego_wid = float(sim.ego_width_m or ego_info.width_m)
     return ScenarioArrays(
         scenario_id=scenario.id,
         dt_s=float(sim.dt_s),
@@ -276,6 +287,8 @@ def prepare_scenario(
         ),
         rider_recorded_span_s=rec_span,
         rider_sfm_entry_s=sfm_entry_s(scenario, rid, r_track),
+        conflicts=find_conflicts(ego_path, rider_path, ego_len, ego_wid, rider_len, rider_wid),
+        rider_moving_speeds_mps=moving_speeds(r_track, rec_span),
     )
 
 
@@ -317,6 +330,8 @@ class SimState(NamedTuple):
             (vei.sim.riders; R = 0 in the one-rider engine), like the rider_* fields.
         extra_active, extra_started, extra_done: [B, R] bool, like the rider's.
         extra_hit: [B, R] bool latch, the ego touched extra rider j (nothing stops).
+        rider_decision: [B] int8, the social-force rider's decision at its current
+            conflict (vei.models.decision_core: 0 FREE, 1 GO, 2 YIELD; 0 without decisions).
     """
 
     k: int
@@ -357,6 +372,7 @@ class SimState(NamedTuple):
     extra_started: BoolArray
     extra_done: BoolArray
     extra_hit: BoolArray
+    rider_decision: npt.NDArray[np.int8]
 
 
 __all__ = [

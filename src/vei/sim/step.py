@@ -14,6 +14,7 @@ from vei.models import ego as ego_model
 from vei.models import ego_core
 from vei.models import sfm as sfm_model
 from vei.sim.batch import BatchFlags, Block, batch_flags
+from vei.sim.decisions import decide_block
 from vei.sim.observe import Demand
 from vei.sim.riders import initial_extra_state, pedestrian_sources, repulsion, step_extras
 from vei.sim.state import (
@@ -162,6 +163,7 @@ def initial_state(
         hit_other=hit,
         hist=hist,
         **initial_extra_state(arrays.riders, b, params.rider_sfm),
+        rider_decision=np.zeros(b, dtype=np.int8),
     )
 
 
@@ -354,10 +356,12 @@ def _step_block(
         r_started = r_started | in_span
         r_done = r_done | (st.rider_started & ~in_span)
         r_prog = st.rider_prog_m
+        r_dec = st.rider_decision
     else:
         rx, ry, ryaw = st.rider_x_m.copy(), st.rider_y_m.copy(), st.rider_yaw_rad.copy()
         rvx, rvy, rsp = st.rider_vx_mps.copy(), st.rider_vy_mps.copy(), st.rider_speed_mps.copy()
         r_prog, r_active = st.rider_prog_m.copy(), st.rider_active.copy()
+        r_dec = st.rider_decision.copy()
         moving = st.rider_active & st.rider_started
         if any_coll:
             moving = moving & ~collided
@@ -365,8 +369,9 @@ def _step_block(
         if idx.size:
             sel = None if idx.size == b else idx
             _social_force_update(
-                st, arrays, blk, sel, t_rec, dt, (rx, ry, ryaw, rvx, rvy, rsp, r_prog, r_active)
-            )
+                st, arrays, blk, sel, t_rec, dt,
+                (rx, ry, ryaw, rvx, rvy, rsp, r_prog, r_active, r_dec),
+            )  # fmt: skip
             r_done = r_done | (st.rider_active & ~r_active)
         not_started = ~r_started
         if not_started.any():
@@ -460,6 +465,7 @@ def _step_block(
         "hit_other": hit_other,
         "hist": hist,
         **(extras or {f: getattr(st, f) for f in _EXTRA_FIELDS}),
+        "rider_decision": r_dec,
     }
 
 
@@ -493,8 +499,10 @@ def _social_force_update(
 ) -> None:
     """Social-force step of the moving riders ``sel`` (None = all), written into ``out``.
 
-    ``out`` = (x, y, yaw, vx, vy, speed, progress, active) arrays of this step (fresh
-    copies, modified in place at ``sel``).
+    ``out`` = (x, y, yaw, vx, vy, speed, progress, active, decision) arrays of this step
+    (fresh copies, modified in place at ``sel``). Where the block's riders decide
+    (``blk.decide``, vei.sim.decisions) their desired velocity is capped by their yield
+    decision's speed.
     """
     p = blk.params
     g = _sub
@@ -511,6 +519,8 @@ def _social_force_update(
     vdx, vdy = sfm_model.desired_velocity(
         x0, y0, gx, gy, g(p.v0_mps, sel), g(p.sigma_m, sel), _sub(blk.paper_vdes, sel)
     )
+    if blk.decide is not False and arrays.conflicts.n:
+        vdx, vdy = decide_block(st, arrays, blk, sel, prog0, prog, vdx, vdy, out[8])
     fx, fy = sfm_model.destination_force(vdx, vdy, vx0, vy0, g(p.k_des_nspm, sel))
     vf = blk.vehicle_force
     if vf is not False:
@@ -563,7 +573,7 @@ def _social_force_update(
     fxe, fye = float(rp.end_x_m), float(rp.end_y_m)
     arrived = (nx - fxe) ** 2 + (ny - fye) ** 2 <= np.square(g(p.arrive_radius_m, sel))
     leaving = arrived & (g(t_rec, sel) > arrays.rider_track.t_end_s + _SPAN_EPS)
-    rx, ry, ryaw, rvx, rvy, rsp, r_prog, r_active = out
+    rx, ry, ryaw, rvx, rvy, rsp, r_prog, r_active = out[:8]
     s = slice(None) if sel is None else sel
     rx[s] = nx
     ry[s] = ny

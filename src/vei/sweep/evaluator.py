@@ -62,7 +62,15 @@ DEFAULT_METRICS: tuple[str, ...] = (
 
 
 #: Categorical sweep parameters: variants sharing them share one base configuration.
-_CATEGORICAL = ("rider_model", "sfm.use_vehicle_force", POLICY_PARAM)
+_CATEGORICAL = (
+    "rider_model",
+    "sfm.use_vehicle_force",
+    POLICY_PARAM,
+    # issue 24: the rider's decisions and the reacting road users switch model branches
+    "decision.enabled",
+    "traffic.cars_react",
+    "traffic.pedestrians",
+)
 
 
 #: Float sweep parameter (results column) -> VariantParams field: the sweepable settings

@@ -335,7 +335,7 @@ def variant_config(
         case = replace(case, rider="replay")
     elif rider in ("normal", "aggressive"):
         case = replace(case, rider="sfm", sfm=SFM_PRESETS[str(rider)])
-    sections: dict[str, dict[str, Any]] = {"sfm": {}, "ego": {}, "cap": {}}
+    sections: dict[str, dict[str, Any]] = {sec: {} for sec in SECTIONS}
     for key, (section, fname) in CONFIG_FIELDS.items():
         if key in params:
             v = params[key]

@@ -58,10 +58,10 @@ def _build() -> Any:
 #: vei.boxes gives it the box-overlap test, vei.config.settings the order of P's rows
 #: (layout's P_* constants). Paths relative to this package.
 _KERNEL_SOURCES = (
-    "loop.py", "scalar.py", "ego.py", "sfm.py", "riders.py", "layout.py",
+    "loop.py", "scalar.py", "ego.py", "sfm.py", "riders.py", "layout.py", "decision.py",
     "../../boxes.py", "../../config/settings.py", "../../metrics/fused.py",
     "../../metrics/fused_layout.py", "../../metrics/fused_ops.py",
-    "../../models/ego_core.py", "../../models/sfm_core.py",
+    "../../models/ego_core.py", "../../models/sfm_core.py", "../../models/decision_core.py",
 )  # fmt: skip
 
 
@@ -137,6 +137,18 @@ def _extra_args(arrays: Any) -> tuple[Any, ...]:
     )  # fmt: skip
 
 
+def _conflict_args(arrays: Any) -> tuple[Any, ...]:
+    """The kernel's conflict arguments (vei.sim.decisions.Conflicts): K and its [K]
+    arrays (zone exit, crossing along the rider's and the ego's path, half-lengths)."""
+    c = arrays.conflicts
+    f = np.float64
+    return (
+        int(c.n), np.ascontiguousarray(c.exit_m, f), np.ascontiguousarray(c.s_rider_m, f),
+        np.ascontiguousarray(c.s_ego_m, f), np.ascontiguousarray(c.hz_rider_m, f),
+        np.ascontiguousarray(c.hz_ego_m, f),
+    )  # fmt: skip
+
+
 def run(
     arrays: Any,
     params: Any,
@@ -178,7 +190,7 @@ def run(
     )
     tt = t_n if record else 1
     out = np.empty((b, N_OUT, tt))
-    outb = np.zeros((b, 3, tt), dtype=np.uint8)
+    outb = np.zeros((b, 4, tt), dtype=np.uint8)  # cap, rider active, collided, decision
     outh = np.zeros((b, tt, no), dtype=np.uint8)
     h0 = np.ascontiguousarray(state0.hit_other.astype(np.uint8))
     if record:
@@ -192,6 +204,7 @@ def run(
         outb[:, 0, 0] = state0.cap_state
         outb[:, 1, 0] = state0.rider_active
         outb[:, 2, 0] = state0.collided
+        outb[:, 3, 0] = state0.rider_decision
         outh[:, 0] = h0
     fs = np.empty((len(FLOAT_FIELDS), b))
     fb = np.empty((len(BOOL_FIELDS), b), dtype=np.uint8)
@@ -247,11 +260,13 @@ def run(
             p_mat, s0, b0, out, outb, outh, h0, fs, fb, fh, coll_t, min_d,
             *xa, xs0, xb0, outx, outxb, xfs, xfb,
             scored, t_m, dt_m, mcfg, m_out,
+            *_conflict_args(arrays),
         )  # fmt: skip
     finally:
         numba.set_parallel_chunksize(prev_chunk)
     final = {f: fs[j].copy() for j, f in enumerate(FLOAT_FIELDS)}
     final["cap_state"] = fs[FLOAT_FIELDS.index("cap_state")].astype(np.int8)
+    final["rider_decision"] = fs[FLOAT_FIELDS.index("rider_decision")].astype(np.int8)
     for j, f in enumerate(BOOL_FIELDS):
         final[f] = fb[j].astype(bool)
     final["hit_other"] = h0.astype(bool)
@@ -272,6 +287,7 @@ def run(
         )  # fmt: skip
         series = {n: out[:, j, :] for j, n in enumerate(names)}
         series["cap_state"] = outb[:, 0, :].astype(np.int8)
+        series["rider_decision"] = outb[:, 3, :].astype(np.int8)
         series["rider_active"] = outb[:, 1, :].astype(bool)
         series["collided"] = outb[:, 2, :].astype(bool)
         hit = outh.astype(bool)

@@ -33,6 +33,7 @@ from vei.metrics.fused_layout import (
     CH_RYAW,
     N_CH,
 )
+from vei.sim.kernel.decision import capped_velocity, decide_step, reference_speed
 from vei.sim.kernel.ego import ego_consts, ego_step_c
 from vei.sim.kernel.layout import (
     N_OUT,
@@ -56,9 +57,12 @@ from vei.sim.kernel.layout import (
     P_AVEH,
     P_BRR,
     P_BVEH,
+    P_CLEARM,
+    P_DECIDE,
     P_DELAY,
     P_DMAX,
     P_FRONTB,
+    P_HORIZON,
     P_KDES,
     P_LOOK,
     P_MASS,
@@ -68,15 +72,24 @@ from vei.sim.kernel.layout import (
     P_SFR,
     P_SHIFT,
     P_SIGMA,
+    P_STOPM,
+    P_TC,
     P_USERF,
     P_USEVF,
     P_V0,
     P_VD,
     P_VMAX,
+    P_YDEC,
 )
 from vei.sim.kernel.riders import extra_riders_step
 from vei.sim.kernel.scalar import idx, ped_forces, rforce, sat
-from vei.sim.kernel.sfm import drive_force, integrate, vehicle_force
+from vei.sim.kernel.sfm import (
+    destination_force,
+    drive_force,
+    goal_velocity,
+    integrate,
+    vehicle_force,
+)
 
 __all__ = ["N_OUT", "kernel"]
 
@@ -95,13 +108,13 @@ def kernel(  # type: ignore[no-untyped-def]
     Le, We, Lr, Wr,
     oX, oY, oYAW, oACT, oL, oW,  # others [T, no], [no]
     P,  # params [N_PARAMS, B]
-    S0,  # initial float state [19, B] (layout of FS)
+    S0,  # initial float state [20, B] (layout of FS)
     B0,  # initial bool state [4, B] (active, started, collided, done) as uint8
     OUT,  # out float [B, N_OUT, T] (record) or [B, N_OUT, 1]
-    OB,  # out uint8 [B, 3, T]: cap_state, rider_active, collided
+    OB,  # out uint8 [B, 4, T]: cap_state, rider_active, collided, rider_decision
     OH,  # out uint8 [B, T, no]: hit_other latch
     H0,  # initial hit_other [B, no] uint8
-    FS,  # final float state [19, B]: s x y yaw v a_rep a_act u pid_i pid_e cap rx ry ryaw rvx rvy rsp racc prog
+    FS,  # final float state [20, B]: s x y yaw v a_rep a_act u pid_i pid_e cap rx ry ryaw rvx rvy rsp racc prog decision
     FB,  # final bool state [4, B]
     FH,  # final hist [4, hist_len, B]
     coll_t, min_d,  # [B]
@@ -114,6 +127,7 @@ def kernel(  # type: ignore[no-untyped-def]
     OX, OXB,  # out [B, 5, T, R] (x y yaw speed accel), [B, 2, T, R] uint8 (active, hit)
     XFS, XFB,  # final extra state [8, B, R], [4, B, R]
     metrics, t_m, dt_m, MCFG, M,  # fused metrics (vei.metrics.fused): on?, t [T], dt, cfg, out [B, N_FUSED]
+    cK, cexit, csr, cse, chzr, chze,  # the rider's conflicts [K] (vei.sim.decisions.Conflicts)
 ):  # fmt: skip
     B = P.shape[1]
     n_p = path.shape[1]
@@ -161,6 +175,13 @@ def kernel(  # type: ignore[no-untyped-def]
         p_frontb, p_aveh, p_bveh = P[P_FRONTB, b] > 0.5, P[P_AVEH, b], P[P_BVEH, b]
         p_mass, p_amax, p_vmax = P[P_MASS, b], P[P_AMAX_R, b], P[P_VMAX, b]
         p_limits = math.isfinite(p_vmax) or math.isfinite(p_amax)
+        # the rider's yield / go decision (vei.sim.kernel.decision), its constants
+        dec_on = sfm and cK > 0 and P[P_DECIDE, b] > 0.5
+        conf = (cK, cexit, csr, cse, chzr, chze)
+        d_tc, d_hor, d_ydec = P[P_TC, b], P[P_HORIZON, b], P[P_YDEC, b]
+        d_stopm, d_clearm = P[P_STOPM, b], P[P_CLEARM, b]
+        d_vref = reference_speed(p_v0, p_look, p_sigma)
+        d_tau = p_mass / p_kdes
         p_arrive2 = P[P_ARRIVE, b] ** 2
         ec = ego_consts(P, b, dt, Lr, Wr)  # the ego's per-variant constants, once per variant
         # state
@@ -183,6 +204,7 @@ def kernel(  # type: ignore[no-untyped-def]
         rsp = S0[16, b]
         r_acc = S0[17, b]
         prog = S0[18, b]
+        rdec = int(S0[19, b])
         r_act = B0[0, b] > 0
         r_started = B0[1, b] > 0
         collided = B0[2, b] > 0
@@ -262,10 +284,22 @@ def kernel(  # type: ignore[no-untyped-def]
                     r_act,
                 )
                 if r_act and r_started and not collided:
-                    fx, fy, pr = drive_force(
-                        rx, ry, rvx, rvy, prog, rpath, rp_s0, rp_ds, n_rp, rp_len,
-                        p_look, p_sigma, p_paperv, p_v0, p_kdes,
-                    )  # fmt: skip
+                    if dec_on:
+                        vdx, vdy, pr = goal_velocity(
+                            rx, ry, prog, rpath, rp_s0, rp_ds, n_rp, rp_len,
+                            p_look, p_sigma, p_paperv, p_v0,
+                        )  # fmt: skip
+                        rdec, vcap = decide_step(
+                            rdec, prog, pr, rsp, s, v, conf, d_tc, d_hor, d_ydec,
+                            d_stopm, d_clearm, d_vref, d_tau,
+                        )  # fmt: skip
+                        vdx, vdy = capped_velocity(vdx, vdy, vcap)
+                        fx, fy = destination_force(vdx, vdy, rvx, rvy, p_kdes)
+                    else:
+                        fx, fy, pr = drive_force(
+                            rx, ry, rvx, rvy, prog, rpath, rp_s0, rp_ds, n_rp, rp_len,
+                            p_look, p_sigma, p_paperv, p_v0, p_kdes,
+                        )  # fmt: skip
                     if p_usevf:
                         vfx, vfy = vehicle_force(
                             rx, ry, ex, ey, eyaw, Le, We, p_frontb, p_aveh, p_bveh
@@ -398,6 +432,7 @@ def kernel(  # type: ignore[no-untyped-def]
                 OB[b, 0, kk] = cap
                 OB[b, 1, kk] = 1 if r_act else 0
                 OB[b, 2, kk] = 1 if collided else 0
+                OB[b, 3, kk] = rdec
                 for j in range(no):
                     OH[b, kk, j] = 1 if hit[j] else 0
                 for j in range(R):
@@ -427,6 +462,7 @@ def kernel(  # type: ignore[no-untyped-def]
         FS[16, b] = rsp
         FS[17, b] = r_acc
         FS[18, b] = prog
+        FS[19, b] = rdec
         FB[0, b] = 1 if r_act else 0
         FB[1, b] = 1 if r_started else 0
         FB[2, b] = 1 if collided else 0
