@@ -44,6 +44,8 @@ class Block:
         perception: the block's enabled PerceptionConfig, else None.
         decide: the rider's yield / go decision (VariantParams.decide): True / False if
             uniform in the block (False for replay blocks), else the [b] mask.
+        traffic: the recorded cars react (VariantParams.cars_react): True / False if
+            uniform in the block, else the [b] mask.
     """
 
     start: int
@@ -60,6 +62,7 @@ class Block:
     policy: Any = None
     perception: Any = None
     decide: bool | npt.NDArray[np.bool_] = False
+    traffic: bool | npt.NDArray[np.bool_] = False
 
 
 @dataclass(frozen=True)
@@ -140,6 +143,7 @@ def batch_flags(params: VariantParams, dt_s: float) -> BatchFlags:
                 policy=bp.policy[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
                 perception=bp.perception[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
                 decide=_switch(bp.decide) if sfm else False,
+                traffic=_switch(bp.cars_react),
             )
         )
     return BatchFlags(

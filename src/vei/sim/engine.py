@@ -62,7 +62,13 @@ from vei.errors import ConfigError
 from vei.policy.perception_random import label_keys
 from vei.sim.batch import BatchFlags, Block, batch_flags, group_keys
 from vei.sim.observe import PolicyDriver
-from vei.sim.result import _RECORDED, _RECORDED_BEHAVIOUR, _RECORDED_EXTRA, SimResult
+from vei.sim.result import (
+    _RECORDED,
+    _RECORDED_BEHAVIOUR,
+    _RECORDED_CARS,
+    _RECORDED_EXTRA,
+    SimResult,
+)
 from vei.sim.state import EGO_POLICY, ScenarioArrays, SimState, VariantParams, prepare_scenario
 from vei.sim.step import initial_state, step
 from vei.types import Scenario
@@ -73,7 +79,7 @@ if TYPE_CHECKING:
     from vei.config.metrics import MetricsConfig
 
 FloatArray = npt.NDArray[np.float64]
-_XNAMES = tuple(name for name, _, _ in _RECORDED_EXTRA)
+_XNAMES = tuple(name for name, _, _ in _RECORDED_EXTRA + _RECORDED_CARS)
 #: Every [B, T] series the engine records (the behaviour's beside the digested ones).
 _SERIES = _RECORDED + _RECORDED_BEHAVIOUR
 Record = Literal["full", "none"]
@@ -192,6 +198,7 @@ def simulate(
         extra_categories=arrays.riders.categories,
         extra_length_m=arrays.riders.length_m,
         extra_width_m=arrays.riders.width_m,
+        car_ids=tuple(arrays.other_ids[j] for j in arrays.traffic.idx),
         **{name: (xbufs[name].transpose(1, 0, 2) if xbufs else None) for name in _XNAMES},
         **series,
     )
@@ -223,6 +230,8 @@ def _run_sorted(
         hit_buf = np.empty((t_n, b, no), dtype=bool)
         for name, _, dtype in _RECORDED_EXTRA:
             xbufs[name] = np.empty((t_n, b, n_x), dtype=dtype)
+        for name, _, dtype in _RECORDED_CARS:  # reacting cars [T, B, C]
+            xbufs[name] = np.empty((t_n, b, arrays.traffic.n), dtype=dtype)
     coll_t = np.full(b, np.nan)
     min_d = np.full(b, np.inf)
 
@@ -232,7 +241,7 @@ def _run_sorted(
             for name, attr, _ in _SERIES:
                 bufs[name][k] = getattr(st, attr)
             hit_buf[k] = st.hit_other
-            for name, attr, _ in _RECORDED_EXTRA:
+            for name, attr, _ in _RECORDED_EXTRA + _RECORDED_CARS:
                 xbufs[name][k] = getattr(st, attr)
         newly = st.collided & np.isnan(coll_t)
         if newly.any():

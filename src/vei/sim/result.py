@@ -58,6 +58,11 @@ class SimResult:
         rider_decision: [B, T] int8 the social-force rider's decision (vei.models.
             decision_core: 0 FREE, 1 GO, 2 YIELD; 0 throughout without decisions); None
             without time series.
+        car_ids: the reacting cars (vei.sim.traffic; their ids among other_ids).
+        car_x_m, car_y_m, car_yaw_rad, car_speed_mps: [B, T, C] their poses [m, rad] and
+            speeds [m/s] (their recording while they replay); car_mode [B, T, C] int8 (0
+            replay, 1 reacting, 2 IDM, 3 stopped). None without time series. The secondary
+            collisions of each run are in ``final_state`` (sec_*, rear_end).
     """
 
     t_s: FloatArray
@@ -112,6 +117,18 @@ class SimResult:
     extra_active: npt.NDArray[np.bool_] | None = None
     extra_hit: npt.NDArray[np.bool_] | None = None
     rider_decision: npt.NDArray[np.int8] | None = None
+    car_ids: tuple[str, ...] = ()
+    car_x_m: FloatArray | None = None
+    car_y_m: FloatArray | None = None
+    car_yaw_rad: FloatArray | None = None
+    car_speed_mps: FloatArray | None = None
+    car_mode: npt.NDArray[np.int8] | None = None
+
+    @property
+    def secondary_count(self) -> npt.NDArray[np.int32]:
+        """[B] secondary collisions (every contact but the ego's with the primary rider,
+        vei.sim.contacts)."""
+        return np.asarray(self.final_state.sec_count)
 
     @property
     def batch_size(self) -> int:
@@ -326,3 +343,11 @@ _RECORDED_EXTRA = (
 #: behaviour (issue 24), recorded beside :data:`_RECORDED` (whose arrays the kernel's
 #: regression digests hash).
 _RECORDED_BEHAVIOUR = (("rider_decision", "rider_decision", np.int8),)
+#: (SimResult field, SimState field, dtype) of the reacting cars' [B, T, C] series.
+_RECORDED_CARS = (
+    ("car_x_m", "car_x_m", np.float64),
+    ("car_y_m", "car_y_m", np.float64),
+    ("car_yaw_rad", "car_yaw_rad", np.float64),
+    ("car_speed_mps", "car_v_mps", np.float64),
+    ("car_mode", "car_mode", np.int8),
+)

@@ -46,6 +46,7 @@ from vei.sim.riders import (
     sfm_entry_s,
 )
 from vei.sim.tables import TimeTable, _uniform_track
+from vei.sim.traffic import Traffic, prepare_traffic
 from vei.types import EGO_ID, Scenario
 
 FloatArray = npt.NDArray[np.float64]
@@ -99,6 +100,8 @@ class ScenarioArrays:
         rider_moving_speeds_mps: the rider's recorded speeds outside its waits
             (vei.sim.riders.moving_speeds: the calibrated rider's cruise speed), None
             where it never waits (every recorded speed counts).
+        traffic: the reacting cars among the replayed others (vei.sim.traffic: the
+            vehicles on or across the ego's path; they react where ``cars_react``).
     """
 
     scenario_id: str
@@ -132,6 +135,7 @@ class ScenarioArrays:
     rider_sfm_entry_s: float = -math.inf
     conflicts: Conflicts = field(default_factory=Conflicts)
     rider_moving_speeds_mps: FloatArray | None = None
+    traffic: Traffic = field(default_factory=Traffic)
 
     @property
     def n_steps(self) -> int:
@@ -289,6 +293,7 @@ def prepare_scenario(
         rider_sfm_entry_s=sfm_entry_s(scenario, rid, r_track),
         conflicts=find_conflicts(ego_path, rider_path, ego_len, ego_wid, rider_len, rider_wid),
         rider_moving_speeds_mps=moving_speeds(r_track, rec_span),
+        traffic=prepare_traffic(scenario, others, t_s, ego_path, ego_track, ego_len, ego_wid, where),
     )
 
 
@@ -332,6 +337,15 @@ class SimState(NamedTuple):
         extra_hit: [B, R] bool latch, the ego touched extra rider j (nothing stops).
         rider_decision: [B] int8, the social-force rider's decision at its current
             conflict (vei.models.decision_core: 0 FREE, 1 GO, 2 YIELD; 0 without decisions).
+        car_s_m, car_v_mps, car_timer_s, car_x_m, car_y_m, car_yaw_rad: [B, C] the
+            reacting cars (vei.sim.traffic): arc length along their paths [m], speed
+            [m/s], reaction countdown [s], pose [m, rad]; car_mode [B, C] int8
+            (vei.models.traffic_core: 0 replay, 1 reacting, 2 IDM, 3 stopped).
+        rider_hit_other: [B, n_o] bool latch, the rider touched replayed other j.
+        car_hit: [B, C] bool latch, reacting car j touched another other (car_hit_with:
+            which, -1 none). sec_count, sec_first_t_s, sec_striker, sec_struck,
+            sec_max_speed_mps, rear_end: [B] the secondary collisions so far
+            (vei.sim.contacts).
     """
 
     k: int
@@ -373,6 +387,22 @@ class SimState(NamedTuple):
     extra_done: BoolArray
     extra_hit: BoolArray
     rider_decision: npt.NDArray[np.int8]
+    car_s_m: FloatArray
+    car_v_mps: FloatArray
+    car_timer_s: FloatArray
+    car_x_m: FloatArray
+    car_y_m: FloatArray
+    car_yaw_rad: FloatArray
+    car_mode: npt.NDArray[np.int8]
+    rider_hit_other: BoolArray
+    car_hit: BoolArray
+    car_hit_with: npt.NDArray[np.int32]
+    sec_count: npt.NDArray[np.int32]
+    sec_first_t_s: FloatArray
+    sec_striker: npt.NDArray[np.int32]
+    sec_struck: npt.NDArray[np.int32]
+    sec_max_speed_mps: FloatArray
+    rear_end: BoolArray
 
 
 __all__ = [

@@ -14,6 +14,12 @@ from vei.models import ego as ego_model
 from vei.models import ego_core
 from vei.models import sfm as sfm_model
 from vei.sim.batch import BatchFlags, Block, batch_flags
+from vei.sim.contacts import (
+    collide_ego_others,
+    contact_step,
+    initial_contact_state,
+    others_now,
+)
 from vei.sim.decisions import decide_block
 from vei.sim.observe import Demand
 from vei.sim.riders import initial_extra_state, pedestrian_sources, repulsion, step_extras
@@ -25,8 +31,10 @@ from vei.sim.state import (
     SimState,
     VariantParams,
 )
+from vei.sim.traffic import CAR_FLOAT_FIELDS, initial_traffic_state, traffic_step
 
 FloatArray = npt.NDArray[np.float64]
+_CAR_FIELDS = (*CAR_FLOAT_FIELDS, "car_mode")
 _EXTRA_FIELDS = (
     "extra_x_m", "extra_y_m", "extra_yaw_rad", "extra_vx_mps", "extra_vy_mps", "extra_speed_mps",
     "extra_a_mps2", "extra_prog_m", "extra_active", "extra_started", "extra_done", "extra_hit",
@@ -48,43 +56,6 @@ def _sub(a: npt.ArrayLike, idx: npt.NDArray[np.intp] | None) -> npt.ArrayLike:
     if idx is None or np.ndim(a) == 0:
         return a
     return np.asarray(a)[idx]
-
-
-def _collide_others(
-    arrays: ScenarioArrays,
-    k: int,
-    ex: FloatArray,
-    ey: FloatArray,
-    eyaw: FloatArray,
-    hit: npt.NDArray[np.bool_],
-) -> npt.NDArray[np.bool_]:
-    """Latch ego contacts with the replayed others at step k ([B, n_o]; copy if changed)."""
-    if hit.shape[1] == 0:
-        return hit
-    act = np.flatnonzero(arrays.other_active[k])
-    if act.size == 0:
-        return hit
-    reach = 0.5 * (
-        np.hypot(arrays.ego_length_m, arrays.ego_width_m)
-        + np.hypot(arrays.other_length_m, arrays.other_width_m)
-    )
-    out = hit
-    for j in act:
-        dx = arrays.other_x_m[k, j] - ex
-        dy = arrays.other_y_m[k, j] - ey
-        cand = np.flatnonzero((dx * dx + dy * dy <= reach[j] ** 2) & ~hit[:, j])
-        if cand.size == 0:
-            continue
-        ov = boxes_overlap(
-            ex[cand], ey[cand], eyaw[cand], arrays.ego_length_m, arrays.ego_width_m,
-            arrays.other_x_m[k, j], arrays.other_y_m[k, j], arrays.other_yaw_rad[k, j],
-            arrays.other_length_m[j], arrays.other_width_m[j],
-        )  # fmt: skip
-        if ov.any():
-            if out is hit:
-                out = hit.copy()
-            out[cand[ov], j] = True
-    return out
 
 
 def initial_state(
@@ -134,7 +105,7 @@ def initial_state(
     hist = np.zeros((4, fl.hist_len, b))
     hist[:, 0, :] = np.stack([rx, ry, ryaw, inside.astype(np.float64)])
     no = len(arrays.other_ids)
-    hit = _collide_others(arrays, 0, ex, ey, eyaw, np.zeros((b, no), dtype=bool))
+    hit = collide_ego_others(arrays, 0, ex, ey, eyaw, np.zeros((b, no), dtype=bool))
     return SimState(
         k=0,
         ego_s_m=s0,
@@ -164,6 +135,8 @@ def initial_state(
         hist=hist,
         **initial_extra_state(arrays.riders, b, params.rider_sfm),
         rider_decision=np.zeros(b, dtype=np.int8),
+        **initial_traffic_state(arrays, b),
+        **initial_contact_state(b, no, arrays.traffic.n),
     )
 
 
@@ -425,7 +398,12 @@ def _step_block(
             rvx, rvy, rsp, r_acc = rvx.copy(), rvy.copy(), rsp.copy(), r_acc.copy()
             for arr in (v_new, a_act, a_rep, rvx, rvy, rsp, r_acc):
                 arr[hits] = 0.0
-    hit_other = _collide_others(arrays, k + 1, ex, ey, eyaw, st.hit_other)
+    cars = {f: getattr(st, f) for f in _CAR_FIELDS}
+    poses = None
+    if arrays.traffic.n and blk.traffic is not False:  # reacting cars (vei.sim.traffic)
+        cars = traffic_step(st, arrays, p, blk.traffic, dt)
+        poses = others_now(arrays, min(k + 1, arrays.n_steps - 1), cars, b)[:3]
+    hit_other = collide_ego_others(arrays, k + 1, ex, ey, eyaw, st.hit_other, poses)
 
     extras = {}
     if arrays.riders.n:
@@ -438,7 +416,7 @@ def _step_block(
         hist[1, slot] = ry
         hist[2, slot] = ryaw
         hist[3, slot] = r_active
-    return {
+    out = {
         "ego_s_m": s_new,
         "ego_x_m": ex,
         "ego_y_m": ey,
@@ -466,7 +444,11 @@ def _step_block(
         "hist": hist,
         **(extras or {f: getattr(st, f) for f in _EXTRA_FIELDS}),
         "rider_decision": r_dec,
+        **cars,
     }
+    # contacts between any two road users, the secondary collisions (vei.sim.contacts)
+    out.update(contact_step(st, out, arrays, blk.traffic))
+    return out
 
 
 def _policy_demand(act: Demand | None, p: VariantParams) -> tuple[FloatArray, FloatArray]:

@@ -276,6 +276,8 @@ def run(
         final[f] = xfs[j].copy()
     for j, f in enumerate(EXTRA_BOOL_FIELDS):
         final[f] = xfb[j].astype(bool)
+    for f in state0._fields:  # fields the kernel does not advance keep their start values
+        final.setdefault(f, getattr(state0, f))
     extra = None
     series = None
     hit = None
