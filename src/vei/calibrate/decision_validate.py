@@ -241,6 +241,14 @@ class DecisionValidation:
     fde_m: dict[str, dict[float, float]] = field(default_factory=dict)
     n_windows: dict[float, int] = field(default_factory=dict)
 
+    def format(self) -> str:
+        """The figures as text (``vei calibrate decisions``)."""
+        return "\n".join(_lines(self))
+
+    def to_dict(self) -> dict:
+        """JSON-ready form (decisions.json)."""
+        return _document(self)
+
 
 def _fold_tc(cases: Sequence[DecisionCase]) -> float:
     outs = {c.outcome for c in cases}
@@ -410,3 +418,66 @@ def _entered_first(arc: FloatArray, c: ConflictTrack) -> bool:
     if r_in.size == 0:
         return False
     return v_in.size == 0 or r_in[0] < v_in[0]
+
+
+def _lines(v: DecisionValidation) -> list[str]:
+    """The validation of the decisions as lines of text (vei calibrate decisions)."""
+    cases = v.cases
+    n_go = sum(c.outcome == "go" for c in cases)
+    lines = [
+        f"recorded decisions: {len(cases)} ({n_go} go, {len(cases) - n_go} yield, "
+        f"{sum(c.stopped for c in cases)} with a stop)"
+    ]
+    for c in cases:
+        lines.append(
+            f"  {c.scenario}/{c.rider} vs vehicle {c.vehicle}{' (instrumented car)' if c.instrumented else ''}: "
+            f"{c.outcome}, offered gap DTA {c.dta_s:+.2f} s (rider {c.tta_rider_s:.1f} s, car "
+            f"{c.tta_vehicle_s:.1f} s), PET {c.pet_s:.1f} s"
+        )
+    fit = v.fit
+    if fit is not None:
+        lines.append(
+            f"fit: critical gap {fit.critical_gap_s:+.2f} s (90 % bootstrap "
+            f"{fit.interval_critical_gap_s[0]:+.2f} .. {fit.interval_critical_gap_s[1]:+.2f}), "
+            f"scale {fit.scale_s:.2f} s{' (cases separate completely: the scale is the penalty s)' if fit.separated else ''}"
+        )
+    ok_o, ok_c = v.open_loop_correct, v.closed_loop_correct
+    if len(cases):
+        lines.append(
+            f"decision accuracy, leave-one-scenario-out: open loop {int(ok_o.sum())}/{len(cases)}, "
+            f"closed loop {int(ok_c.sum())}/{len(cases)}"
+        )
+    for st in v.stops:
+        for label, decide in (("without", False), ("with", True)):
+            sp_ok, stop_ok = st.ok(decide)
+            med = st.median_speed_decide_mps if decide else st.median_speed_sfm_mps
+            err = st.stop_error_decide_m if decide else st.stop_error_sfm_m
+            lines.append(
+                f"  stop {st.key} ({label} decisions): median speed {med:.2f} vs recorded "
+                f"{st.median_speed_mps:.2f} m/s ({'within' if sp_ok else 'not within'} 30 %), "
+                f"first stop {f'{err:.1f} m from the recorded one' if err == err else 'none'} "
+                f"({'within' if stop_ok else 'not within'} 3 m)"
+            )
+    for m, per in v.ade_m.items():
+        cells = ", ".join(f"ADE@{h:g}s {per[h]:.2f} FDE@{h:g}s {v.fde_m[m][h]:.2f}" for h in per)
+        lines.append(f"  {m:15s} {cells} m")
+    return lines
+
+
+def _document(v: DecisionValidation) -> dict:
+    """decisions.json: the cases, the fit, the folds' t_c and the validation figures."""
+    fit = v.fit
+    return {
+        "cases": [c.to_dict() for c in v.cases],
+        "fit": None if fit is None else fit.to_dict(),
+        "folds_critical_gap_s": v.folds,
+        "open_loop_correct": np.asarray(v.open_loop_correct).tolist(),
+        "closed_loop_correct": np.asarray(v.closed_loop_correct).tolist(),
+        "stops": [
+            {k: (None if isinstance(x, float) and x != x else x) for k, x in vars(s).items()}
+            for s in v.stops
+        ],
+        "ade_m": {m: {f"{h:g}": x for h, x in d.items()} for m, d in v.ade_m.items()},
+        "fde_m": {m: {f"{h:g}": x for h, x in d.items()} for m, d in v.fde_m.items()},
+        "n_windows": {f"{h:g}": n for h, n in v.n_windows.items()},
+    }

@@ -62,6 +62,14 @@ def _import_trafficmonitoring(
             help="Keep the whole INS record as the ego track (default: cut to the span the camera covers).",
         ),
     ] = False,
+    road_users: Annotated[
+        str,
+        typer.Option(
+            "--road-users",
+            help="riders (e-scooters and cyclists, default) or all: also every other vehicle and "
+            "pedestrian the camera tracked (the road users that react: case traffic settings).",
+        ),
+    ] = "riders",
 ) -> None:
     """Import a TrafficMonitoring scenario (Ingolstadt) as an interaction folder."""
     from vei.datasets.trafficmonitoring import import_scenario_with_summary, list_scenarios
@@ -77,8 +85,9 @@ def _import_trafficmonitoring(
             field="--scenario" if scenario is None else "--out",
         )
     s = import_scenario_with_summary(
-        root, scenario, out, rate_hz=rate_hz, include_ego_track=include_ego_track, full_ins=full_ins
-    )
+        root, scenario, out, rate_hz=rate_hz, include_ego_track=include_ego_track,
+        full_ins=full_ins, road_users=road_users,
+    )  # fmt: skip
     from vei.io.interaction import read_interaction
 
     it = read_interaction(s.out)

@@ -302,17 +302,18 @@ SETTINGS: tuple[Setting, ...] = (
     _f("car_trigger_mps2", "traffic.trigger_mps2", "m/s^2", "a car reacts once the IDM "
        "asks this much more braking of it than its recording", **_NONNEG),
     _b("peds_sfm", "traffic.pedestrians", "recorded pedestrians walk by the social force "
-       "(Helbing-Molnar), reacting to the car, the riders and each other", sweep=True),
-    _f("ped_tau_s", "traffic.ped_tau_s", "s", "pedestrians' relaxation time tau", **_POS),
-    _f("ped_a_n", "traffic.ped_a_n", "N", "pedestrians' repulsion strength A", **_NONNEG),
+       "(Helbing-Molnar), reacting to the car, the riders and each other (the NumPy step)",
+       sweep=True, kernel=False),
+    _f("ped_tau_s", "traffic.ped_tau_s", "s", "pedestrians' relaxation time tau", **_POS, kernel=False),
+    _f("ped_a_n", "traffic.ped_a_n", "N", "pedestrians' repulsion strength A", **_NONNEG, kernel=False),
     _f("ped_b_m", "traffic.ped_b_m", "m", "pedestrians' repulsion range B among "
-       "pedestrians", **_POS),
-    _f("ped_mass_kg", "traffic.ped_mass_kg", "kg", "pedestrian mass", **_POS),
+       "pedestrians", **_POS, kernel=False),
+    _f("ped_mass_kg", "traffic.ped_mass_kg", "kg", "pedestrian mass", **_POS, kernel=False),
     _f("ped_lambda", "traffic.ped_lambda", "-", "pedestrians' anisotropy lambda (1 = "
-       "isotropic)", lower=0.0, upper=1.0),
-    _f("ped_radius_m", "traffic.ped_radius_m", "m", "pedestrian body radius", **_POS),
+       "isotropic)", lower=0.0, upper=1.0, kernel=False),
+    _f("ped_radius_m", "traffic.ped_radius_m", "m", "pedestrian body radius", **_POS, kernel=False),
     _f("ped_vehicle_range_m", "traffic.ped_vehicle_range_m", "m", "range B of a "
-       "pedestrian's repulsion from vehicles and riders", **_POS),
+       "pedestrian's repulsion from vehicles and riders", **_POS, kernel=False),
     Setting("labels", "name", "object", "the configuration's name (outputs)", kind="object",
             kernel=False),
 )  # fmt: skip

@@ -284,6 +284,7 @@ def import_scenario(
     rate_hz: float = 1.0,
     include_ego_track: bool = False,
     full_ins: bool = False,
+    road_users: str = "riders",
 ) -> Path:
     """Import one TrafficMonitoring scenario as an interaction folder; returns ``out``.
 
@@ -312,12 +313,16 @@ def import_scenario(
         include_ego_track: also annotate the car's own camera track (diagnostics).
         full_ins: keep the whole INS record; by default the ego track is cut to the span
             the camera covers (plus one 10 Hz step each side), like the paper's clips.
+        road_users: 'riders' (default: e-scooters and cyclists, the paper's annotations)
+            or 'all': also every other vehicle and pedestrian the camera tracked (category
+            'vehicle' / 'pedestrian'; the road users that react, vei.sim.traffic).
     Raises:
         InputError: missing files, unknown scenario, malformed data.
     """
     return import_scenario_with_summary(
-        root, scenario, out, rate_hz=rate_hz, include_ego_track=include_ego_track, full_ins=full_ins
-    ).out
+        root, scenario, out, rate_hz=rate_hz, include_ego_track=include_ego_track,
+        full_ins=full_ins, road_users=road_users,
+    ).out  # fmt: skip
 
 
 def import_scenario_with_summary(
@@ -328,6 +333,7 @@ def import_scenario_with_summary(
     rate_hz: float = 1.0,
     include_ego_track: bool = False,
     full_ins: bool = False,
+    road_users: str = "riders",
 ) -> ImportSummary:
     """:func:`import_scenario`, returning an :class:`ImportSummary` of what was written."""
     from vei.io.interaction import write_interaction
@@ -363,7 +369,12 @@ def import_scenario_with_summary(
             row=1,
             field="relevant_track_id",
         )
-    wanted = [tid for tid, cat in categories.items() if cat in ANNOTATED_CATEGORIES and tid != own]
+    if road_users not in ("riders", "all"):
+        raise InputError(
+            f"road_users must be 'riders' or 'all', got {road_users!r}", field="road_users"
+        )
+    kinds = ANNOTATED_CATEGORIES + (("vehicle", "pedestrian") if road_users == "all" else ())
+    wanted = [tid for tid, cat in categories.items() if cat in kinds and tid != own]
     if include_ego_track:
         wanted.append(own)
 
@@ -465,7 +476,7 @@ def import_scenario_with_summary(
         video_start_utc=matching.start_utc,
         video_offset_s=video_offset_s,
         ego_duration_s=float(ego["t_s"].iloc[-1] - ego["t_s"].iloc[0]),
-        tracks={c: int(counts.get(c, 0)) for c in ANNOTATED_CATEGORIES},
+        tracks={c: int(counts.get(c, 0)) for c in kinds},
         annotations=int((annotations["track_id"] != own).sum()),
         own_track_median_m=median_m,
         own_track_p95_m=p95_m,

@@ -160,6 +160,28 @@ def dwell_mask(
     return out
 
 
+#: A dwell jitters when the track travels more than this [m] within it (a reconstructed
+#: waiting rider; a standing run-in or a synthetic stop travels nothing).
+JITTER_M = 1.0
+
+
+def jitter_mask(x_m: FloatArray, y_m: FloatArray, t_s: FloatArray) -> npt.NDArray[np.bool_]:
+    """[M] the samples of the dwells (:func:`dwell_mask`) along which the track travels more
+    than JITTER_M: a wait whose positions jitter (a path through it has loops)."""
+    x = np.asarray(x_m, dtype=np.float64)
+    y = np.asarray(y_m, dtype=np.float64)
+    dwell = dwell_mask(x, y, t_s)
+    out = np.zeros_like(dwell)
+    if not dwell.any():
+        return out
+    step = np.concatenate([[0.0], np.hypot(np.diff(x), np.diff(y))])
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], dwell.astype(np.int8), [0]])))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if step[a + 1 : b].sum() > JITTER_M:
+            out[a:b] = True
+    return out
+
+
 def path_curvature(path: PathTable, recorded_only: bool = True) -> FloatArray:
     """Curvature d(yaw)/ds of a PathTable's grid [1/m] (central differences), [N] or the
     recorded part [0, length_m] only."""

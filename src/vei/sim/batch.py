@@ -45,7 +45,8 @@ class Block:
         decide: the rider's yield / go decision (VariantParams.decide): True / False if
             uniform in the block (False for replay blocks), else the [b] mask.
         traffic: the recorded cars react (VariantParams.cars_react): True / False if
-            uniform in the block, else the [b] mask.
+            uniform in the block, else the [b] mask. peds: the recorded pedestrians walk by
+            the social force (VariantParams.peds_sfm), alike.
     """
 
     start: int
@@ -63,6 +64,7 @@ class Block:
     perception: Any = None
     decide: bool | npt.NDArray[np.bool_] = False
     traffic: bool | npt.NDArray[np.bool_] = False
+    peds: bool | npt.NDArray[np.bool_] = False
 
 
 @dataclass(frozen=True)
@@ -144,6 +146,7 @@ def batch_flags(params: VariantParams, dt_s: float) -> BatchFlags:
                 perception=bp.perception[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
                 decide=_switch(bp.decide) if sfm else False,
                 traffic=_switch(bp.cars_react),
+                peds=_switch(bp.peds_sfm),
             )
         )
     return BatchFlags(

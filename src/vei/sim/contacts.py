@@ -110,19 +110,24 @@ def initial_contact_state(b: int, n_others: int, n_cars: int) -> dict[str, np.nd
         "car_hit": np.zeros((b, n_cars), dtype=bool),
         "car_hit_with": np.full((b, n_cars), -1, dtype=np.int32),
         "sec_count": np.zeros(b, dtype=np.int32),
-        "sec_first_t_s": np.full(b, np.nan),
+        "sec_first_t_s": np.full(b, np.inf),  # none yet (no NaN in the state)
         "sec_striker": np.full(b, -1, dtype=np.int32),
         "sec_struck": np.full(b, -1, dtype=np.int32),
-        "sec_max_speed_mps": np.full(b, np.nan),
+        "sec_max_speed_mps": np.zeros(b),
         "rear_end": np.zeros(b, dtype=bool),
     }
 
 
 def others_now(
-    arrays: Any, k: int, cars: dict[str, np.ndarray] | None, b: int
+    arrays: Any,
+    k: int,
+    b: int,
+    cars: dict[str, np.ndarray] | None = None,
+    peds: dict[str, np.ndarray] | None = None,
 ) -> tuple[FloatArray, ...]:
-    """[B, n_o] x, y, yaw, vx, vy of every replayed other at step k, reacting cars where the
-    engine has them (``cars``: their SimState fields at k, or None)."""
+    """[B, n_o] x, y, yaw, vx, vy of every replayed other at step k: reacting cars and
+    pedestrians where the engine moves them (``cars`` / ``peds``: their SimState fields at
+    k where the block moves them, else None: their recording)."""
     ox = np.broadcast_to(arrays.other_x_m[k], (b, arrays.other_x_m.shape[1])).copy()
     oy = np.broadcast_to(arrays.other_y_m[k], ox.shape).copy()
     oyaw = np.broadcast_to(arrays.other_yaw_rad[k], ox.shape).copy()
@@ -133,7 +138,16 @@ def others_now(
         oy[:, tr.idx] = cars["car_y_m"]
         oyaw[:, tr.idx] = cars["car_yaw_rad"]
         osp[:, tr.idx] = cars["car_v_mps"]
-    return ox, oy, oyaw, osp * np.cos(oyaw), osp * np.sin(oyaw)
+    ovx, ovy = osp * np.cos(oyaw), osp * np.sin(oyaw)
+    pd_ = arrays.peds
+    if peds is not None and pd_.n:
+        ox[:, pd_.idx], oy[:, pd_.idx] = peds["ped_x_m"], peds["ped_y_m"]
+        ovx[:, pd_.idx], ovy[:, pd_.idx] = peds["ped_vx_mps"], peds["ped_vy_mps"]
+        walking = np.hypot(ovx[:, pd_.idx], ovy[:, pd_.idx]) > 0.05
+        oyaw[:, pd_.idx] = np.where(
+            walking, np.arctan2(ovy[:, pd_.idx], ovx[:, pd_.idx]), oyaw[:, pd_.idx]
+        )
+    return ox, oy, oyaw, ovx, ovy
 
 
 def _strike(
@@ -174,14 +188,17 @@ def record(
         out["rear_end"][rows] |= rear
 
 
-def contact_step(st: Any, new: dict[str, Any], arrays: Any, on: Any) -> dict[str, np.ndarray]:
+def contact_step(
+    st: Any, new: dict[str, Any], arrays: Any, on: Any, peds_on: Any = False
+) -> dict[str, np.ndarray]:
     """The contact fields at step k + 1 from the new poses.
 
     Args:
         st: SimState at step k (the latches before). new: the step's new SimState fields
             (ego_*, rider_*, hit_other, extra_*, car_* at k + 1; hit_other already holds the
             ego's contacts with the others at their engine poses).
-        arrays: ScenarioArrays. on: the block's cars_react (True / False / [b] mask).
+        arrays: ScenarioArrays. on: the block's cars_react (True / False / [b] mask);
+            peds_on: its peds_sfm (the pedestrians' engine poses).
     Returns:
         The new CONTACT_FIELDS (fresh arrays) and, where a reacting car touched something,
         its updated ``car_mode`` / ``car_v_mps`` (stopped) in the same dict.
@@ -192,8 +209,9 @@ def contact_step(st: Any, new: dict[str, Any], arrays: Any, on: Any) -> dict[str
     b = st.ego_x_m.shape[0]
     n_o = arrays.other_x_m.shape[1]
     tr = arrays.traffic
-    cars = {f: new[f] for f in ("car_x_m", "car_y_m", "car_yaw_rad", "car_v_mps")} if tr.n else None
-    ox, oy, oyaw, ovx, ovy = others_now(arrays, min(k1, arrays.t_s.size - 1), cars, b)
+    cars = new if tr.n and on is not False else None
+    peds = new if arrays.peds.n and peds_on is not False else None
+    ox, oy, oyaw, ovx, ovy = others_now(arrays, min(k1, arrays.t_s.size - 1), b, cars, peds)
     act = np.broadcast_to(arrays.other_active[min(k1, arrays.t_s.size - 1)], (b, n_o))
     ex, ey, eyaw, ev = new["ego_x_m"], new["ego_y_m"], new["ego_yaw_rad"], new["ego_v_mps"]
     evx, evy = ev * np.cos(eyaw), ev * np.sin(eyaw)
@@ -206,11 +224,13 @@ def contact_step(st: Any, new: dict[str, Any], arrays: Any, on: Any) -> dict[str
         rows = np.flatnonzero(fresh[:, j])
         a_st, sp = _strike((ex[rows], ey[rows]), (evx[rows], evy[rows]),
                            (ox[rows, j], oy[rows, j]), (ovx[rows, j], ovy[rows, j]))  # fmt: skip
-        # rear-end: the other strikes the ego from behind, heading its way
-        behind = (ox[rows, j] - ex[rows]) * np.cos(eyaw[rows]) + (oy[rows, j] - ey[rows]) * np.sin(
+        # rear-end: a vehicle strikes the ego from behind (its centre behind the ego's rear
+        # bumper), heading its way (within 30 deg)
+        along = (ox[rows, j] - ex[rows]) * np.cos(eyaw[rows]) + (oy[rows, j] - ey[rows]) * np.sin(
             eyaw[rows]
-        ) < 0.0
-        same = np.cos(oyaw[rows, j] - eyaw[rows]) > np.cos(np.pi / 4)
+        )
+        behind = along < -0.5 * arrays.ego_length_m
+        same = np.cos(oyaw[rows, j] - eyaw[rows]) > np.cos(np.pi / 6)
         rear = ~a_st & behind & same & (arrays.other_categories[j] == "vehicle")
         record(out, rows, t, 0, 2 + j, a_st, sp, rear)
     if "extra_hit" in new and new["extra_hit"].shape[1]:

@@ -36,6 +36,7 @@ from vei.sim.params import (
     EGO_REPLAY_SPEED,
     VariantParams,
 )
+from vei.sim.pedestrians import Pedestrians, prepare_pedestrians
 from vei.sim.riders import (
     RIDER_PATH_STEP_M,
     ExtraRiders,
@@ -102,6 +103,8 @@ class ScenarioArrays:
             where it never waits (every recorded speed counts).
         traffic: the reacting cars among the replayed others (vei.sim.traffic: the
             vehicles on or across the ego's path; they react where ``cars_react``).
+        peds: the recorded pedestrians (vei.sim.pedestrians; social-force driven where
+            ``peds_sfm``).
     """
 
     scenario_id: str
@@ -136,6 +139,7 @@ class ScenarioArrays:
     conflicts: Conflicts = field(default_factory=Conflicts)
     rider_moving_speeds_mps: FloatArray | None = None
     traffic: Traffic = field(default_factory=Traffic)
+    peds: Pedestrians = field(default_factory=Pedestrians)
 
     @property
     def n_steps(self) -> int:
@@ -293,7 +297,10 @@ def prepare_scenario(
         rider_sfm_entry_s=sfm_entry_s(scenario, rid, r_track),
         conflicts=find_conflicts(ego_path, rider_path, ego_len, ego_wid, rider_len, rider_wid),
         rider_moving_speeds_mps=moving_speeds(r_track, rec_span),
-        traffic=prepare_traffic(scenario, others, t_s, ego_path, ego_track, ego_len, ego_wid, where),
+        traffic=prepare_traffic(
+            scenario, others, t_s, ego_path, ego_track, ego_len, ego_wid, where
+        ),
+        peds=prepare_pedestrians(scenario, others, t_s, where),
     )
 
 
@@ -346,6 +353,8 @@ class SimState(NamedTuple):
             which, -1 none). sec_count, sec_first_t_s, sec_striker, sec_struck,
             sec_max_speed_mps, rear_end: [B] the secondary collisions so far
             (vei.sim.contacts).
+        ped_x_m, ped_y_m, ped_vx_mps, ped_vy_mps, ped_prog_m: [B, P] the pedestrians
+            (vei.sim.pedestrians; meaningful where peds_sfm).
     """
 
     k: int
@@ -403,6 +412,11 @@ class SimState(NamedTuple):
     sec_struck: npt.NDArray[np.int32]
     sec_max_speed_mps: FloatArray
     rear_end: BoolArray
+    ped_x_m: FloatArray
+    ped_y_m: FloatArray
+    ped_vx_mps: FloatArray
+    ped_vy_mps: FloatArray
+    ped_prog_m: FloatArray
 
 
 __all__ = [

@@ -22,6 +22,12 @@ from vei.sim.contacts import (
 )
 from vei.sim.decisions import decide_block
 from vei.sim.observe import Demand
+from vei.sim.pedestrians import (
+    PED_FIELDS,
+    initial_pedestrian_state,
+    pedestrian_step,
+    rider_from_pedestrians,
+)
 from vei.sim.riders import initial_extra_state, pedestrian_sources, repulsion, step_extras
 from vei.sim.state import (
     EGO_CAP,
@@ -137,6 +143,7 @@ def initial_state(
         rider_decision=np.zeros(b, dtype=np.int8),
         **initial_traffic_state(arrays, b),
         **initial_contact_state(b, no, arrays.traffic.n),
+        **initial_pedestrian_state(arrays, b),
     )
 
 
@@ -399,10 +406,18 @@ def _step_block(
             for arr in (v_new, a_act, a_rep, rvx, rvy, rsp, r_acc):
                 arr[hits] = 0.0
     cars = {f: getattr(st, f) for f in _CAR_FIELDS}
+    peds = {f: getattr(st, f) for f in PED_FIELDS}
     poses = None
+    if arrays.peds.n and blk.peds is not False:  # pedestrians (vei.sim.pedestrians)
+        moving = cars if arrays.traffic.n and blk.traffic is not False else None
+        peds = pedestrian_step(st, arrays, p, blk.peds, dt, moving)
     if arrays.traffic.n and blk.traffic is not False:  # reacting cars (vei.sim.traffic)
         cars = traffic_step(st, arrays, p, blk.traffic, dt)
-        poses = others_now(arrays, min(k + 1, arrays.n_steps - 1), cars, b)[:3]
+    moved_cars = cars if arrays.traffic.n and blk.traffic is not False else None
+    moved_peds = peds if arrays.peds.n and blk.peds is not False else None
+    if moved_cars is not None or moved_peds is not None:
+        kn = min(k + 1, arrays.n_steps - 1)
+        poses = others_now(arrays, kn, b, moved_cars, moved_peds)[:3]
     hit_other = collide_ego_others(arrays, k + 1, ex, ey, eyaw, st.hit_other, poses)
 
     extras = {}
@@ -445,9 +460,10 @@ def _step_block(
         **(extras or {f: getattr(st, f) for f in _EXTRA_FIELDS}),
         "rider_decision": r_dec,
         **cars,
+        **peds,
     }
     # contacts between any two road users, the secondary collisions (vei.sim.contacts)
-    out.update(contact_step(st, out, arrays, blk.traffic))
+    out.update(contact_step(st, out, arrays, blk.traffic, blk.peds))
     return out
 
 
@@ -537,10 +553,14 @@ def _social_force_update(
             for m in range(rr.n)
         ]
         ps = p if sel is None else p.take(sel)
-        hx, hy = repulsion(
-            x0, y0, rr.primary_radius_m, ps, sources + pedestrian_sources(arrays, st.k)
-        )
+        peds = pedestrian_sources(arrays, st.k)
+        if blk.peds is not False and arrays.peds.n:  # the simulated ones act instead
+            off = ~np.asarray(_sub(blk.peds, sel), dtype=bool)
+            peds = [(qx, qy, np.logical_and(a, off), r) for qx, qy, a, r in peds]
+        hx, hy = repulsion(x0, y0, rr.primary_radius_m, ps, sources + peds)
         fx, fy = fx + hx, fy + hy
+    if blk.peds is not False and arrays.peds.n:  # social-force pedestrians repel the rider
+        fx, fy = rider_from_pedestrians(st, arrays, blk, sel, x0, y0, fx, fy)
     mass = g(p.mass_kg, sel)
     if blk.rider_limits:
         fx, fy = sfm_model.cap_force(fx, fy, g(p.max_accel_mps2, sel) * mass)

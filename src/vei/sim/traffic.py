@@ -100,17 +100,18 @@ def car_path(x: FloatArray, y: FloatArray, t: FloatArray, yaw0: float, where: st
 
 
 def leader_map(
-    leader: PathTable, car: PathTable, l_len: float, l_wid: float
+    leader: PathTable, car: PathTable, l_len: float, l_wid: float, tree: Any = None
 ) -> tuple[FloatArray, float, int]:
     """[4, M] where the leader's path lies on the car's (see :class:`Traffic` mtab), its
-    grid start [m] and size M."""
+    grid start [m] and size M (``tree``: a cKDTree of the car's grid points, or None)."""
     from scipy.spatial import cKDTree
 
     s = np.arange(
         leader.s_start_m, leader.s_start_m + leader.ds_m * (leader.x_m.size - 1), MAP_DS_M
     )
     lx, ly, lyaw = leader.lookup(s)
-    _, i = cKDTree(np.column_stack([car.x_m, car.y_m])).query(np.column_stack([lx, ly]))
+    tree = tree if tree is not None else cKDTree(np.column_stack([car.x_m, car.y_m]))
+    _, i = tree.query(np.column_stack([lx, ly]))
     sig = car.s_start_m + i * car.ds_m
     ci, cw = car.index(sig)
     px, py, pc, ps, pyaw = car.values_at(ci, cw, "x", "y", "cos", "sin", "yaw")
@@ -185,7 +186,12 @@ def prepare_traffic(
     leaders = [(ego_path, ego_length_m, ego_width_m)] + [
         (p, float(length[k]), float(width[k])) for k, p in enumerate(paths)
     ]
-    maps = [[leader_map(lp, paths[j], ll, lw) for j in range(c)] for lp, ll, lw in leaders]
+    from scipy.spatial import cKDTree
+
+    trees = [cKDTree(np.column_stack([p.x_m, p.y_m])) for p in paths]
+    maps = [
+        [leader_map(lp, paths[j], ll, lw, trees[j]) for j in range(c)] for lp, ll, lw in leaders
+    ]
     m_max = max(m[0].shape[1] for row in maps for m in row)
     mtab = np.zeros((c + 1, c, 4, m_max))
     mtab[:, :, 1, :] = np.inf  # padding: off the path
@@ -247,28 +253,34 @@ def _nearest_leader(
     tr: Traffic,
     j: int,
     own_s: FloatArray,
-    leaders: list[tuple[int, FloatArray, FloatArray, Any]],
-    ego_width_m: float,
+    ls: npt.NDArray[np.intp],
+    lead: tuple[FloatArray, FloatArray, FloatArray],
+    widths: FloatArray,
 ) -> tuple[FloatArray, FloatArray]:
     """(gap [B] [m], the leader's speed along j's path [B] [m/s]) of the nearest road user
-    on car j's path ahead (+inf, 0: none). ``leaders``: (leader index, arc [B], speed [B],
-    present [B] or bool) of each candidate."""
-    gap = np.full(own_s.shape, np.inf)
-    vl = np.zeros(own_s.shape)
-    for li, sl, v, present in leaders:
-        if not tr.pair[li, j]:
-            continue
-        sig, lat, cosd, ext = map_at(tr, li, j, sl)
-        w_l = 0.5 * (tr.width_m[j] + (tr.width_m[li - 1] if li else ego_width_m))
-        g = np.where(
-            present,
-            core.leader_gap_core(sig, lat, ext, own_s, 0.5 * tr.length_m[j], w_l + LAT_MARGIN_M),
-            np.inf,
-        )
-        closer = g < gap
-        gap = np.where(closer, g, gap)
-        vl = np.where(closer, v * cosd, vl)
-    return gap, vl
+    on car j's path ahead (+inf, 0: none) among the leaders ``ls`` [L] (0 = the ego, 1 + m
+    = car m): ``lead`` = their arcs, speeds and presence [L, B], ``widths`` [L] [m]."""
+    sl, v, present = lead
+    if ls.size == 0:
+        return np.full(own_s.shape, np.inf), np.zeros(own_s.shape)
+    n = tr.mn[ls][:, None]
+    f = np.clip((sl - tr.m0[ls][:, None]) / MAP_DS_M, 0.0, n - 1.0)
+    i = np.minimum(f.astype(np.intp), np.maximum(n - 2, 0))
+    w = f - i
+    i1 = np.minimum(i + 1, n - 1)
+    rows = tr.mtab[ls, j]  # [L, 4, M]
+    li = np.arange(ls.size)[:, None]
+    r0, r1 = rows[li, :, i], rows[li, :, i1]  # [L, B, 4]
+    val = r0 + w[..., None] * (r1 - r0)
+    sig, lat, cosd, ext = val[..., 0], val[..., 1], val[..., 2], val[..., 3]
+    g = core.leader_gap_core(
+        sig, lat, ext, own_s[None, :], 0.5 * tr.length_m[j], 0.5 * (tr.width_m[j] + widths[:, None])
+    )
+    g = np.where(present, g, np.inf)
+    best = np.argmin(g, axis=0)
+    cols = np.arange(own_s.shape[0])
+    gap = g[best, cols]
+    return gap, np.where(np.isfinite(gap), (v * cosd)[best, cols], 0.0)
 
 
 def traffic_step(st: Any, arrays: Any, p: Any, on: Any, dt: float) -> dict[str, np.ndarray]:
@@ -288,13 +300,18 @@ def traffic_step(st: Any, arrays: Any, p: Any, on: Any, dt: float) -> dict[str, 
     own_s = np.where(mode >= core.IDM, s, tr.s_rec_m[k])
     own_v = np.where(mode >= core.IDM, v, tr.v_rec_mps[k])
     b = mode.shape[0]
-    ego_act = [(0, st.ego_s_m, st.ego_v_mps, True)]
-    ego_rec = [(0, np.full(b, tr.ego_s_rec_m[k]), np.full(b, tr.ego_v_rec_mps[k]), True)]
-    cars_act = [(1 + m, own_s[:, m], own_v[:, m], bool(tr.active[k, m])) for m in range(tr.n)]
-    cars_rec = [
-        (1 + m, np.full(b, tr.s_rec_m[k, m]), np.full(b, tr.v_rec_mps[k, m]), bool(tr.active[k, m]))
-        for m in range(tr.n)
-    ]
+    c = tr.n
+    pres = np.broadcast_to(tr.active[k][:, None], (c, b))
+    act_s = np.vstack([st.ego_s_m[None, :], own_s.T])  # [C + 1, B] the leaders now
+    act_v = np.vstack([st.ego_v_mps[None, :], own_v.T])
+    rec_s = np.broadcast_to(
+        np.concatenate([[tr.ego_s_rec_m[k]], tr.s_rec_m[k]])[:, None], (c + 1, b)
+    )
+    rec_v = np.broadcast_to(
+        np.concatenate([[tr.ego_v_rec_mps[k]], tr.v_rec_mps[k]])[:, None], (c + 1, b)
+    )
+    present = np.vstack([np.ones((1, b), dtype=bool), pres])
+    widths = np.concatenate([[arrays.ego_width_m], tr.width_m])
     idm = (
         p.car_v0_mps,
         p.car_headway_s,
@@ -304,15 +321,18 @@ def traffic_step(st: Any, arrays: Any, p: Any, on: Any, dt: float) -> dict[str, 
         p.car_delta,
     )
     new_mode = mode.copy()
-    for j in range(tr.n):
+    for j in range(c):
         if not tr.active[k, j]:
             continue
-        others_act = [c for c in cars_act if c[0] != j + 1]
-        others_rec = [c for c in cars_rec if c[0] != j + 1]
-        w_e = arrays.ego_width_m
-        gap_a, vl_a = _nearest_leader(tr, j, own_s[:, j], ego_act + others_act, w_e)
+        ls = np.flatnonzero(tr.pair[:, j])
+        ls = ls[ls != j + 1]
+        gap_a, vl_a = _nearest_leader(
+            tr, j, own_s[:, j], ls, (act_s[ls], act_v[ls], present[ls]), widths[ls]
+        )
         own_r = np.full(b, tr.s_rec_m[k, j])
-        gap_r, vl_r = _nearest_leader(tr, j, own_r, ego_rec + others_rec, w_e)
+        gap_r, vl_r = _nearest_leader(
+            tr, j, own_r, ls, (rec_s[ls], rec_v[ls], present[ls]), widths[ls]
+        )
         a_act = core.idm_accel_core(own_v[:, j], vl_a, gap_a, *idm)
         a_rec = core.idm_accel_core(np.full(b, tr.v_rec_mps[k, j]), vl_r, gap_r, *idm)
         m = mode[:, j]

@@ -68,6 +68,7 @@ from vei.sim.kernel.layout import (
     P_MASS,
     P_MODE,
     P_PAPERV,
+    P_REACT,
     P_SFM,
     P_SFR,
     P_SHIFT,
@@ -90,6 +91,7 @@ from vei.sim.kernel.sfm import (
     integrate,
     vehicle_force,
 )
+from vei.sim.kernel.traffic import contacts, traffic_step
 
 __all__ = ["N_OUT", "kernel"]
 
@@ -128,6 +130,14 @@ def kernel(  # type: ignore[no-untyped-def]
     XFS, XFB,  # final extra state [8, B, R], [4, B, R]
     metrics, t_m, dt_m, MCFG, M,  # fused metrics (vei.metrics.fused): on?, t [T], dt, cfg, out [B, N_FUSED]
     cK, cexit, csr, cse, chzr, chze,  # the rider's conflicts [K] (vei.sim.decisions.Conflicts)
+    tC, tidx, tL, tW, tci,  # reacting cars (vei.sim.traffic): C, their other indices, sizes; [no] car of each other
+    tptab, tps0, tpds, tpn,  # their paths [C, 10, N], [C]
+    tsrec, tvrec, tarec, tact, tesrec, tevrec,  # recorded arc, speed, accel, active [T, C]; the ego's [T]
+    tmtab, tm0, tmn, tpair,  # leader maps [C + 1, C, 4, M], [C + 1], pairs [C + 1, C]
+    oSP, oVEH,  # the others' recorded speeds [T, no], vehicle category [no]
+    CS0, CM0, CH0, CW0, RH0, SEC0,  # initial car floats [6, B, C], mode [B, C], hit, with; rider hits [B, no]; sec [6, B]
+    OC, OCM,  # out [B, 4, T, C] (x y yaw speed), [B, T, C] mode
+    CFS, CFM, CFH, CFW, RFH, SECF,  # finals (as the initial ones)
 ):  # fmt: skip
     B = P.shape[1]
     n_p = path.shape[1]
@@ -212,6 +222,46 @@ def kernel(  # type: ignore[no-untyped-def]
         hit = np.empty(no, dtype=np.bool_)
         for j in range(no):
             hit[j] = H0[b, j] > 0
+        # reacting cars and contacts (vei.sim.kernel.traffic)
+        react_on = tC > 0 and P[P_REACT, b] > 0.5
+        cfl = np.empty((6, tC))
+        cmode = np.empty(tC, dtype=np.int64)
+        chit = np.empty(tC, dtype=np.bool_)
+        chw = np.empty(tC, dtype=np.int64)
+        for j in range(tC):
+            for f in range(6):
+                cfl[f, j] = CS0[f, b, j]
+            cmode[j] = CM0[b, j]
+            chit[j] = CH0[b, j] > 0
+            chw[j] = CW0[b, j]
+        rhit = np.empty(no, dtype=np.bool_)
+        hprev = np.empty(no, dtype=np.bool_)
+        for j in range(no):
+            rhit[j] = RH0[b, j] > 0
+        sec = np.empty(6)
+        for f in range(6):
+            sec[f] = SEC0[f, b]
+        xprev = np.empty(R, dtype=np.bool_)
+        scr = np.empty((4, tC))
+        cst = (
+            cfl[0],
+            cfl[1],
+            cfl[2],
+            cfl[3],
+            cfl[4],
+            cfl[5],
+            cmode,
+            scr[0],
+            scr[1],
+            scr[2],
+            scr[3],
+        )
+        tg = (tC, tL, tW, tmtab, tm0, tmn, tpair)
+        trec = (tsrec, tvrec, tarec, tact, tesrec, tevrec, oX, oY, oYAW, tidx)
+        tpath = (tptab, tps0, tpds, tpn)
+        cpos = (tci, cfl[3], cfl[4], cfl[5], cfl[1])
+        oth = (oX, oY, oYAW, oSP, oACT, oL, oW, oVEH)
+        carg = (cmode, chit, chw, tidx, tL, tW)
         hx = np.zeros(hist_len)
         hy = np.zeros(hist_len)
         hyaw = np.zeros(hist_len)
@@ -356,6 +406,8 @@ def kernel(  # type: ignore[no-untyped-def]
             if collided:
                 r_acc = 0.0
             # ---------------- extra riders (state at step k; ego contact at k + 1)
+            for j in range(R):
+                xprev[j] = xb[3, j]
             if R > 0:
                 extra_riders_step(
                     k, t_new, dt, P, b, sfm, use_rf, a_rr, b_rr,
@@ -374,7 +426,29 @@ def kernel(  # type: ignore[no-untyped-def]
                         a_rep_n = 0.0
                         nrvx = nrvy = nrsp = 0.0
                         r_acc = 0.0
+            if react_on:
+                traffic_step(k, dt, P, b, react_on, tg, trec, tpath, cst, s, v, We)
             for j in range(no):
+                hprev[j] = hit[j]
+            for j in range(no):
+                if react_on and tci[j] >= 0 and oACT[k + 1, j] and not hit[j]:
+                    c = tci[j]
+                    ddx, ddy = cfl[3, c] - ex_n, cfl[4, c] - ey_n
+                    if ddx * ddx + ddy * ddy <= o_rr2[j]:
+                        if sat(
+                            ex_n,
+                            ey_n,
+                            eyaw_n,
+                            Le,
+                            We,
+                            cfl[3, c],
+                            cfl[4, c],
+                            cfl[5, c],
+                            oL[j],
+                            oW[j],
+                        ):
+                            hit[j] = True
+                    continue
                 if oACT[k + 1, j] and not hit[j]:
                     ddx, ddy = oX[k + 1, j] - ex_n, oY[k + 1, j] - ey_n
                     if ddx * ddx + ddy * ddy <= o_rr2[j]:
@@ -391,6 +465,12 @@ def kernel(  # type: ignore[no-untyped-def]
                             oW[j],
                         ):
                             hit[j] = True
+            # ---------------- contacts of any two road users, secondary collisions
+            contacts(
+                k + 1, t_new, oth, cpos, tC, (ex_n, ey_n, eyaw_n, v_new),
+                (nrx, nry, nryaw, nrvx, nrvy, n_act), (hprev, hit), xs, (xprev, xb[3]),
+                rhit, carg, sec, (Lr, Wr, Le), react_on,
+            )  # fmt: skip
             # ---------------- commit
             s, ex, ey, eyaw, v, a_act, a_rep = s_new, ex_n, ey_n, eyaw_n, v_new, a_act_n, a_rep_n
             rx, ry, ryaw, rvx, rvy, rsp, prog, r_act = (
@@ -443,6 +523,12 @@ def kernel(  # type: ignore[no-untyped-def]
                     OX[b, 4, kk, j] = xs[6, j]
                     OXB[b, 0, kk, j] = 1 if xb[0, j] else 0
                     OXB[b, 1, kk, j] = 1 if xb[3, j] else 0
+                for j in range(tC):
+                    OC[b, 0, kk, j] = cfl[3, j]
+                    OC[b, 1, kk, j] = cfl[4, j]
+                    OC[b, 2, kk, j] = cfl[5, j]
+                    OC[b, 3, kk, j] = cfl[1, j]
+                    OCM[b, kk, j] = cmode[j]
         FS[0, b] = s
         FS[1, b] = ex
         FS[2, b] = ey
@@ -478,6 +564,16 @@ def kernel(  # type: ignore[no-untyped-def]
             run_metrics(t_m, dt_m, ch, Le, We, Lr, Wr, MCFG, P[P_MASS, b], P[P_DMAX, b], M[b])
         for j in range(no):
             H0[b, j] = 1 if hit[j] else 0
+        for j in range(tC):
+            for f in range(6):
+                CFS[f, b, j] = cfl[f, j]
+            CFM[b, j] = cmode[j]
+            CFH[b, j] = 1 if chit[j] else 0
+            CFW[b, j] = chw[j]
+        for j in range(no):
+            RFH[b, j] = 1 if rhit[j] else 0
+        for f in range(6):
+            SECF[f, b] = sec[f]
         for j in range(R):
             for f in range(8):
                 XFS[f, b, j] = xs[f, j]
