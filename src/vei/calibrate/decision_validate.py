@@ -14,9 +14,11 @@ reach the zone first) and the held-out riders are checked:
   decisions (:mod:`vei.models.decision_core` against every recorded vehicle whose path
   crosses its own, each conflict decided on its own, the strongest speed cap wins);
   who enters each case's zone first, against the recording;
-- **riders that stop** (the recorded segment stands, speed < 0.5 m/s for >= 1 s): the
-  median speed while present, simulated against recorded (within 30 %?), and where the
-  first stop is along the path (within 3 m?), with and without decisions;
+- **riders that stop** (the recorded segment, once riding (> 1 m/s), stands: speed < 0.5
+  m/s for >= 1 s): the median speed while present, simulated against recorded (within
+  30 %?), and where the first such stop is along the path (within 3 m?), with and without
+  decisions; the whole segment simulated from its first sample on paths whose jittering
+  waits collapse (as the engine's);
 - **every rider**: ADE / FDE of the windows of :func:`vei.calibrate.validate.validate_loso`
   (3 s, 5 s) with decisions against the calibrated SFM without.
 """
@@ -177,12 +179,21 @@ def rollout_decisions(
     return outx, outy
 
 
+#: A rider rides once faster than this [m/s]; the stops validated come after that (the
+#: wait a segment may start with is the camera's first sight of it, not a decision).
+RIDING_MPS = 1.0
+
+
 def first_stop(speed: FloatArray, dt_s: float) -> int:
-    """Index where the first stop begins (speed < STOP_MPS for >= STOP_MIN_S), -1 if none."""
+    """Index where the first stop after the rider first rides begins (speed < STOP_MPS for
+    >= STOP_MIN_S after it exceeded RIDING_MPS), -1 if none."""
+    riding = np.flatnonzero(speed > RIDING_MPS)
+    if riding.size == 0:
+        return -1
     run = 0
     need = int(round(STOP_MIN_S / dt_s))
-    for i, slow in enumerate(speed < STOP_MPS):
-        run = run + 1 if slow else 0
+    for i in range(int(riding[0]), speed.size):
+        run = run + 1 if speed[i] < STOP_MPS else 0
         if run >= need:
             return i - run + 1
     return -1
@@ -320,21 +331,22 @@ def validate_decisions(
             fit_tracks(train, by_name, dt_s=dt_s, bootstrap=0), {"held_out": held}
         )
         paths = pack_paths(test)
+        whole = pack_paths(test, collapse_waits=True)  # standing starts: no jitter loops
         confl = [rider_conflicts(by_name[held], tr) for tr in test]
         # whole segments from their first sample
         for j, tr in enumerate(test):
             h = tr.t_s.size - 1
-            win = make_windows(test, by_name, paths, h * dt_s, dt_s=dt_s, starts=[(j, 0)])
+            win = make_windows(test, by_name, whole, h * dt_s, dt_s=dt_s, starts=[(j, 0)])
             prm = _params(profile, test, win.track)
-            x0, y0 = rollout_sfm(paths, win, prm)
+            x0, y0 = rollout_sfm(whole, win, prm)
             x1, y1 = rollout_decisions(
-                paths,
+                whole,
                 win,
                 prm,
                 window_conflicts(win, test, confl),
                 _decide_params(1, t_c, decision_horizon_s),
             )
-            sim_arc = [_arc_on(paths, j, xx[0], yy[0]) for xx, yy in ((x0, y0), (x1, y1))]
+            sim_arc = [_arc_on(whole, j, xx[0], yy[0]) for xx, yy in ((x0, y0), (x1, y1))]
             for i, c in enumerate(cases):
                 if c.scenario == held and c.rider == tr.track_id:
                     cf = next(cc for cc in confl[j] if cc.vehicle == c.vehicle)
@@ -343,7 +355,7 @@ def validate_decisions(
             k_rec = first_stop(sp_rec, dt_s)
             if k_rec < 0:
                 continue
-            arc_rec = paths.arc_m[j]
+            arc_rec = whole.arc_m[j]
             meds = []
             stop_err = []
             for xx, yy, arc in ((x0, y0, sim_arc[0]), (x1, y1, sim_arc[1])):

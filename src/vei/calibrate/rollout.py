@@ -29,6 +29,7 @@ import numpy.typing as npt
 
 from vei.boxes import closest_point_on_box
 from vei.calibrate.tracks import MOVING_MPS, RiderTrack, SceneTracks
+from vei.models.drivable_path import jitter_mask
 from vei.models.ego import build_path
 
 FloatArray = npt.NDArray[np.float64]
@@ -130,16 +131,23 @@ def decimated(x: FloatArray, y: FloatArray, spacing_m: float) -> IntArray:
     return np.asarray(keep, dtype=np.intp)
 
 
-def pack_paths(tracks: list[RiderTrack]) -> PackedPaths:
+def pack_paths(tracks: list[RiderTrack], collapse_waits: bool = False) -> PackedPaths:
     """Arc-length tables (:func:`vei.models.ego.build_path`) of the tracks' smoothed paths.
 
     Each path is built from the positions spaced >= PATH_MIN_SPACING_M apart; a sample's
     arc length is that of the last kept point before it plus its distance from it.
+    ``collapse_waits``: a wait whose positions jitter contributes its first point only
+    (:func:`vei.models.drivable_path.jitter_mask`, as the engine's rider paths; the
+    whole-track rollouts of vei.calibrate.decision_validate, which start standing riders).
     """
     xs, ys, cs, ss, offs, ns, s0, lens, arcs = [], [], [], [], [], [], [], [], []
     total = 0
     for tr in tracks:
-        k = decimated(tr.x_m, tr.y_m, PATH_MIN_SPACING_M)
+        base = np.arange(tr.t_s.size)
+        if collapse_waits:
+            wait = jitter_mask(tr.x_m, tr.y_m, tr.t_s)
+            base = np.flatnonzero(~wait | np.concatenate([[True], ~wait[:-1]]))
+        k = base[decimated(tr.x_m[base], tr.y_m[base], PATH_MIN_SPACING_M)]
         yaw0 = float(np.arctan2(tr.vy_mps[0], tr.vx_mps[0]))
         p = build_path(
             tr.x_m[k], tr.y_m[k], yaw_hint_rad=yaw0, ds_m=PATH_DS_M, extend_m=PATH_EXTEND_M

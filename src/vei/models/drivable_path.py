@@ -121,29 +121,27 @@ DWELL_RADIUS_M = 1.5
 DWELL_MIN_S = 2.0
 
 
-def dwell_mask(
+def dwell_segments(
     x_m: FloatArray,
     y_m: FloatArray,
     t_s: FloatArray,
     radius_m: float = DWELL_RADIUS_M,
     min_dwell_s: float = DWELL_MIN_S,
-) -> npt.NDArray[np.bool_]:
-    """[M] True at the samples where the track dwells: from a sample on, it stays within
-    ``radius_m`` of it for at least ``min_dwell_s`` (the dwell ends at the first sample
-    that leaves the radius; the next dwell is looked for from there). A track that moves
+) -> list[tuple[int, int]]:
+    """The dwells of a track: [(i, j)] sample ranges [i, j) over which it stays within
+    ``radius_m`` of sample i for at least ``min_dwell_s`` (a dwell ends at the first
+    sample that leaves the radius; the next is looked for from there). A track that moves
     at more than ``radius_m / min_dwell_s`` (0.75 m/s) everywhere has none.
 
     Args:
         x_m, y_m: [M] positions in time order [m]. t_s: [M] their times [s].
         radius_m, min_dwell_s: the dwell's radius [m] and least duration [s].
-    Returns:
-        [M] bool (the first sample of each dwell included).
     """
     x = np.asarray(x_m, dtype=np.float64)
     y = np.asarray(y_m, dtype=np.float64)
     t = np.asarray(t_s, dtype=np.float64)
     n = x.shape[0]
-    out = np.zeros(n, dtype=bool)
+    out: list[tuple[int, int]] = []
     r2 = radius_m * radius_m
     i = 0
     while i < n:
@@ -155,30 +153,43 @@ def dwell_mask(
         d2 = (x[m:] - x[i]) ** 2 + (y[m:] - y[i]) ** 2
         away = np.flatnonzero(d2 >= r2)
         j = m + int(away[0]) if away.size else n
-        out[i:j] = True
+        out.append((i, j))
         i = j
     return out
 
 
-#: A dwell jitters when the track travels more than this [m] within it (a reconstructed
-#: waiting rider; a standing run-in or a synthetic stop travels nothing).
+def dwell_mask(
+    x_m: FloatArray,
+    y_m: FloatArray,
+    t_s: FloatArray,
+    radius_m: float = DWELL_RADIUS_M,
+    min_dwell_s: float = DWELL_MIN_S,
+) -> npt.NDArray[np.bool_]:
+    """[M] True at the samples of the track's dwells (:func:`dwell_segments`)."""
+    out = np.zeros(np.shape(x_m)[0], dtype=bool)
+    for i, j in dwell_segments(x_m, y_m, t_s, radius_m, min_dwell_s):
+        out[i:j] = True
+    return out
+
+
+#: A dwell jitters when the track travels more than twice its reach from the dwell's
+#: first sample plus this [m] within it: a reconstructed waiting rider goes back and forth
+#: (tens of metres within a metre); a standing run-in travels nothing; slow, steady motion
+#: travels about its reach.
 JITTER_M = 1.0
 
 
 def jitter_mask(x_m: FloatArray, y_m: FloatArray, t_s: FloatArray) -> npt.NDArray[np.bool_]:
-    """[M] the samples of the dwells (:func:`dwell_mask`) along which the track travels more
-    than JITTER_M: a wait whose positions jitter (a path through it has loops)."""
+    """[M] the samples of the dwells (:func:`dwell_segments`) along which the track
+    jitters (see :data:`JITTER_M`): a wait whose path through its positions has loops."""
     x = np.asarray(x_m, dtype=np.float64)
     y = np.asarray(y_m, dtype=np.float64)
-    dwell = dwell_mask(x, y, t_s)
-    out = np.zeros_like(dwell)
-    if not dwell.any():
-        return out
-    step = np.concatenate([[0.0], np.hypot(np.diff(x), np.diff(y))])
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], dwell.astype(np.int8), [0]])))
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
-        if step[a + 1 : b].sum() > JITTER_M:
-            out[a:b] = True
+    out = np.zeros(x.shape[0], dtype=bool)
+    for i, j in dwell_segments(x, y, t_s):
+        travel = float(np.hypot(np.diff(x[i:j]), np.diff(y[i:j])).sum())
+        reach = float(np.hypot(x[i:j] - x[i], y[i:j] - y[i]).max())
+        if travel > 2.0 * reach + JITTER_M:
+            out[i:j] = True
     return out
 
 
