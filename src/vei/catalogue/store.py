@@ -125,7 +125,9 @@ def encounter_scores(rows: pd.DataFrame) -> pd.DataFrame:
     configurations (case study + sweep) that collide, then the lowest mean safety index,
     then the smallest minimum gap over them. Returns columns encounter_id, recording,
     rider_id, category, the recorded geometry, n_configs, collision_share,
-    mean_safety_index, worst_min_gap_m, worst_min_ttc_s, casestudy_collisions, rank.
+    mean_safety_index, worst_min_gap_m, worst_min_ttc_s, casestudy_collisions,
+    secondary_share / rear_end_share (share of its configurations with a secondary / a
+    rear-end collision, where the rows report them), rank.
     """
     geo_cols = [
         c
@@ -154,6 +156,13 @@ def encounter_scores(rows: pd.DataFrame) -> pd.DataFrame:
     out["casestudy_collisions"] = (
         cs.groupby("encounter_id")["collision"].sum().reindex(out.index).fillna(0).astype(int)
     )
+    # secondary collisions (issue 24): the share of configurations with one, a rear-end
+    for col, name in (
+        ("secondary_collision", "secondary_share"),
+        ("rear_end_collision", "rear_end_share"),
+    ):
+        if col in rows:
+            out[name] = g[col].apply(lambda c: c.fillna(False).astype(bool).mean()).astype(float)
     out = out.reset_index().sort_values(
         ["collision_share", "mean_safety_index", "worst_min_gap_m", "encounter_id"],
         ascending=[False, True, True, True],

@@ -113,7 +113,9 @@ def secondary_from_timeseries(
     """The secondary collisions of the runs of a long time series (TIMESERIES_COLUMNS):
     new contacts (boxes overlap, not already at the first step both are present) of the
     ego with every road user but the primary rider, of the primary rider with every other,
-    and of two vehicles (category 'vehicle'). Velocities are speed * heading.
+    and of two vehicles (category 'vehicle'). Velocities are speed * heading at the step
+    before the contact (as :func:`vei.metrics.severity.impact_speed`: a contact stops the
+    road users at its own step).
 
     Args:
         frame: the time series. runs: (config, variant) of each run, in Trace order.
@@ -153,8 +155,10 @@ def secondary_from_timeseries(
             k = int(np.argmax(ov))
             pa = a.iloc[k]
             pb = b.iloc[k]
-            va = pa["speed_mps"] * np.array([np.cos(pa["yaw_rad"]), np.sin(pa["yaw_rad"])])
-            vb = pb["speed_mps"] * np.array([np.cos(pb["yaw_rad"]), np.sin(pb["yaw_rad"])])
+            # velocities of the step before (a contact stops road users at its own step)
+            qa, qb = a.iloc[max(k - 1, 0)], b.iloc[max(k - 1, 0)]
+            va = qa["speed_mps"] * np.array([np.cos(qa["yaw_rad"]), np.sin(qa["yaw_rad"])])
+            vb = qb["speed_mps"] * np.array([np.cos(qb["yaw_rad"]), np.sin(qb["yaw_rad"])])
             d = np.array([pb["x_m"] - pa["x_m"], pb["y_m"] - pa["y_m"]])
             d = d / max(float(np.hypot(*d)), 1e-9)
             a_st = float(va @ d) >= float(-(vb @ d))

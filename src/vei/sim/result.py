@@ -60,8 +60,9 @@ class SimResult:
             without time series.
         car_ids: the reacting cars (vei.sim.traffic; their ids among other_ids).
         car_x_m, car_y_m, car_yaw_rad, car_speed_mps: [B, T, C] their poses [m, rad] and
-            speeds [m/s] (their recording while they replay); car_mode [B, T, C] int8 (0
-            replay, 1 reacting, 2 IDM, 3 stopped). None without time series. The secondary
+            speeds [m/s] (their recording while they replay) in the variants with
+            ``cars_react`` (elsewhere not advanced: use the others' recording); car_mode
+            [B, T, C] int8 (0 replay, 1 reacting, 2 IDM, 3 stopped). None without time series. The secondary
             collisions of each run are in ``final_state`` (sec_*, rear_end).
         ped_ids: the recorded pedestrians (vei.sim.pedestrians). ped_x_m, ped_y_m,
             ped_vx_mps, ped_vy_mps: [B, T, P] their engine poses and velocities where
@@ -315,9 +316,11 @@ class SimResult:
                     oid in cars
                 ):  # a reacting car: the engine's pose (its recording while replayed)
                     c = cars[oid]
-                    xs, ys = self.car_x_m[idx, :, c], self.car_y_m[idx, :, c]
-                    yaws = self.car_yaw_rad[idx, :, c]
-                    driven = self.car_mode[idx, :, c] > 1  # replayed: the recorded speed
+                    on = np.asarray(self.params.cars_react)[idx][:, None]  # else replayed
+                    xs = np.where(on, self.car_x_m[idx, :, c], self.other_x_m[:, j])
+                    ys = np.where(on, self.car_y_m[idx, :, c], self.other_y_m[:, j])
+                    yaws = np.where(on, self.car_yaw_rad[idx, :, c], self.other_yaw_rad[:, j])
+                    driven = on & (self.car_mode[idx, :, c] > 1)  # replayed: the recorded speed
                     sps = np.where(
                         driven, self.car_speed_mps[idx, :, c], self.other_speed_mps[:, j]
                     )
