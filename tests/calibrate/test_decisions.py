@@ -91,3 +91,23 @@ def test_leave_one_scenario_out_and_the_cli(
         main(["calibrate", "decisions", "--root", str(trafficmonitoring_root), "--horizon-s", "0"])
         == 2
     )
+
+
+def test_a_deciding_population_spreads_its_critical_gaps() -> None:
+    """Riders sampled from a profile for a case that decides get their own critical gaps,
+    logistic around the case's (location 0 s, scale 2 s): some never yield."""
+    from dataclasses import replace
+
+    from vei.calibrate.population import population_cases, sample_critical_gaps
+    from vei.config import DecisionConfig, RiderPopulationConfig, case_preset
+
+    case = replace(case_preset("normal"), decision=DecisionConfig(enabled=True))
+    riders = population_cases(case, RiderPopulationConfig(sample=400, seed=5))
+    tc = np.array([c.decision.critical_gap_s for c in riders])
+    assert np.median(tc) == pytest.approx(0.0, abs=0.4)
+    # logistic quantiles: 5 % at -2 ln 19 = -5.9 s, 95 % at +5.9 s
+    assert np.quantile(tc, 0.05) == pytest.approx(-5.9, abs=1.0)
+    assert np.quantile(tc, 0.95) == pytest.approx(5.9, abs=1.0)
+    assert sample_critical_gaps(DecisionConfig(), 3, 0) is None
+    same = population_cases(case, RiderPopulationConfig(sample=400, seed=5))
+    assert [c.decision.critical_gap_s for c in same] == tc.tolist()  # seeded

@@ -90,8 +90,8 @@ def _independent(reaction_s: float = 1.0, trigger: float = 0.5):
     the ego (semi-implicit Euler like the engine) at 10 m/s brakes at 8 m/s^2 from t = 1 s;
     the follower replays 10 m/s until the IDM (city parameters) towards the actual ego asks
     0.5 m/s^2 more braking than towards the recorded one, then after 1 s drives by
-    min(intent, IDM) in [-8, 1]. Returns (t of contact or None, follower's speed then, gap
-    at rest)."""
+    min(intent, IDM) in [-8, 1]. Returns (t of contact or None, the follower's speed at
+    the step before it (the impact speed's convention: the ego stands then), gap at rest)."""
     a, b, t_h, s0, v0, delta = 1.0, 1.5, 1.0, 2.0, 15.0, 4.0
 
     def idm(v, vl, gap):
@@ -103,6 +103,7 @@ def _independent(reaction_s: float = 1.0, trigger: float = 0.5):
     mode, timer, t = 0, 0.0, 0.0
     for k in range(int(10 / DT)):
         t = k * DT
+        v_before = vf
         gap = xe - xf - 4.7
         x_rec_e = 20.0 + V * t
         x_rec_f = 20.0 - 4.7 - V + V * t
@@ -126,15 +127,15 @@ def _independent(reaction_s: float = 1.0, trigger: float = 0.5):
             ve = max(ve - 8.0 * DT, 0.0)
         xe = xe + ve * DT
         if xe - xf - 4.7 <= 0.0:
-            return t + DT, vf, 0.0
+            return t + DT, v_before, 0.0
     return None, vf, xe - xf - 4.7
 
 
 @pytest.mark.parametrize("kernel", ["numpy", pytest.param("numba", marks=pytest.mark.slow)])
 def test_rear_end_by_hand(arrays, kernel) -> None:
     """The ego brakes at 8 m/s^2 in front of a follower at a 1 s headway: the follower
-    reacts after 1 s and brakes as hard as it can, but touches the ego at the speed the
-    independent integration predicts; without reacting cars it drives through the ego's
+    reacts after 1 s and brakes as hard as it can, but touches the ego at the time and
+    speed the independent integration predicts; without reacting cars it drives through the ego's
     box at its full 10 m/s (the recorded car knows nothing)."""
     t_hit, v_hit, _ = _independent()
     assert t_hit is not None  # the model's answer: contact

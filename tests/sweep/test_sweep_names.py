@@ -82,6 +82,19 @@ def test_a_variant_config_sets_the_field_of_the_parameters_name():
         "cap.perception_delay_s": 0.3,
         "ego.policy": "aeb",
         "ego.policy_params.ttc_full_s": 0.7,
+        # issue 24
+        "decision.enabled": True,
+        "decision.critical_gap_s": 1.5,
+        "decision.yield_decel_mps2": 2.5,
+        "traffic.cars_react": True,
+        "traffic.idm_desired_speed_mps": 14.0,
+        "traffic.idm_time_headway_s": 1.2,
+        "traffic.idm_min_gap_m": 2.5,
+        "traffic.idm_max_accel_mps2": 1.2,
+        "traffic.idm_comfort_decel_mps2": 1.8,
+        "traffic.max_decel_mps2": 7.5,
+        "traffic.reaction_time_s": 0.8,
+        "traffic.pedestrians": True,
     }
     assert set(values) | DESIGN_ONLY >= {n for n in PARAMETERS if not n.startswith("ego.pol")}
     run = variant_config(values, spec, auto_shift_s=0.0)

@@ -207,6 +207,19 @@ def test_every_documented_parameter_is_known():
         "ego.policy_params.comfort_decel_mps2",
         "ego.policy_params.time_headway_s",
         "ego.policy_params.min_gap_m",
+        # issue 24: the rider's decisions, the road users that react
+        "decision.enabled",
+        "decision.critical_gap_s",
+        "decision.yield_decel_mps2",
+        "traffic.cars_react",
+        "traffic.idm_desired_speed_mps",
+        "traffic.idm_time_headway_s",
+        "traffic.idm_min_gap_m",
+        "traffic.idm_max_accel_mps2",
+        "traffic.idm_comfort_decel_mps2",
+        "traffic.max_decel_mps2",
+        "traffic.reaction_time_s",
+        "traffic.pedestrians",
     }
 
 

@@ -13,7 +13,11 @@ ego from behind (``rear_end``). The compiled kernel does the same on scalars.
 
 Agent codes: 0 the ego, 1 the primary rider, 2 + j replayed other j, 2 + n_o + m extra
 rider m. Striker: the one of the two whose velocity points more into the other (ties: the
-first); impact speed: the norm of the relative velocity at the first contact step.
+first); impact speed: the norm of the relative velocity. Both from the positions at the
+first contact step and the velocities of the step before (speed times heading, a car its
+recorded speed while it replays): as :func:`vei.metrics.secondary.secondary_from_
+timeseries` scores a run's time series (a contact stops a reacting car at its own step),
+so that ``vei run`` of a sweep's variant reproduces its row.
 """
 
 from __future__ import annotations
@@ -138,6 +142,9 @@ def others_now(
         oy[:, tr.idx] = cars["car_y_m"]
         oyaw[:, tr.idx] = cars["car_yaw_rad"]
         osp[:, tr.idx] = cars["car_v_mps"]
+    if cars is not None and tr.n:  # a replaying car: its recorded speed
+        rec = np.broadcast_to(arrays.other_speed_mps[k, tr.idx], osp[:, tr.idx].shape)
+        osp[:, tr.idx] = np.where(cars["car_mode"] > traffic_core.REACTING, osp[:, tr.idx], rec)
     ovx, ovy = osp * np.cos(oyaw), osp * np.sin(oyaw)
     pd_ = arrays.peds
     if peds is not None and pd_.n:
@@ -211,12 +218,25 @@ def contact_step(
     tr = arrays.traffic
     cars = new if tr.n and on is not False else None
     peds = new if arrays.peds.n and peds_on is not False else None
-    ox, oy, oyaw, ovx, ovy = others_now(arrays, min(k1, arrays.t_s.size - 1), b, cars, peds)
-    act = np.broadcast_to(arrays.other_active[min(k1, arrays.t_s.size - 1)], (b, n_o))
-    ex, ey, eyaw, ev = new["ego_x_m"], new["ego_y_m"], new["ego_yaw_rad"], new["ego_v_mps"]
-    evx, evy = ev * np.cos(eyaw), ev * np.sin(eyaw)
-    rx, ry, ryaw = new["rider_x_m"], new["rider_y_m"], new["rider_yaw_rad"]
-    rvx, rvy, ract = new["rider_vx_mps"], new["rider_vy_mps"], new["rider_active"]
+    kk = min(k1, arrays.t_s.size - 1)
+    ox, oy, oyaw, _, _ = others_now(arrays, kk, b, cars, peds)  # positions at k + 1
+    car_f = ("car_x_m", "car_y_m", "car_yaw_rad", "car_v_mps", "car_mode")
+    ped_f = ("ped_x_m", "ped_y_m", "ped_vx_mps", "ped_vy_mps")
+    cars0 = {f: getattr(st, f) for f in car_f} if cars is not None else None
+    peds0 = {f: getattr(st, f) for f in ped_f} if peds is not None else None
+    _, _, _, ovx, ovy = others_now(arrays, st.k, b, cars0, peds0)  # velocities at k
+    act = np.broadcast_to(arrays.other_active[kk], (b, n_o))
+    ex, ey, eyaw = new["ego_x_m"], new["ego_y_m"], new["ego_yaw_rad"]
+    evx = st.ego_v_mps * np.cos(st.ego_yaw_rad)
+    evy = st.ego_v_mps * np.sin(st.ego_yaw_rad)
+    rx, ry, ryaw, ract = (
+        new["rider_x_m"],
+        new["rider_y_m"],
+        new["rider_yaw_rad"],
+        new["rider_active"],
+    )
+    rvx = st.rider_speed_mps * np.cos(st.rider_yaw_rad)
+    rvy = st.rider_speed_mps * np.sin(st.rider_yaw_rad)
     cols = np.arange(b)
     # the ego's new contacts with the others (latched by the engine) and extra riders
     fresh = new["hit_other"] & ~st.hit_other
@@ -237,8 +257,8 @@ def contact_step(
         fresh_x = new["extra_hit"] & ~st.extra_hit
         for m in np.flatnonzero(fresh_x.any(axis=0)):
             rows = np.flatnonzero(fresh_x[:, m])
-            xs = new["extra_speed_mps"][rows, m]
-            xy = new["extra_yaw_rad"][rows, m]
+            xs = st.extra_speed_mps[rows, m]
+            xy = st.extra_yaw_rad[rows, m]
             a_st, sp = _strike((ex[rows], ey[rows]), (evx[rows], evy[rows]),
                                (new["extra_x_m"][rows, m], new["extra_y_m"][rows, m]),
                                (xs * np.cos(xy), xs * np.sin(xy)))  # fmt: skip

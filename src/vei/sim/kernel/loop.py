@@ -33,6 +33,7 @@ from vei.metrics.fused_layout import (
     CH_RYAW,
     N_CH,
 )
+from vei.models import traffic_core
 from vei.sim.kernel.decision import capped_velocity, decide_step, reference_speed
 from vei.sim.kernel.ego import ego_consts, ego_step_c
 from vei.sim.kernel.layout import (
@@ -91,7 +92,7 @@ from vei.sim.kernel.sfm import (
     integrate,
     vehicle_force,
 )
-from vei.sim.kernel.traffic import contacts, traffic_step
+from vei.sim.kernel.traffic import contacts, traffic_final, traffic_state0, traffic_step
 
 __all__ = ["N_OUT", "kernel"]
 
@@ -224,24 +225,11 @@ def kernel(  # type: ignore[no-untyped-def]
             hit[j] = H0[b, j] > 0
         # reacting cars and contacts (vei.sim.kernel.traffic)
         react_on = tC > 0 and P[P_REACT, b] > 0.5
-        cfl = np.empty((6, tC))
-        cmode = np.empty(tC, dtype=np.int64)
-        chit = np.empty(tC, dtype=np.bool_)
-        chw = np.empty(tC, dtype=np.int64)
-        for j in range(tC):
-            for f in range(6):
-                cfl[f, j] = CS0[f, b, j]
-            cmode[j] = CM0[b, j]
-            chit[j] = CH0[b, j] > 0
-            chw[j] = CW0[b, j]
-        rhit = np.empty(no, dtype=np.bool_)
+        cfl, cmode, chit, chw, rhit, sec = traffic_state0(b, tC, no, CS0, CM0, CH0, CW0, RH0, SEC0)
         hprev = np.empty(no, dtype=np.bool_)
-        for j in range(no):
-            rhit[j] = RH0[b, j] > 0
-        sec = np.empty(6)
-        for f in range(6):
-            sec[f] = SEC0[f, b]
         xprev = np.empty(R, dtype=np.bool_)
+        xvk = (np.empty(R), np.empty(R))  # the extra riders' speed, yaw at step k
+        cv0, cyaw0, cm0 = np.empty(tC), np.empty(tC), np.empty(tC, dtype=np.int64)
         scr = np.empty((4, tC))
         cst = (
             cfl[0],
@@ -259,7 +247,8 @@ def kernel(  # type: ignore[no-untyped-def]
         tg = (tC, tL, tW, tmtab, tm0, tmn, tpair)
         trec = (tsrec, tvrec, tarec, tact, tesrec, tevrec, oX, oY, oYAW, tidx)
         tpath = (tptab, tps0, tpds, tpn)
-        cpos = (tci, cfl[3], cfl[4], cfl[5], cfl[1])
+        cpos = (tci, cfl[3], cfl[4], cfl[5])
+        cvel = (tci, cv0, cyaw0, cm0)
         oth = (oX, oY, oYAW, oSP, oACT, oL, oW, oVEH)
         carg = (cmode, chit, chw, tidx, tL, tW)
         hx = np.zeros(hist_len)
@@ -408,6 +397,7 @@ def kernel(  # type: ignore[no-untyped-def]
             # ---------------- extra riders (state at step k; ego contact at k + 1)
             for j in range(R):
                 xprev[j] = xb[3, j]
+                xvk[0][j], xvk[1][j] = xs[5, j], xs[2, j]
             if R > 0:
                 extra_riders_step(
                     k, t_new, dt, P, b, sfm, use_rf, a_rr, b_rr,
@@ -426,6 +416,8 @@ def kernel(  # type: ignore[no-untyped-def]
                         a_rep_n = 0.0
                         nrvx = nrvy = nrsp = 0.0
                         r_acc = 0.0
+            for j in range(tC):
+                cv0[j], cyaw0[j], cm0[j] = cfl[1, j], cfl[5, j], cmode[j]
             if react_on:
                 traffic_step(k, dt, P, b, react_on, tg, trec, tpath, cst, s, v, We)
             for j in range(no):
@@ -467,10 +459,13 @@ def kernel(  # type: ignore[no-untyped-def]
                             hit[j] = True
             # ---------------- contacts of any two road users, secondary collisions
             contacts(
-                k + 1, t_new, oth, cpos, tC, (ex_n, ey_n, eyaw_n, v_new),
-                (nrx, nry, nryaw, nrvx, nrvy, n_act), (hprev, hit), xs, (xprev, xb[3]),
-                rhit, carg, sec, (Lr, Wr, Le), react_on,
+                k + 1, t_new, oth, cpos, cvel, tC, (ex_n, ey_n, eyaw_n, v, eyaw),
+                (nrx, nry, nryaw, rsp * math.cos(ryaw), rsp * math.sin(ryaw), n_act),
+                (hprev, hit), xs, xvk, (xprev, xb[3]), rhit, carg, sec, (Lr, Wr, Le), react_on,
             )  # fmt: skip
+            for j in range(tC):  # a car stopped by a contact stands
+                if cmode[j] == traffic_core.STOPPED:
+                    cfl[1, j] = 0.0
             # ---------------- commit
             s, ex, ey, eyaw, v, a_act, a_rep = s_new, ex_n, ey_n, eyaw_n, v_new, a_act_n, a_rep_n
             rx, ry, ryaw, rvx, rvy, rsp, prog, r_act = (
@@ -564,16 +559,7 @@ def kernel(  # type: ignore[no-untyped-def]
             run_metrics(t_m, dt_m, ch, Le, We, Lr, Wr, MCFG, P[P_MASS, b], P[P_DMAX, b], M[b])
         for j in range(no):
             H0[b, j] = 1 if hit[j] else 0
-        for j in range(tC):
-            for f in range(6):
-                CFS[f, b, j] = cfl[f, j]
-            CFM[b, j] = cmode[j]
-            CFH[b, j] = 1 if chit[j] else 0
-            CFW[b, j] = chw[j]
-        for j in range(no):
-            RFH[b, j] = 1 if rhit[j] else 0
-        for f in range(6):
-            SECF[f, b] = sec[f]
+        traffic_final(b, cfl, cmode, chit, chw, rhit, sec, CFS, CFM, CFH, CFW, RFH, SECF)
         for j in range(R):
             for f in range(8):
                 XFS[f, b, j] = xs[f, j]
