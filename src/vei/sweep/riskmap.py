@@ -32,13 +32,18 @@ def plane_axes(
     return x, y
 
 
+def default_bins(n_rows: int) -> int:
+    """Equal bins per axis for ``n_rows`` variants: about 10 variants per bin, 4 to 25."""
+    return int(np.clip(np.sqrt(n_rows / 10.0), 4, 25))
+
+
 def _binned(
     results: pd.DataFrame, spec: SweepSpec, x: str, y: str, value: str, bins: int | None
 ) -> dict[str, np.ndarray]:
     from vei.experiments.boundary import binned_risk
 
     if bins is None:
-        bins = int(np.clip(np.sqrt(len(results) / 10.0), 4, 25))
+        bins = default_bins(len(results))
 
     def edges(name: str) -> np.ndarray:
         p = spec.param(name)
@@ -133,7 +138,10 @@ def sweep_severity_map(
     if axes is None or not {value, "collision"} <= set(results.columns):
         return None
     x, y = axes
-    binned = _binned(results, spec, x, y, "collision", bins)  # the boundary: every variant
+    # One binning for the boundary (every variant) and the value (the rows that have one):
+    # the bin count follows the whole sweep, never the rows left after dropping NaNs.
+    bins = default_bins(len(results)) if bins is None else bins
+    binned = _binned(results, spec, x, y, "collision", bins)
     v = results[value].to_numpy(float)
     keep = np.isfinite(v)
     if value != "injury_risk":  # a mean over the collisions only
