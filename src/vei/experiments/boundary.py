@@ -412,7 +412,6 @@ def search_boundary(
         ConfigError: an axis is not a float parameter, has no range, or another parameter
             varies.
     """
-    import sys
 
     from vei.io.atomic import write_json, write_parquet, write_text
     from vei.report.riskmap import write_risk_map
@@ -481,15 +480,12 @@ def search_boundary(
                 out[c] = table[c].to_numpy()
         return out
 
-    show = sys.stderr.isatty() if progress is None else progress
     cb = None
-    if show:
-        from rich.console import Console
-
-        console = Console(stderr=True)
+    if progress is not False:  # None: a line per level, on a terminal or in a log
+        from vei.io.progress import note
 
         def cb(level: int, n: int) -> None:
-            console.print(f"boundary search: level {level}/{levels}, {n} variants evaluated")
+            note(f"boundary search: level {level}/{levels}, {n} variants evaluated")
 
     res = adaptive_boundary(
         oracle, xr, yr, coarse=coarse, levels=levels, x_name=x, y_name=y, progress=cb

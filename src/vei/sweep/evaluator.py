@@ -272,6 +272,14 @@ class EngineEvaluator:
         }
         return summarize(trace, names=self.metrics, params=run_params)
 
+    @property
+    def uses_kernel(self) -> bool:
+        """Whether this evaluator runs the compiled kernel (numba installed, kernel not
+        'numpy'): a sweep with workers then compiles it once before it starts them."""
+        from vei.sim import kernel
+
+        return self.sim.kernel != "numpy" and kernel.available()
+
     def warm_up(self, load_kernel: bool = False) -> None:
         """Import the modules :meth:`evaluate` and a part file's writer need (a sweep's
         pool workers call it while their parent prepares the scenario).
