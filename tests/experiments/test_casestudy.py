@@ -141,9 +141,9 @@ def test_builtin_engine_batch_is_scored_like_the_engines_own_trace(demo_scenario
 def test_parse_time_shift_and_cases():
     assert parse_time_shift("auto") == "auto" and parse_time_shift(None) == "auto"
     assert parse_time_shift("-2.5") == -2.5 and parse_time_shift(3) == 3.0
-    with pytest.raises(ConfigError):
+    with pytest.raises(InputError, match="time-shift"):
         parse_time_shift("soon")
-    with pytest.raises(ConfigError):
+    with pytest.raises(InputError, match="finite"):
         parse_time_shift(float("nan"))
     assert [c.name for c in resolve_cases(None)] == list(PAPER_CASES)
     with pytest.raises(ConfigError, match="unique"):

@@ -19,6 +19,8 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
+from vei.cli.output import console
+
 
 def _safe_stem(text: str) -> str:
     stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("._")
@@ -260,7 +262,7 @@ def _check(
     from vei.errors import ConfigError, DependencyError, InputError
     from vei.export.validate import declared_version, validate_openscenario
 
-    out = Console()
+    out = console()
     if not path.is_file():
         raise InputError("file not found", path=path)
     if not dt_s > 0:

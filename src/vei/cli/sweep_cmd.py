@@ -156,13 +156,13 @@ def sweep(
     --x and --y: an adaptive critical-boundary search in that plane, every other parameter
     fixed by the spec (samples.parquet, boundary.json/csv, riskmap.png, critical.*, configs/).
     """
-    from rich.console import Console
     from rich.table import Table
 
+    from vei.cli.output import console as make_console
     from vei.sweep.run import find_scenarios, read_results, run_sweep
     from vei.sweep.spec import load_spec
 
-    console = Console()
+    console = make_console()
     sweep_spec = load_spec(spec)
     if critical < 1:
         raise ConfigError(f"--critical must be >= 1, got {critical}")
