@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import signal
@@ -164,7 +165,7 @@ def test_killed_run_resumes_without_loss_or_duplicates(
     pd.testing.assert_frame_equal(resumed, reference)
 
 
-def test_failed_recordings_are_reported_and_skipped(tmp_path, trafficmonitoring_root):
+def test_recordings_without_riders_are_reported_and_skipped(tmp_path, trafficmonitoring_root):
     result = run_catalogue(
         trafficmonitoring_root,
         tmp_path / "cat",
@@ -173,11 +174,12 @@ def test_failed_recordings_are_reported_and_skipped(tmp_path, trafficmonitoring_
         progress=False,
     )
     by = {d["recording"]: d for d in result.recordings}
-    bad = by["marktkauf_04_audi_rechtsabbiegen"]
-    assert bad["status"] == "failed" and "no e-scooter or cyclist" in bad["reason"]
+    none = by["marktkauf_04_audi_rechtsabbiegen"]  # nothing to simulate: not a failure
+    assert none["status"] == "no-riders" and "no e-scooter or cyclist" in none["reason"]
     ok = by["klinikum_01_marktkauf_geradeaus"]
     assert ok["status"] == "ok" and [e["rider_id"] for e in ok["encounters"]] == ["escooter_9"]
     assert result.complete and len(result.rows) == 5  # the case study only
+    assert result.failed_recordings == []
 
 
 def test_other_settings_refused(tmp_path, trafficmonitoring_root):
@@ -234,11 +236,32 @@ def test_folder_of_interaction_folders(tmp_path):
     for rec in ("rec_a", "rec_b"):
         # the synthetic e-scooter crosses the ego's path (helpers_interaction): an encounter
         assert "escooter_1" in [e["rider_id"] for e in by[rec]["encounters"]]
-    assert result.complete
+    # a failed recording makes the catalogue partial (exit code 3 at the CLI)
+    assert not result.complete and result.failed_recordings == ["rec_c"]
+    manifest = json.loads((tmp_path / "cat" / "catalogue.json").read_text())
+    assert manifest["status"] == "partial" and manifest["failed_recordings"] == ["rec_c"]
     assert set(result.rows["recording"]) == {"rec_a", "rec_b"}
     # a single interaction folder is a dataset of one recording
     one = run_catalogue(data / "rec_a", tmp_path / "one", small_config(sweep=None), progress=False)
     assert [d["recording"] for d in one.recordings] == ["rec_a"] and one.complete
+
+
+def test_cli_exit_code_3_for_a_partial_catalogue(tmp_path, capsys):
+    """Partial success (a recording failed, the others were catalogued) has its own exit
+    code: 3, documented in the README; the failures are listed."""
+    from tests.helpers_interaction import make_interaction
+    from vei.cli.main import main
+
+    data = tmp_path / "data"
+    make_interaction(data, name="rec_a", id="rec_a")
+    bad = make_interaction(data, name="rec_c", id="rec_c")
+    (bad / "ego.csv").write_text("t_s,lat_deg,lon_deg\n0,1e999,x\n")
+    code = main(["catalogue", str(data), "--out", str(tmp_path / "cat"), "--no-sweep",
+                 "--no-figures", "--no-report"])  # fmt: skip
+    out = " ".join(capsys.readouterr().out.split())
+    assert code == 3, out
+    assert "partial: 1 recording(s) and 0 encounter(s) failed" in out
+    assert "rec_c" in out and "status partial" in out
 
 
 def test_map_from_a_local_source(tmp_path, trafficmonitoring_root, data_dir):
