@@ -135,11 +135,20 @@ def identical_groups(curves: dict[str, np.ndarray], tol: float = 1e-6) -> list[l
 
 
 def _overlap_note(ax, curves: dict[str, np.ndarray]) -> None:
+    """Name the identical curves in a note inside the axes, wrapped to the axes' width (a
+    one-line note ran into the next panel)."""
+    import textwrap
+
     groups = identical_groups(curves)
     if groups:
-        text = "; ".join(" = ".join(g) for g in groups)
-        ax.text(0.01, 0.02, f"identical curves (drawn with different dashes): {text}",
-                transform=ax.transAxes, fontsize=7, va="bottom", ha="left", color="0.25",
+        text = "identical curves (drawn with different dashes): " + "; ".join(
+            " = ".join(g) for g in groups
+        )
+        fontsize = 7.0
+        width_pt = ax.get_position().width * ax.figure.get_figwidth() * 72.0
+        chars = max(20, int(0.92 * width_pt / (0.55 * fontsize)))  # ~0.55 em per character
+        ax.text(0.01, 0.02, textwrap.fill(text, chars, break_on_hyphens=False), transform=ax.transAxes,
+                fontsize=fontsize, va="bottom", ha="left", color="0.25",
                 bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "0.7", "alpha": 0.85})  # fmt: skip
 
 
@@ -229,10 +238,13 @@ def plot_speed_profiles(
         ax_cap.set_ylim(-0.6, len(cap_names) - 0.4)
         ax_cap.set_xlabel("time [s]")
         ax_cap.set_title("CAP state", fontsize=8, loc="left", pad=2)
-        handles = {h.get_label(): h for h in ax_cap.containers}
-        ax_cap.legend([handles[k] for k in CAP_STATE_COLOURS if k in handles],
-                      [k for k in CAP_STATE_COLOURS if k in handles], fontsize=7, ncol=3,
-                      loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)  # fmt: skip
+        from matplotlib.patches import Patch
+
+        # every state, present or not, so that the band's colours can always be read
+        ax_cap.legend([Patch(facecolor=c) for c in CAP_STATE_COLOURS.values()],
+                      list(CAP_STATE_COLOURS), fontsize=7, ncol=3, title="CAP state",
+                      title_fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                      frameon=False)  # fmt: skip
         ax_ego.tick_params(labelbottom=False)
     else:
         ax_ego.set_xlabel("time [s]")

@@ -54,7 +54,9 @@
   function clean(a) { return (a || []).map(function (v) { return v === null ? NaN : v; }); }
 
   /* ---------------- per-encounter plots ---------------- */
-  var LAYOUT = { margin: { l: 50, r: 10, t: 10, b: 40 }, legend: { font: { size: 10 } } };
+  /* t: 40 px above the plotting area hold plotly's toolbar (modebar), which would
+     otherwise cover the legend's first entry at the plot's top right */
+  var LAYOUT = { margin: { l: 50, r: 10, t: 40, b: 40 }, legend: { font: { size: 10 } } };
   function lay(extra) { return Object.assign({}, LAYOUT, extra); }
   var CONF = { responsive: true, displaylogo: false };
 
@@ -81,6 +83,14 @@
       yaxis: { title: { text: "y north [m]" }, range: ry } }), CONF);
   }
 
+  /* legend entries of colours that no trace names: the TTC zones (bands, ego fill) */
+  function zoneKeys(fills, withCollision) {
+    return ZONE_NAME.slice(0, withCollision ? 4 : 3).map(function (name, z) {
+      return { x: [null], y: [null], mode: "markers", name: name, hoverinfo: "skip",
+               marker: { symbol: "square", size: 12, color: fills[z], line: { color: "#999", width: 1 } } };
+    });
+  }
+
   function replayTraces(e, c, k) {
     var r = e.replay, d = r.dims, egoD = d.ego || [4.7, 1.85], riD = d[e.rider_id] || [1.2, 0.6];
     var eb = box(c.ego.x[k], c.ego.y[k], c.ego.yaw[k], egoD[0], egoD[1]);
@@ -104,6 +114,7 @@
       { x: c.rider.x, y: c.rider.y, mode: "lines", name: "rider path", line: { color: "#d62728", width: 1, dash: "dot" }, hoverinfo: "skip" }
     ];
     if (e.roads) { traces.push(roadTrace(e)); }  /* after the moving traces: indices 0-2 stay theirs */
+    traces = traces.concat(zoneKeys(ZONE_FILL, true));  /* what the ego's fill colour means */
     Plotly.newPlot("replay-plot", traces, lay({ xaxis: { title: { text: "x east [m]" }, range: rx, scaleanchor: "y" },
       yaxis: { title: { text: "y north [m]" }, range: ry }, showlegend: true }), CONF);
     updateLabels();
@@ -142,16 +153,18 @@
     Plotly.newPlot("speed-plot", traces, lay({ xaxis: { title: { text: "t [s]" }, range: e.replay.window }, yaxis: { title: { text: "speed [m/s]" }, rangemode: "tozero" } }), CONF);
   }
 
+  var TTC_BAND_FILL = ["rgba(46,125,50,0.10)", "rgba(251,192,45,0.18)", "rgba(239,108,0,0.18)"];
   function ttcShapes(e) {
     var w = e.replay.window, band = function (y0, y1, col) {
       return { type: "rect", xref: "x", yref: "y", x0: w[0], x1: w[1], y0: y0, y1: y1, fillcolor: col, line: { width: 0 }, layer: "below" };
     };
-    return [band(0, 1, "rgba(239,108,0,0.18)"), band(1, 2, "rgba(251,192,45,0.18)"), band(2, 10, "rgba(46,125,50,0.10)")];
+    return [band(0, 1, TTC_BAND_FILL[2]), band(1, 2, TTC_BAND_FILL[1]), band(2, 10, TTC_BAND_FILL[0])];
   }
   function drawTTC(e) {
     var traces = e.replay.configs.map(function (c, i) {
       return { x: c.ttc_t, y: c.ttc_full, mode: "lines", name: c.name, line: { color: colour(c.name, i) } };
     });
+    traces = traces.concat(zoneKeys(TTC_BAND_FILL, false));  /* the bands' meaning */
     Plotly.newPlot("ttc-plot", traces, lay({ shapes: ttcShapes(e), xaxis: { title: { text: "t [s]" }, range: e.replay.window },
       yaxis: { title: { text: "TTC [s] (clipped at 10)" }, range: [0, 10] } }), CONF);
   }
