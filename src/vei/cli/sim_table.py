@@ -47,18 +47,23 @@ def summary_table(title: str, heads: list[str], rows: list[list[str]], width: in
     """The case-study table: one row per configuration when it fits ``width`` characters,
     else transposed (one row per metric, one column per configuration), so that no value is
     ever cut off; a value that still does not fit is folded, never truncated."""
-    from rich.console import Console
-    from rich.measure import Measurement
     from rich.table import Table
 
-    wide = Table(title=title)
-    for j, head in enumerate(heads):
-        left = j == 0 or head == "verdict"
-        wide.add_column(head, justify="left" if left else "right", overflow="fold")
-    for row in rows:
-        wide.add_row(*row)
-    probe = Console(width=10_000, markup=False)
-    if Measurement.get(probe, probe.options, wide).maximum <= width:
+    # one row per configuration fits when every column holds its widest value unwrapped
+    # (headers may wrap at their spaces): value or longest header word, + 3 for the borders
+    widths = [
+        max([len(r[j]) for r in rows] + [len(w) for w in head.split()])
+        for j, head in enumerate(heads)
+    ]
+    if 1 + sum(3 + w for w in widths) <= width:
+        wide = Table(title=title)
+        for j, head in enumerate(heads):
+            left = j == 0 or head == "verdict"
+            wide.add_column(
+                head, justify="left" if left else "right", overflow="fold", width=widths[j]
+            )
+        for row in rows:
+            wide.add_row(*row)
         return wide
     tall = Table(title=title)
     tall.add_column(heads[0], justify="left", overflow="fold")
