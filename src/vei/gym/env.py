@@ -43,7 +43,7 @@ def check_actions(actions: Any, low: float, high: float, n: int) -> npt.NDArray[
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise InputError(
-            f"action {a[i]!r} (environment {i}) is outside the action space: the demanded "
+            f"action {float(a[i])!r} (environment {i}) is outside the action space: the demanded "
             f"acceleration must lie in [{low:g}, {high:g}] m/s^2",
             field="action",
         )
