@@ -15,7 +15,7 @@ import vei.gym  # noqa: F401 - registers the id
 from vei.errors import ConfigError, InputError
 from vei.gym import ENV_ID, EnvConfig
 from vei.gym.env import VeiEnv
-from vei.gym.vector import _FLOAT_STATE, VeiVectorEnv
+from vei.gym.vector import VeiVectorEnv
 
 pytest.importorskip("numba")
 
