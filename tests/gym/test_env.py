@@ -102,8 +102,8 @@ def test_equals_vei_run_of_the_same_actions(demo_config, demo_folder, tmp_path):
 
 
 def test_reward_terms_known_answers(demo_config):
-    """Progress alone sums to the distance travelled; a contact gives the collision term
-    and the injury risk of the impact speed of the step before it."""
+    """Progress alone sums to the distance travelled (up to v_d dt a step); a contact gives
+    the collision term and the injury risk of the impact speed of the step before it."""
     from vei.metrics.severity import injury_risk_of_speed
 
     only_progress = dataclasses.replace(
@@ -114,10 +114,17 @@ def test_reward_terms_known_answers(demo_config):
     s0 = env.state.ego_s_m[0]
     total = 0.0
     for _ in range(100):
-        _, r, term, trunc, info = env.step(np.array([1.0], np.float32))
+        _, r, term, trunc, info = env.step(np.array([-1.0], np.float32))  # below v_d
         total += r
         assert not term
     assert total == pytest.approx(env.state.ego_s_m[0] - s0, abs=1e-9)
+    vd_dt = env._params.cruise_speed_mps[0] * 0.05
+    _, r, _, _, _ = env.step(np.array([3.0], np.float32))
+    _, r, _, _, _ = env.step(np.array([3.0], np.float32))
+    assert env.state.ego_v_mps[0] < env._params.cruise_speed_mps[0]  # still below: all counted
+    for _ in range(60):
+        _, r, _, _, info = env.step(np.array([3.0], np.float32))
+    assert env.state.ego_v_mps[0] > env._params.cruise_speed_mps[0] and r == pytest.approx(vd_dt)
     assert info["reward_terms"]["comfort"] == pytest.approx(env.state.ego_a_mps2[0] ** 2 * 0.05)
     # the automatic shift makes the replayed rider meet the ego's front at cruise speed
     env = VeiEnv(dataclasses.replace(demo_config, case="replay"))

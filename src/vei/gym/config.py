@@ -43,7 +43,10 @@ class RewardConfig:
       probability of the impact speed |v_ego - v_rider| of the last step before contact
       (vei.metrics.severity.injury_risk_of_speed, MetricsConfig's curve: Rosen & Sander
       2009, fatal, pedestrian), in [0, 1]; 0 otherwise.
-    - ``progress``: metres the ego advanced along its path this step [m].
+    - ``progress``: metres the ego advanced along its path this step, counted up to the
+      configuration's cruise speed v_d (``min(ds, v_d dt)`` [m]): v_d is the street's
+      pace (the recorded ego's median moving speed by default), so speeding past the rider
+      earns nothing more than cruising.
     - ``comfort``: the squared reported acceleration times the step, a^2 dt [m^2/s^3]
       (an integral of a^2 over the episode).
 

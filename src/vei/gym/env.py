@@ -186,7 +186,11 @@ class VeiEnv(gym.Env):
         terms = {
             "collision": float(contact) + hits,
             "injury_risk": float(injury_risk(impact)),
-            "progress": float(new.ego_s_m[0] - st.ego_s_m[0]),
+            "progress": float(
+                np.minimum(
+                    new.ego_s_m - st.ego_s_m, self._params.cruise_speed_mps * ws.arrays.dt_s
+                )[0]
+            ),
             "comfort": float(new.ego_a_mps2[0] ** 2 * ws.arrays.dt_s),
         }
         w = self.config.reward

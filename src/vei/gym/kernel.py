@@ -99,7 +99,8 @@ def step_envs(  # type: ignore[no-untyped-def]
     """Advance the environments with ``run[b]`` by one step with demand A[b] [m/s^2].
 
     Writes the new state in place (FS, BS, HIT, K) and TERMS[b] = (new contacts, impact
-    speed [m/s] of a new rider contact or NaN, progress [m], a_rep^2 dt [m^2/s^3]).
+    speed [m/s] of a new rider contact or NaN, progress [m] (up to v_d dt), a_rep^2 dt
+    [m^2/s^3]).
     """
     B = A.shape[0]
     for b in range(B):
@@ -236,7 +237,7 @@ def step_envs(  # type: ignore[no-untyped-def]
                         contacts += 1.0
         TERMS[b, T_CONTACTS] = contacts
         TERMS[b, T_IMPACT] = impact
-        TERMS[b, T_PROGRESS] = s_new - s
+        TERMS[b, T_PROGRESS] = min(s_new - s, P[P_VD, sc] * dt)
         TERMS[b, T_COMFORT] = a_rep_n * a_rep_n * dt
         FS[F_S, b], FS[F_X, b], FS[F_Y, b], FS[F_YAW, b] = s_new, ex_n, ey_n, eyaw_n
         FS[F_V, b], FS[F_AREP, b], FS[F_AACT, b] = v_new, a_rep_n, a_act_n

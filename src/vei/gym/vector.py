@@ -351,7 +351,9 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             impact = np.hypot(v * np.cos(yaw) - st.rider_vx_mps, v * np.sin(yaw) - st.rider_vy_mps)
             self.TERMS[sel, 0] = contact + np.count_nonzero(new.hit_other & ~st.hit_other, axis=1)
             self.TERMS[sel, 1] = np.where(contact & st.rider_active, impact, np.nan)
-            self.TERMS[sel, 2] = new.ego_s_m - st.ego_s_m
+            self.TERMS[sel, 2] = np.minimum(
+                new.ego_s_m - st.ego_s_m, params.cruise_speed_mps * ws.arrays.dt_s
+            )
             self.TERMS[sel, 3] = new.ego_a_mps2**2 * ws.arrays.dt_s
             for r, name in enumerate(_FLOAT_STATE):
                 self.FS[r, sel] = getattr(new, name)
