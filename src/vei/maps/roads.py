@@ -122,8 +122,9 @@ class RoadGeometry:
 
     @property
     def lane_borders(self) -> tuple[FloatArray, ...]:
-        """[N, 2] borders between lanes (each drivable lane's outer border) [m]."""
-        return tuple(lane.outer for lane in self.lanes if lane.drivable)
+        """[N, 2] borders of the drivable lanes [m]: each one's outer and inner border (the
+        innermost lanes' inner borders are the centre line)."""
+        return tuple(b for lane in self.lanes if lane.drivable for b in (lane.outer, lane.inner))
 
     @property
     def bounds_xy(self) -> tuple[float, float, float, float]:
@@ -439,7 +440,7 @@ def draw_roads(
     ax.add_collection(pc_drive, autolim=False)
     artists += [pc_drive, pc_other]
     if lane_lines:
-        segs = [lane.outer for lane in roads.lanes if lane.drivable]
+        segs = list(roads.lane_borders)
         lc = LineCollection(
             segs, colors=LINE_COLOR, linewidths=0.5, zorder=zorder + 0.2, label="_lane lines"
         )
