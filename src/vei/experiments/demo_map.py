@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from pathlib import Path
 from xml.sax.saxutils import escape
 
@@ -113,18 +114,29 @@ def demo_map_xodr(projection: str, spec: DemoSpec | None = None) -> str:
     )
 
 
-def demo_scenario(spec: DemoSpec | None = None) -> Scenario:
-    """The reconstructed demo scenario (vei reconstruct's defaults) naming its map.
+def attach_demo_map(
+    scenario: Scenario, spec: DemoSpec | None = None
+) -> tuple[Scenario, dict[str, Callable[[Path], object]]]:
+    """A reconstructed demo scenario naming its synthetic map, and the map's writer.
 
-    The map itself is written by :func:`write_demo_scenario` (a Scenario in memory has no
-    folder); ``maps`` = {'opendrive': 'map.xodr'} and ``extra['map']`` says synthetic.
+    Returns (scenario with ``maps`` = {'opendrive': 'map.xodr'} and ``extra['map']``
+    saying synthetic, {'map.xodr': writer(path)}: :func:`vei.io.scenario.write_scenario`'s
+    ``extra_files``).
     """
+    text = demo_map_xodr(scenario.projection, spec)
+    extra = dict(scenario.extra)
+    extra["map"] = {"opendrive": MAP_NAME, "source": "synthetic (vei.experiments.demo_map)"}
+    scen = dataclasses.replace(scenario, maps={"opendrive": MAP_NAME}, extra=extra)
+    return scen, {MAP_NAME: lambda p: Path(p).write_text(text)}
+
+
+def demo_scenario(spec: DemoSpec | None = None) -> Scenario:
+    """The reconstructed demo scenario (vei reconstruct's defaults) naming its map (the
+    map itself is written by :func:`write_demo_scenario`: a Scenario in memory has no
+    folder)."""
     from vei.recon.pipeline import reconstruct
 
-    scen = reconstruct(demo_interaction(spec))
-    extra = dict(scen.extra)
-    extra["map"] = {"opendrive": MAP_NAME, "source": "synthetic (vei.experiments.demo_map)"}
-    return dataclasses.replace(scen, maps={"opendrive": MAP_NAME}, extra=extra)
+    return attach_demo_map(reconstruct(demo_interaction(spec)), spec)[0]
 
 
 def write_demo_scenario(folder: str | Path, spec: DemoSpec | None = None) -> Path:
@@ -133,14 +145,15 @@ def write_demo_scenario(folder: str | Path, spec: DemoSpec | None = None) -> Pat
     Returns the folder (scenario.json, trajectories.parquet, keyframes.parquet, map.xodr).
     """
     from vei.io.scenario import write_scenario
+    from vei.recon.pipeline import reconstruct
 
-    scen = demo_scenario(spec)
-    text = demo_map_xodr(scen.projection, spec)
-    return write_scenario(scen, folder, extra_files={MAP_NAME: lambda p: Path(p).write_text(text)})
+    scen, files = attach_demo_map(reconstruct(demo_interaction(spec)), spec)
+    return write_scenario(scen, folder, extra_files=files)
 
 
 __all__ = [
     "LANE_WIDTH_M",
+    "attach_demo_map",
     "MAP_NAME",
     "SIDEWALK_WIDTH_M",
     "demo_map_xodr",
