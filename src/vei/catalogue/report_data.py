@@ -78,6 +78,51 @@ def _roads(scenario_dir: Path) -> dict[str, Any] | None:
     return {"x": xs, "y": ys} if xs else None
 
 
+#: Road layers (sidewalks, lane borders, kerbs) are kept within this margin of the
+#: encounter's tracks [m] (a city map holds thousands of lanes).
+ROAD_LAYER_MARGIN_M = 60.0
+
+
+def _road_layers(scenario_dir: Path) -> dict[str, Any]:
+    """The map's layers under the report's map and replay, besides the drivable lanes of
+    :func:`_roads`: ``sidewalks`` (outlines of the non-drivable lanes: sidewalks, bike
+    lanes), ``lines`` (lane borders) and ``kerbs`` (vei.maps.roads.RoadGeometry.kerbs),
+    each {x, y} [m] with None between pieces (thinned to <= 80 points a piece), kept within
+    ROAD_LAYER_MARGIN_M of the tracks; or ``note`` (why nothing is drawn) without a map."""
+    doc = read_json(scenario_dir / "scenario.json")
+    name = (doc.get("maps") or {}).get("opendrive")
+    if not name or not (scenario_dir / name).is_file():
+        from vei.maps.roads import NO_MAP_NOTE
+
+        return {"note": NO_MAP_NOTE}
+    from vei.maps import load_roads
+
+    roads = load_roads(scenario_dir / name)
+    traj = pd.read_parquet(scenario_dir / "trajectories.parquet", columns=["x_m", "y_m"])
+    m = ROAD_LAYER_MARGIN_M
+    lo = np.array([traj["x_m"].min() - m, traj["y_m"].min() - m])
+    hi = np.array([traj["x_m"].max() + m, traj["y_m"].max() + m])
+
+    def pieces(lines: list[np.ndarray], closed: bool = False) -> dict[str, Any] | None:
+        xs: list[float | None] = []
+        ys: list[float | None] = []
+        for line in lines:
+            if len(line) < 2 or np.any(line.max(axis=0) < lo) or np.any(line.min(axis=0) > hi):
+                continue
+            pts = line[:: max(1, len(line) // 80)]
+            if closed or len(pts) < 2 or not np.array_equal(pts[-1], line[-1]):
+                pts = np.vstack([pts, line[-1:]])
+            xs += [*np.round(pts[:, 0], 2).tolist(), None]
+            ys += [*np.round(pts[:, 1], 2).tolist(), None]
+        return {"x": xs, "y": ys} if xs else None
+
+    return {
+        "sidewalks": pieces([ln.outline for ln in roads.lanes if not ln.drivable], closed=True),
+        "lines": pieces(list(roads.lane_borders)),
+        "kerbs": pieces(list(roads.kerbs)),
+    }
+
+
 def _replay(
     edir: Path, rider_id: str, agents: dict[str, tuple[float, float]], safe: float, alert: float
 ) -> dict[str, Any]:
@@ -213,6 +258,7 @@ def collect(catalogue_dir: str | Path) -> dict[str, Any]:
                 "recording": rec["recording"],
                 "tracks": _tracks(edir / "scenario"),
                 "roads": _roads(edir / "scenario"),
+                "road_layers": _road_layers(edir / "scenario"),
                 "replay": _replay(
                     edir,
                     rec["rider_id"],

@@ -243,6 +243,10 @@ def register(app: typer.Typer) -> None:
         if code:
             raise SystemExit(code)  # typer.Exit is swallowed by main() (standalone_mode=False)
 
+    # vei export commonroad (issue 26), in its own module
+    from vei.cli.commonroad_cmd import register as register_commonroad
+
+    register_commonroad(export_app)
     app.add_typer(export_app, name="export")
 
 

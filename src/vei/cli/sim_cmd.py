@@ -509,7 +509,15 @@ def run_demo(
             )
     with status("step 2/3: reconstructing the scenario"):
         scenario = reconstruct(read_interaction(inter_dir), recon)
-        write_scenario(scenario, scen_dir)
+        map_files = None
+        if not real:  # the synthetic street as a map: roads under the figures (issue 26)
+            from vei.experiments.demo_map import attach_demo_map
+            from vei.io.scenario import read_scenario
+
+            scenario, map_files = attach_demo_map(scenario)
+        write_scenario(scenario, scen_dir, extra_files=map_files)
+        if map_files:
+            scenario = read_scenario(scen_dir)  # its folder: the figures find the map
     console.print(
         f"reconstructed {scenario.id}: primary threat {scenario.primary_threat}, {scenario.rate_hz:g} Hz -> {scen_dir}"
     )

@@ -383,7 +383,8 @@ def plot_birdseye_configs(
         frame: long time series of the runs (the first variant of each configuration is drawn).
         other_id: the road user (primary threat).
         keyframes: the scenario's keyframes (t_s, agent_id, x_m, y_m), or None.
-        roads: optional callable roads(ax) drawing the map underneath.
+        roads: optional callable roads(ax) drawing the map underneath (None: each panel
+            says 'no road map').
     """
     from matplotlib.figure import Figure
 
@@ -415,6 +416,8 @@ def plot_birdseye_configs(
     for ax, name in zip(axes, names, strict=True):
         if roads is not None:
             roads(ax)
+        else:
+            _no_map(ax)
         run = sub[sub["config"] == name]
         ego = run[run["agent_id"] == ego_id].sort_values("t_s")
         rider = run[(run["agent_id"] == other_id) & run["active"].astype(bool)].sort_values("t_s")
@@ -577,3 +580,10 @@ def write_casestudy_figures(
         key: save_figure(fig, out / FIGURE_FILES[key], also=tuple(formats))
         for key, fig in figs.items()
     }
+
+
+def _no_map(ax) -> None:
+    """Say on a panel that no road network is drawn (the scenario has no map)."""
+    from vei.maps.roads import draw_no_map_note
+
+    draw_no_map_note(ax)

@@ -65,8 +65,33 @@
              fillcolor: "rgba(150,150,150,0.25)", line: { color: "rgba(120,120,120,0.6)", width: 0.5 }, hoverinfo: "skip" };
   }
 
+  /* The map's other layers (issue 26): sidewalks and bike lanes, lane borders, kerbs;
+     drawn under the tracks (first in the trace list) or after the replay's moving traces. */
+  function roadLayerTraces(e) {
+    var L = e.road_layers || {}, out = [];
+    if (L.sidewalks) {
+      out.push({ x: L.sidewalks.x, y: L.sidewalks.y, mode: "lines", fill: "toself", name: "sidewalks, bike lanes (map)",
+                 fillcolor: "rgba(200,200,200,0.35)", line: { color: "rgba(180,180,180,0.5)", width: 0.5 }, hoverinfo: "skip" });
+    }
+    if (L.lines) {
+      out.push({ x: L.lines.x, y: L.lines.y, mode: "lines", name: "lane borders (map)",
+                 line: { color: "rgba(255,255,255,0.9)", width: 1 }, hoverinfo: "skip" });
+    }
+    if (L.kerbs) {
+      out.push({ x: L.kerbs.x, y: L.kerbs.y, mode: "lines", name: "kerbs (map)",
+                 line: { color: "#555", width: 1.5 }, hoverinfo: "skip" });
+    }
+    return out;
+  }
+  function roadTraces(e) { return roadLayerTraces(e).concat(e.roads ? [roadTrace(e)] : []); }
+  function noMapNote(e) {
+    var note = e.road_layers && e.road_layers.note;
+    return note ? [{ text: note, xref: "paper", yref: "paper", x: 0.01, y: 0.01, showarrow: false,
+                     font: { size: 10, color: "#666" }, xanchor: "left", yanchor: "bottom" }] : [];
+  }
+
   function drawMap(e) {
-    var traces = e.roads ? [roadTrace(e)] : [];
+    var traces = roadTraces(e);
     Object.keys(e.tracks).forEach(function (aid, i) {
       var tr = e.tracks[aid], ego = aid === "ego", main = aid === e.rider_id;
       traces.push({ x: tr.x, y: tr.y, mode: "lines", name: aid + (main ? " (encounter)" : ""),
@@ -80,7 +105,7 @@
     var pad = 15, rx = [Math.min.apply(null, xs) - pad, Math.max.apply(null, xs) + pad];
     var ry = [Math.min.apply(null, ys) - pad, Math.max.apply(null, ys) + pad];
     Plotly.newPlot("map-plot", traces, lay({ xaxis: { title: { text: "x east [m]" }, range: rx, scaleanchor: "y" },
-      yaxis: { title: { text: "y north [m]" }, range: ry } }), CONF);
+      yaxis: { title: { text: "y north [m]" }, range: ry }, annotations: noMapNote(e) }), CONF);
   }
 
   /* legend entries of colours that no trace names: the TTC zones (bands, ego fill) */
@@ -113,10 +138,11 @@
       { x: c.ego.x, y: c.ego.y, mode: "lines", name: "ego path", line: { color: "#000", width: 1, dash: "dot" }, hoverinfo: "skip" },
       { x: c.rider.x, y: c.rider.y, mode: "lines", name: "rider path", line: { color: "#d62728", width: 1, dash: "dot" }, hoverinfo: "skip" }
     ];
-    if (e.roads) { traces.push(roadTrace(e)); }  /* after the moving traces: indices 0-2 stay theirs */
-    traces = traces.concat(zoneKeys(ZONE_FILL, true));  /* what the ego's fill colour means */
+    var roads = roadTraces(e);
+    state.moving0 = roads.length;  /* the road layers first (under the boxes): moving traces after them */
+    traces = roads.concat(traces).concat(zoneKeys(ZONE_FILL, true));  /* + what the ego's fill colour means */
     Plotly.newPlot("replay-plot", traces, lay({ xaxis: { title: { text: "x east [m]" }, range: rx, scaleanchor: "y" },
-      yaxis: { title: { text: "y north [m]" }, range: ry }, showlegend: true }), CONF);
+      yaxis: { title: { text: "y north [m]" }, range: ry }, showlegend: true, annotations: noMapNote(e) }), CONF);
     updateLabels();
   }
 
@@ -124,8 +150,9 @@
     var e = state.enc, c = e.replay.configs[state.cfg];
     state.k = Math.max(0, Math.min(k, e.replay.t.length - 1));
     var p = replayTraces(e, c, state.k);
-    Plotly.restyle("replay-plot", { x: [p.eb[0], p.rb[0], p.ox], y: [p.eb[1], p.rb[1], p.oy] }, [0, 1, 2]);
-    Plotly.restyle("replay-plot", { fillcolor: ZONE_FILL[p.zone] }, [0]);
+    var m = state.moving0 || 0;
+    Plotly.restyle("replay-plot", { x: [p.eb[0], p.rb[0], p.ox], y: [p.eb[1], p.rb[1], p.oy] }, [m, m + 1, m + 2]);
+    Plotly.restyle("replay-plot", { fillcolor: ZONE_FILL[p.zone] }, [m]);
     var t = e.replay.t[state.k], cursor = [{ type: "line", xref: "x", yref: "paper", x0: t, x1: t, y0: 0, y1: 1, line: { color: "#000", width: 1 } }];
     Plotly.relayout("speed-plot", { shapes: cursor });
     Plotly.relayout("ttc-plot", { shapes: ttcShapes(e).concat(cursor) });
