@@ -218,3 +218,15 @@ def test_toolbar_never_covers_a_legend_and_zones_are_named(loaded):
     )
     assert {"TTC safe (> 2 s)", "TTC attention (1-2 s]", "TTC alert (0-1 s]"} <= set(names[0])
     assert "collision" in names[1] and "TTC alert (0-1 s]" in names[1]
+
+
+def test_case_study_summary_fits_its_panel(loaded):
+    """The case-study summary table shows every column within its panel (it was cut off on
+    the right, behind a scroll bar)."""
+    widths = loaded.execute_script(
+        "var box = document.getElementById('summary-table');"
+        "return [box.scrollWidth, box.clientWidth, box.querySelectorAll('th').length];"
+    )
+    scroll, client, n_cols = widths
+    assert n_cols >= 8
+    assert scroll <= client, f"the table needs {scroll} px in a {client} px panel"

@@ -198,11 +198,14 @@
 
   function drawSummary(e) {
     var cols = ["name", "collision", "collision_time_s", "safety_index", "min_gap_m", "min_ttc_s", "peak_decel_mps2", "ego_speed_std_mps"];
-    var h = "<table><thead><tr>" + cols.map(function (c) { return "<th>" + c + "</th>"; }).join("") + "</tr></thead><tbody>";
+    /* short headers that wrap at their spaces: the table fits its panel (it was cut off) */
+    var heads = { name: "config", collision: "collision", collision_time_s: "t collision [s]", safety_index: "safety index",
+                  min_gap_m: "min gap [m]", min_ttc_s: "min TTC [s]", peak_decel_mps2: "peak decel [m/s\u00b2]", ego_speed_std_mps: "speed std [m/s]" };
+    var h = "<table><thead><tr>" + cols.map(function (c) { return "<th title=\"" + c + "\">" + (heads[c] || c) + "</th>"; }).join("") + "</tr></thead><tbody>";
     e.summary.forEach(function (r) {
       h += "<tr>" + cols.map(function (c) {
         var v = r[c];
-        if (typeof v === "number") { v = v.toFixed(3); }
+        if (typeof v === "number") { v = v.toFixed(c === "safety_index" ? 3 : 2); }
         if (v === null || v === undefined) { v = "-"; }
         var span = document.createElement("span"); span.textContent = String(v);
         return "<td>" + span.innerHTML + "</td>";
