@@ -1,0 +1,264 @@
+"""Rare events: cross-entropy importance sampling and subset simulation (OpenTURNS).
+
+Both work in standard normal space on the limit-state ``margin`` of
+:mod:`vei.risk.problem` (failure: margin < 0) and evaluate the engine in batches: every
+call OpenTURNS makes is one batch of a whole stage (``setBlockSize`` = the stage size,
+one outer sample), so a stage of 1,000 samples is one engine call, never 1,000.
+
+- **Cross-entropy importance sampling** (``ce``; Rubinstein 1999; Zhao et al. 2017 for
+  automated-vehicle testing): ``openturns.StandardSpaceCrossEntropyImportanceSampling``
+  adapts a normal proposal q (its mean and standard deviations) towards the failure
+  region, stage by stage, through the rho-quantiles of the margin (rho = 0.1) until the
+  quantile reaches the failure threshold. Its last stage is an importance sample of the
+  failure probability with weights w = phi(u) / q(u); vei then keeps drawing from the
+  same q (in stages of the same size) until the estimate reaches the target relative CI
+  or the budget ends, and computes every estimate (collision, injury-relevant collision,
+  injury risk) and the diagnostics (ESS, weight share, CoV) from that weighted sample
+  (:func:`vei.risk.estimators.importance_sampling`).
+- **Subset simulation** (``subset``; Au & Beck 2001): ``openturns.SubsetSampling``
+  writes P(F) as a product of conditional probabilities p0 = 0.1 of nested levels, each
+  sampled by modified Metropolis from the level before. Its coefficient of variation
+  (OpenTURNS' estimate, with the within-level chain correlation) gives the interval
+  p (1 +- 1.96 CoV); vei marks it approximate (the levels' correlation is neglected).
+  The other outcomes are P(F) times their share among the last level's failing samples.
+
+Why OpenTURNS: both algorithms exist there, maintained and documented, in standard
+space, with batch evaluation and a stop callback (the budget). Its subset simulation can
+stall on a very narrow failure region (the Metropolis chains stop moving; seen on a
+1-D interval of probability 1e-5 in 7 dimensions), which is why ``auto`` uses the
+cross-entropy method and subset simulation is offered as a choice.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import pandas as pd
+
+from vei.errors import DependencyError
+from vei.risk.estimators import Estimate, importance_sampling
+
+FloatArray = npt.NDArray[np.float64]
+
+#: CE quantile level rho and subset simulation's conditional probability p0.
+RHO = 0.1
+#: The most adaptive stages either method may take.
+MAX_STAGES = 40
+
+#: evaluate(u [N, d], stage label) -> the rows (with 'margin', 'failure' and outcomes).
+Evaluate = Callable[[FloatArray, str], pd.DataFrame]
+
+
+def _openturns() -> Any:
+    try:
+        import openturns as ot
+    except ImportError as exc:  # pragma: no cover - the extra is installed in CI
+        raise DependencyError(
+            "the rare-event estimators need OpenTURNS: pip install 'vei[risk]'"
+        ) from exc
+    return ot
+
+
+@dataclass
+class RareResult:
+    """What a rare-event run produced.
+
+    Attributes:
+        method: 'ce' or 'subset'.
+        rows: the final weighted sample (ce: the importance sample with its ``weight``
+            column; subset: the last level's samples).
+        probability: the failure probability estimate.
+        n_simulations: every simulation spent (adaptive stages included).
+        stages: per adaptive stage: threshold and samples.
+        reached: the failure region was reached (else the estimate is a partial answer).
+        proposal: ce: the final proposal's mean and standard deviation per dimension.
+        notes: plain-language remarks.
+    """
+
+    method: str
+    rows: pd.DataFrame
+    probability: Estimate
+    n_simulations: int
+    stages: list[dict[str, Any]] = field(default_factory=list)
+    reached: bool = True
+    proposal: dict[str, list[float]] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+
+class _Tracked:
+    """The limit-state as an OpenTURNS function of whole samples, each call one stage,
+    stopping (via the stop callback) when the budget is spent."""
+
+    def __init__(self, evaluate: Evaluate, dim: int, prefix: str, budget: int) -> None:
+        self.evaluate = evaluate
+        self.prefix = prefix
+        self.budget = budget
+        self.used = 0
+        self.frames: list[pd.DataFrame] = []
+        self.dim = dim
+
+    def __call__(self, x: Any) -> Any:
+        u = np.asarray(x, dtype=np.float64).reshape(-1, self.dim)
+        rows = self.evaluate(u, f"{self.prefix}-{len(self.frames)}")
+        self.frames.append(rows)
+        self.used += len(u)
+        return rows["margin"].to_numpy(np.float64).reshape(-1, 1)
+
+    def stop(self) -> bool:
+        return self.used >= self.budget
+
+
+def _event(ot: Any, tracked: _Tracked, dim: int) -> Any:
+    fn = ot.PythonFunction(dim, 1, func_sample=tracked)
+    vec = ot.CompositeRandomVector(fn, ot.RandomVector(ot.Normal(dim)))
+    return ot.ThresholdEvent(vec, ot.Less(), 0.0)
+
+
+def _log_ratio(u: FloatArray, mu: FloatArray, sigma: FloatArray) -> FloatArray:
+    """log phi(u) - log q(u) [N] for q = prod N(mu_j, sigma_j^2)."""
+    z = (u - mu) / sigma
+    return np.sum(-0.5 * u * u + 0.5 * z * z + np.log(sigma), axis=1)
+
+
+def cross_entropy(
+    evaluate: Evaluate,
+    dim: int,
+    *,
+    stage_size: int,
+    budget: int,
+    target_rel_ci: float,
+    seed: int,
+) -> RareResult:
+    """Cross-entropy importance sampling (module docstring).
+
+    Args:
+        evaluate: simulates u [N, d] under a stage label, returns rows with 'margin',
+            'failure' (and the other outcomes).
+        dim: d. stage_size: samples per stage (one engine batch). budget: simulations at
+            most. target_rel_ci: stop drawing when P(failure)'s relative CI is below it.
+        seed: OpenTURNS' and NumPy's seed (same seed, same result).
+    """
+    ot = _openturns()
+    ot.RandomGenerator.SetSeed(int(seed))
+    tracked = _Tracked(evaluate, dim, "ce", budget)
+    algo = ot.StandardSpaceCrossEntropyImportanceSampling(_event(ot, tracked, dim), RHO)
+    algo.setMaximumOuterSampling(1)
+    algo.setBlockSize(int(stage_size))
+    stop = tracked.stop  # OpenTURNS keeps no reference of its own: hold one while it runs
+    algo.setStopCallback(stop)
+    algo.run()
+    res = algo.getResult()
+    thresholds = [float(t) for t in algo.getThresholdPerStep()]
+    stages = [
+        {"stage": i, "threshold": t, "samples": len(f)}
+        for i, (t, f) in enumerate(zip(thresholds, tracked.frames, strict=False))
+    ]
+    aux = res.getAuxiliaryDistribution()
+    mu = np.asarray(aux.getMean(), dtype=np.float64)
+    sigma = np.asarray(aux.getStandardDeviation(), dtype=np.float64)
+    reached = bool(thresholds) and thresholds[-1] <= 0.0 and len(tracked.frames) > 0
+    notes: list[str] = []
+    if not reached:
+        level = thresholds[-1] if thresholds else math.nan
+        notes.append(
+            f"partial answer: the budget ({budget:,} simulations) ended after "
+            f"{len(tracked.frames)} adaptive stages before the proposal reached the failure "
+            f"region (last margin quantile {level:.3g} m > 0): no estimate"
+        )
+    final = tracked.frames[-1].copy() if tracked.frames else pd.DataFrame()
+    rng = np.random.default_rng(seed)
+    if reached:
+        final["weight"] = np.exp(_log_ratio(_u(final, dim), mu, sigma))
+        est = _is_failure(final)
+        extra = 0
+        while est.rel_ci > target_rel_ci and tracked.used + stage_size <= budget:
+            u = mu + sigma * rng.standard_normal((stage_size, dim))
+            rows = evaluate(u, f"ce-final-{extra}")
+            tracked.used += stage_size
+            extra += 1
+            rows = rows.copy()
+            rows["weight"] = np.exp(_log_ratio(u, mu, sigma))
+            final = pd.concat([final, rows], ignore_index=True)
+            est = _is_failure(final)
+        if est.rel_ci > target_rel_ci:
+            notes.append(
+                f"target relative CI {target_rel_ci:g} not reached within the budget of "
+                f"{budget:,} simulations (reached {est.rel_ci:.3g})"
+            )
+    else:
+        est = Estimate(math.nan, 0.0, math.nan, tracked.used, "importance-sampling",
+                       bound=True, reliable=False, notes=tuple(notes))  # fmt: skip
+    return RareResult(
+        "ce", final, est, tracked.used, stages, reached,
+        {"mean": mu.tolist(), "std": sigma.tolist()}, notes,
+    )  # fmt: skip
+
+
+def _u(rows: pd.DataFrame, dim: int) -> FloatArray:
+    cols = [c for c in rows.columns if c.startswith("u.")]
+    if len(cols) != dim:
+        raise ValueError(f"rows carry {len(cols)} u.* columns, expected {dim}")
+    return rows[cols].to_numpy(np.float64)
+
+
+def _is_failure(rows: pd.DataFrame) -> Estimate:
+    fail = rows["failure"].to_numpy(bool)
+    return importance_sampling(fail, rows["weight"].to_numpy(np.float64), fail)
+
+
+def subset_simulation(
+    evaluate: Evaluate, dim: int, *, level_size: int, budget: int, seed: int
+) -> RareResult:
+    """Subset simulation (module docstring): ``level_size`` samples per level.
+
+    The estimate's interval is p (1 +- 1.96 CoV) from OpenTURNS' coefficient of
+    variation, marked approximate; when the budget ends before the failure level, the
+    answer is partial (no estimate).
+    """
+    from vei.risk.estimators import z_value
+
+    ot = _openturns()
+    ot.RandomGenerator.SetSeed(int(seed))
+    tracked = _Tracked(evaluate, dim, "ss", budget)
+    algo = ot.SubsetSampling(_event(ot, tracked, dim))
+    algo.setMaximumOuterSampling(1)
+    algo.setBlockSize(int(level_size))
+    algo.setConditionalProbability(RHO)
+
+    def stop() -> bool:
+        return tracked.stop() or len(tracked.frames) >= MAX_STAGES * 20
+
+    algo.setStopCallback(stop)  # a named function: OpenTURNS holds no reference of its own
+    algo.run()
+    res = algo.getResult()
+    thresholds = [float(t) for t in algo.getThresholdPerStep()]
+    stages = [{"stage": i, "threshold": t} for i, t in enumerate(thresholds)]
+    reached = bool(thresholds) and thresholds[-1] <= 0.0
+    p = float(res.getProbabilityEstimate())
+    cov = float(res.getCoefficientOfVariation())
+    last = tracked.frames[-1].copy() if tracked.frames else pd.DataFrame()
+    notes = ["approximate interval: p (1 +- 1.96 CoV) with OpenTURNS' CoV of the subset estimate"]
+    if not reached or not p > 0:
+        notes.append(
+            f"partial answer: the budget ({budget:,} simulations) ended before subset "
+            "simulation reached the failure level: no estimate"
+        )
+        est = Estimate(math.nan, 0.0, math.nan, tracked.used, "subset-simulation",
+                       bound=True, reliable=False, notes=tuple(notes))  # fmt: skip
+        return RareResult("subset", last, est, tracked.used, stages, False, notes=notes)
+    z = z_value()
+    stalled = len(thresholds) >= 2 and thresholds[-2] == thresholds[-1]
+    est = Estimate(
+        p, max(0.0, p * (1 - z * cov)), p * (1 + z * cov), tracked.used, "subset-simulation",
+        int(last["failure"].sum()) if len(last) else -1,
+        reliable=math.isfinite(cov) and not stalled, diagnostics={"cov": cov,
+        "levels": float(len(thresholds))}, notes=tuple(notes),
+    )  # fmt: skip
+    if stalled:
+        est = est.with_note("unreliable: the Metropolis chains stalled (equal thresholds)")
+    return RareResult("subset", last, est, tracked.used, stages, True, notes=notes)
