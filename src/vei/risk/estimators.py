@@ -123,15 +123,10 @@ class Estimate:
 
 
 def wilson_interval(k: int, n: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
-    """Wilson score interval of k successes in n trials."""
-    if n < 1:
-        return 0.0, 1.0
-    z = z_value(confidence)
-    p = k / n
-    den = 1.0 + z * z / n
-    centre = (p + z * z / (2 * n)) / den
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return max(0.0, centre - half), min(1.0, centre + half)
+    """Wilson score interval of k successes in n trials (vei.sweep.riskmap's)."""
+    from vei.sweep.riskmap import wilson_interval as wilson
+
+    return wilson(k, n, z_value(confidence))
 
 
 def clopper_pearson(k: int, n: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
