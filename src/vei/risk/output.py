@@ -104,6 +104,31 @@ def summary_rows(result: Any) -> pd.DataFrame:
     return pd.DataFrame(recs)
 
 
+def encounter_columns(result: Any) -> dict[str, Any]:
+    """The first planner's figures as flat columns (``risk_*``) for the catalogue:
+    P(collision), P(injury-relevant collision), the expected harm (= the expected injury
+    risk: probability x injury risk), P(seen too late), each with its interval; the
+    method, simulations, reliability, whether only a bound is known."""
+    p = result.planners[0]
+    out: dict[str, Any] = {
+        "risk_policy": p.policy,
+        "risk_method": p.method,
+        "risk_n_simulations": int(p.n_simulations),
+    }
+    for name, e in (
+        ("p_collision", p.p_collision),
+        ("p_injury_relevant", p.p_injury_relevant),
+        ("expected_harm", p.expected_injury),
+        ("p_seen_too_late", p.p_seen_too_late),
+    ):
+        out[f"risk_{name}"] = float(e.value)
+        out[f"risk_{name}_lo"] = float(e.lo)
+        out[f"risk_{name}_hi"] = float(e.hi)
+    out["risk_upper_bound_only"] = bool(p.p_collision.bound)
+    out["risk_reliable"] = bool(p.p_collision.reliable)
+    return out
+
+
 def risk_document(result: Any) -> dict[str, Any]:
     """The content of risk.json."""
     prob = result.problem
