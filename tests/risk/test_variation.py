@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from vei.config.distributions import Distribution, parse_distribution
 from vei.errors import ConfigError
 from vei.risk.defaults import CRUISE_SPEED_CV, DEFAULTS, defaults_table
-from vei.risk.distributions import Distribution, parse_distribution
 from vei.risk.variation import parse_variation, resolve_space
 
 P = np.array([1e-9, 1e-4, 0.1, 0.5, 0.9, 0.9999, 1 - 1e-9])

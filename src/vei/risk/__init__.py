@@ -1,7 +1,8 @@
 """Risk as a probability: how likely a collision and an injury are in one encounter,
 with 95 % confidence intervals, per planner (``vei risk``, docs/risk.md).
 
-Modules: ``distributions`` (one varied quantity), ``defaults`` (the declared default
+The distribution of one varied quantity is :mod:`vei.config.distributions` (sweeps use it
+too). Modules: ``defaults`` (the declared default
 variation with sources), ``variation`` (the variation model and its standard space),
 ``problem`` (an encounter as samples -> simulated outcomes), ``estimators`` (intervals
 and diagnostics), ``rare`` (cross-entropy importance sampling, subset simulation:

@@ -18,7 +18,7 @@ import numpy.typing as npt
 import pandas as pd
 from scipy.special import ndtri
 
-from vei.risk.distributions import Distribution
+from vei.config.distributions import Distribution
 
 FloatArray = npt.NDArray[np.float64]
 

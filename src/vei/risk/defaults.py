@@ -105,7 +105,7 @@ TABLE_END = "<!-- end of the generated defaults table -->"
 
 def defaults_table() -> str:
     """The default variation as a Markdown table (quantity, unit, distribution, source)."""
-    from vei.risk.distributions import parse_distribution
+    from vei.config.distributions import parse_distribution
 
     lines = ["| quantity | unit | default | source |", "|---|---|---|---|"]
     for d in DEFAULTS:

@@ -39,10 +39,10 @@ import numpy.typing as npt
 import pandas as pd
 
 from vei.config import CASE_PRESETS
+from vei.config.distributions import Distribution, parse_distribution
 from vei.config.perception import PerceptionConfig
 from vei.errors import ConfigError, InputError
 from vei.risk.defaults import INJURY_RELEVANT_SPEED_MPS, default_variation
-from vei.risk.distributions import Distribution, parse_distribution
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -19,6 +19,7 @@ def plane_axes(
     cruise speed when both are ranges, else the first two ranges in PARAMETERS order;
     None when the spec has fewer than two range parameters or results lack x or y."""
     ranges = [p.name for p in spec.parameters if p.is_range and p.min != p.max]
+    ranges += [n for n, d in getattr(spec, "variation", ()) if not d.is_fixed]  # issue 23
     if x is None or y is None:
         if len(ranges) < 2:
             return None
@@ -41,6 +42,9 @@ def _binned(
         bins = int(np.clip(np.sqrt(len(results) / 10.0), 4, 25))
 
     def edges(name: str) -> np.ndarray:
+        if name not in {p.name for p in spec.parameters}:  # a variation's: the data's span
+            v = results[name].to_numpy(float)
+            return np.linspace(v.min(), v.max(), bins + 1)
         p = spec.param(name)
         if p.num is not None and p.num >= 2:
             return _centre_edges(np.linspace(p.min, p.max, p.num))

@@ -1,8 +1,8 @@
 """One varied quantity's distribution: validated on construction, mapped from standard
 normal space.
 
-Every varied quantity of a variation model (:mod:`vei.risk.variation`) is one
-:class:`Distribution`. The estimators work in *standard normal space*: a sample is a
+Every varied quantity of a variation model (:mod:`vei.risk.variation`) and of a sweep
+spec's ``variation:`` section (:mod:`vei.sweep.spec`) is one :class:`Distribution`. The estimators work in *standard normal space*: a sample is a
 vector ``u`` of independent N(0, 1) numbers, and each quantity is ``x = F^-1(Phi(u))``
 (the isoprobabilistic transform), so Monte Carlo, cross-entropy importance sampling and
 subset simulation see one space whatever the distributions are.
