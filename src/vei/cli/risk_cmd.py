@@ -90,8 +90,7 @@ def risk(
     modes; which varied quantity drives the risk (Sobol indices); with several --policy,
     which planner is safer (only where the interval of the difference excludes 0).
 
-    Exit 0 with an honest partial answer when the budget ends before the target (the
-    message says what was not reached); exit 2 on bad input.
+    Exit 0 with an honest partial answer when the budget ends before the target (the message says what was not reached); exit 2 on bad input.
     """
     from rich.console import Console
 

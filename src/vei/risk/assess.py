@@ -11,8 +11,9 @@
 - ``auto`` (default): a Monte Carlo pilot; if it saw at least ``MIN_PILOT_FAILURES``
   collisions and plain Monte Carlo can reach the target within the budget, Monte Carlo
   goes on; otherwise cross-entropy importance sampling takes the remaining budget. When
-  that does not reach the failure region either, the honest partial answer is the
-  pilot's Clopper-Pearson upper bound.
+  that does not reach a failure region (the budget ends, or its level stalls: there may
+  be none), the rest of the budget continues the pilot's plain Monte Carlo, and the
+  honest answer is its estimate or its Clopper-Pearson upper bound.
 
 The figures of a planner (:class:`PlannerRisk`): P(collision), P(injury-relevant
 collision), the expected injury risk (the mean of the rider's injury risk over the
@@ -271,11 +272,19 @@ def assess_planner(
     if not r.reached:
         notes = list(r.notes)
         if pilot_rows is not None:
-            pilot = _result(policy, "mc", pilot_rows, n_sim, target_rel_ci, weighted=False)
-            pilot.notes = notes + pilot.notes
-            pilot.rare = r
-            pilot.method = f"mc (pilot; {r.method} did not reach the failure region)"
-            return pilot
+            # the rest of the budget as plain Monte Carlo (the pilot's stream, continued):
+            # the tightest honest answer, an estimate or an upper bound
+            left = budget - n_sim
+            mc = monte_carlo(problem, policy, budget=len(pilot_rows) + max(left, 0),
+                             target_rel_ci=target_rel_ci, seed=seed, pilot=stage,
+                             already=pilot_rows)  # fmt: skip
+            mc.n_simulations = n_sim + (len(mc.rows) - len(pilot_rows))
+            mc.notes = notes + [n.replace(f"in {len(mc.rows):,} simulations",
+                                          f"in {len(mc.rows):,} Monte Carlo simulations")
+                                for n in mc.notes]  # fmt: skip
+            mc.rare = r
+            mc.method = f"mc ({r.method} did not reach a failure region)"
+            return mc
         return _rare_unreached(policy, r, n_sim, notes)
     if r.method == "ce":
         mu, sd = (np.asarray(r.proposal["mean"]), np.asarray(r.proposal["std"]))

@@ -58,6 +58,10 @@ MAX_STAGES = 40
 STAGNATION = 0.5
 #: Smallest standard deviation of a cross-entropy proposal (standard units).
 SIGMA_FLOOR = 1e-6
+#: Cross-entropy gives up when the level has not dropped by STALL_GAIN (relative) for
+#: STALL_STAGES stages in a row.
+STALL_STAGES = 4
+STALL_GAIN = 0.01
 
 #: evaluate(u [N, d], stage label) -> the rows (with 'margin', 'failure' and outcomes).
 Evaluate = Callable[[FloatArray, str], pd.DataFrame]
@@ -170,7 +174,9 @@ def cross_entropy(
     used = 0
     stages: list[dict[str, Any]] = []
     reached = False
-    while len(stages) < MAX_STAGES and used + stage_size <= budget:
+    best = math.inf
+    flat = 0
+    while len(stages) < MAX_STAGES and used + stage_size <= budget and flat < STALL_STAGES:
         u = mu + sigma * rng.standard_normal((stage_size, dim))
         rows = evaluate(u, f"ce-{len(stages)}")
         used += stage_size
@@ -199,13 +205,20 @@ def cross_entropy(
         if moved < STAGNATION:
             sigma = sd_fit
         mu = mu_fit
+        # the level stalls (no failure region within reach): give up, keep the budget
+        flat = flat + 1 if level > best * (1.0 - STALL_GAIN) else 0
+        best = min(best, level)
     notes: list[str] = []
     if not reached:
         last = stages[-1]["level"] if stages else math.nan
+        why = (
+            f"the level stalled for {STALL_STAGES} stages (no failure region within reach)"
+            if flat >= STALL_STAGES
+            else f"the budget ({budget:,} simulations) ended"
+        )
         notes.append(
-            f"partial answer: the budget ({budget:,} simulations) ended after {len(stages)} "
-            f"adaptive stages before the proposal reached the failure region (last margin "
-            f"quantile {last:.3g} m > 0): no estimate"
+            f"partial answer: {why} after {len(stages)} adaptive stages before the proposal "
+            f"reached the failure region (last margin quantile {last:.3g} m > 0): no estimate"
         )
         est = Estimate(math.nan, 0.0, math.nan, used, "importance-sampling", bound=True,
                        reliable=False, notes=tuple(notes))  # fmt: skip
