@@ -61,6 +61,7 @@ def test_figures_with_intervals_and_the_comparison(assessed):
     assert cmp["verdict"] == "A safer" and cmp["difference_p_collision"]["ci95"][1] < 0
     assert "paper-cap is safer than none" in text
     assert set(doc["sobol"]["collision"]) == set(doc["dimensions"])
+    assert (out / "probability_map.png").stat().st_size > 10_000
     summary = pd.read_csv(out / "summary.csv")
     assert list(summary["policy"]) == ["paper-cap", "none"]
 

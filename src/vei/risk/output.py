@@ -13,6 +13,9 @@
                               ``stage`` (mc, ce-k, ce-final-k, ss-k, pair, sobol),
                               ``policy``, ``weight`` (the importance weight of samples in
                               a planner's final estimate, 1 for Monte Carlo), ``in_estimate``
+``probability_map.png``       the first planner's P(collision | cell) over time shift x
+                              cruise speed (or the first two varied quantities), shown
+                              where its 95 % CI is within +-0.1, the rest hatched
 ``configs/<variant_id>.yaml`` run configurations (``vei run SCENARIO --config FILE``
                               re-runs the sample alone and gives its row): the first
                               200 collisions and the first 20 other samples
@@ -199,4 +202,32 @@ def write_risk(result: Any, out: Path, *, configs: str = "failures") -> None:
     write_text(out / "summary.csv", summary_rows(result).to_csv(index=False))
     if hasattr(result.problem, "prepared"):
         write_configs(result, out / "configs", config_rows(samples, configs))
+    write_map(result, out / "probability_map.png")
     write_json(out / "risk.json", risk_document(result))
+
+
+def write_map(result: Any, path: Path) -> bool:
+    """probability_map.png: the first planner's P(collision | cell) over the first two
+    varied quantities (time shift x cruise speed when both vary), from its final sample
+    (weighted where importance sampling drew it), cells not known hatched. False when
+    fewer than two quantities vary or the sample is too small."""
+    from vei.sweep.riskmap import write_sample_probability_map
+
+    p = result.planners[0]
+    dims = [n for n, _ in result.problem.space.distributions]
+    if len(dims) < 2 or p.rows is None or p.rows.empty:
+        return False
+    x, y = (
+        ("time_shift_s", "ego.cruise_speed_mps")
+        if {"time_shift_s", "ego.cruise_speed_mps"} <= set(dims)
+        else dims[:2]
+    )
+    if not {x, y} <= set(p.rows.columns):
+        return False
+    grid = write_sample_probability_map(
+        path, p.rows[x], p.rows[y], p.rows["failure"].to_numpy(bool),
+        weights=p.rows["weight"].to_numpy(float) if p.proposal is not None else None,
+        x_label=x, y_label=y,
+        title=f"{p.policy}: P(collision | cell) from {len(p.rows):,} samples ({p.method})",
+    )  # fmt: skip
+    return grid is not None

@@ -304,3 +304,30 @@ def sweep_probability_map(
     write_probability_map(path, grid=grid, x_label=x, y_label=y,
                           title=f"P(collision | cell) of {len(results)} sweep variants")  # fmt: skip
     return {"x": x, "y": y, "grid": grid}
+
+
+def write_sample_probability_map(
+    path: str | Path,
+    x: np.ndarray,
+    y: np.ndarray,
+    failure: np.ndarray,
+    *,
+    weights: np.ndarray | None = None,
+    x_label: str = "x",
+    y_label: str = "y",
+    title: str = "",
+) -> dict[str, np.ndarray] | None:
+    """probability_map.png of samples [N] (e.g. ``vei risk``'s, importance-weighted): cells
+    over the samples' span with about 100 samples each (3 to 12 per axis), P(collision |
+    cell) where known (:func:`probability_grid`). None (nothing written) under 50 samples."""
+    from vei.report.riskmap import write_probability_map
+
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    if len(x) < 50:
+        return None
+    nb = int(np.clip(np.sqrt(len(x) / 100.0), 3, 12))
+    xe = np.linspace(x.min(), x.max(), nb + 1)
+    ye = np.linspace(y.min(), y.max(), nb + 1)
+    grid = probability_grid(x, y, failure, xe, ye, weights=weights)
+    write_probability_map(path, grid=grid, x_label=x_label, y_label=y_label, title=title)
+    return grid
