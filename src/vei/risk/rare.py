@@ -16,8 +16,9 @@ the stage size, one outer sample).
   vei's own loop, not OpenTURNS' ``StandardSpaceCrossEntropyImportanceSampling``: that
   one refits the standard deviations at every stage, they shrink geometrically (the top
   10 % of a normal has 0.44 of its spread), and the proposal stalls before a failure
-  region more than ~3 sigma away along one coordinate (tests/risk/test_rare.py shows it
-  on the scripted engine scene: 12 stages, the level stuck at 0.34 m). vei refits only
+  region more than ~3 sigma away along one coordinate (tests/risk/test_rare.py shows it on
+  a scripted problem; on the engine's scripted crossing of tests/risk/test_engine_known.py
+  it spent 12 stages with the level stuck at 0.34 m). vei refits only
   the mean while the level moves, the standard deviations once the mean stagnates (a
   narrow rather than far failure region) and, at the end, to the failing samples.
 - **Subset simulation** (``subset``; Au & Beck 2001): ``openturns.SubsetSampling``
