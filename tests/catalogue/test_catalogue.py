@@ -99,8 +99,12 @@ def test_small_catalogue_table(small_catalogue):
     assert not (np.diff(coll.astype(int)) > 0).any()
     si = rows.loc[coll, "safety_index"].to_numpy()
     assert (si == 0).all()
-    # the encounter ranking follows the collision share
-    assert (np.diff(enc["collision_share"].to_numpy()) <= 1e-12).all()
+    # the encounter ranking follows the expected harm (issue 23: probability x injury
+    # risk with a 95 % CI), then P(collision); a bound only (no collision seen) counts 0
+    harm = enc["risk_expected_harm"].fillna(0.0).to_numpy()
+    assert (np.diff(harm) <= 1e-12).all()
+    assert (enc["risk_expected_harm_lo"] <= enc["risk_expected_harm"].fillna(0)).all()
+    assert (enc["risk_p_collision_hi"] > 0).all()  # never 0: an upper bound at least
     share = rows.groupby("encounter_id")["collision"].mean()
     for r in enc.itertuples():
         assert r.collision_share == pytest.approx(share[r.encounter_id])

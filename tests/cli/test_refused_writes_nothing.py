@@ -67,6 +67,10 @@ REFUSED = [
                              "--bootstrap", "-1"]),
     ("calibrate category", ["calibrate", "riders", "--root", "{tm}", "--out", "{out}",
                             "--category", "tram"]),
+    ("risk budget", ["risk", "{scen}", "--out", "{out}", "--budget", "0"]),
+    ("risk method", ["risk", "{scen}", "--out", "{out}", "--method", "magic"]),
+    ("risk target", ["risk", "{scen}", "--out", "{out}", "--target-rel-ci", "-1"]),
+    ("risk spec", ["risk", "{scen}", "--out", "{out}", "--spec", "{spec}"]),
     ("map build converter", ["map", "build", "{spec}", "--out", "{out}/map.xodr",
                              "--converter", "magic"]),
 ]  # fmt: skip

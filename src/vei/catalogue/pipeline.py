@@ -318,6 +318,7 @@ def _encounter(out: Path, enc: Encounter, config: CatalogueConfig) -> int:
         sweep.insert(0, "kind", "sweep")
         parts.append(sweep)
     rows = pd.concat(parts, ignore_index=True)
+    ident.update(_encounter_risk(scen_dir, edir, config))  # issue 23: per-encounter risk
     clash = sorted(set(ident) & set(rows.columns))
     if clash:
         raise RuntimeError(f"identifier columns clash with metric columns: {clash}")
@@ -326,3 +327,21 @@ def _encounter(out: Path, enc: Encounter, config: CatalogueConfig) -> int:
     rows = _clean_object_columns(rows)
     write_parquet(edir / "rows.parquet", rows)
     return len(rows)
+
+
+def _encounter_risk(scen_dir: Path, edir: Path, config: CatalogueConfig) -> dict[str, Any]:
+    """The encounter's risk estimate (``vei risk`` into ``edir/risk``) as identifier
+    columns of its rows (vei.risk.output.encounter_columns); {} without one."""
+    settings = config.risk_settings()
+    if settings is None:
+        return {}
+    from vei.risk.output import encounter_columns
+    from vei.risk.run import assess_risk
+
+    model, opts = settings
+    result = assess_risk(
+        scen_dir, model, policies=tuple(opts["policies"]), method=opts["method"],
+        budget=opts["budget"], target_rel_ci=opts["target_rel_ci"], sobol_n=0,
+        out_dir=edir / "risk", configs="failures",
+    )  # fmt: skip
+    return encounter_columns(result)

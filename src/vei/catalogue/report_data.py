@@ -222,6 +222,113 @@ def _risk_map(rows: pd.DataFrame) -> dict[str, Any] | None:
     }
 
 
+#: Overview columns of the risk estimate (issue 23), shown when the catalogue has one.
+RISK_COLUMNS: tuple[tuple[str, str, str, str], ...] = (
+    ("risk_expected_harm", "expected harm", ".2e",
+     "probability x injury risk: the expected injury risk of the rider per encounter under "
+     "the variation (the ranking's key)"),
+    ("risk_harm_ci", "harm 95 % CI", "s", "95 % confidence interval of the expected harm"),
+    ("risk_p_collision", "P(collision)", ".2e",
+     "probability of a collision under the variation ('-' with only an upper bound)"),
+    ("risk_p_collision_ci", "P 95 % CI", "s",
+     "95 % confidence interval of P(collision) ('< x': no collision seen, upper bound)"),
+    ("risk_n_simulations", "risk sims", "d", "simulations of the risk estimate"),
+)  # fmt: skip
+
+
+def _ci_text(rec: dict[str, Any], name: str) -> str:
+    lo, hi = rec.get(f"{name}_lo"), rec.get(f"{name}_hi")
+    v = rec.get(name)
+    if v is None or not np.isfinite(v):
+        return f"< {hi:.2e}" if hi is not None and np.isfinite(hi) else "-"
+    return f"[{lo:.2e}, {hi:.2e}]"
+
+
+def _risk_panel(edir: Path) -> tuple[dict[str, Any] | None, dict[str, Any] | None]:
+    """(the risk estimate's figures as text, its probability map) of an encounter, from
+    its ``risk/`` folder (vei risk); (None, None) without one."""
+    path = edir / "risk" / "risk.json"
+    if not path.is_file():
+        return None, None
+    doc = read_json(path)
+    planners = []
+    for p in doc.get("planners", []):
+        figs = {}
+        for key, label in (
+            ("p_collision", "P(collision)"),
+            ("p_injury_relevant_collision", "P(injury-relevant collision)"),
+            ("expected_injury_risk", "expected injury risk (harm)"),
+            ("p_seen_too_late", "P(seen too late)"),
+        ):
+            e = p.get(key) or {}
+            lo, hi = (e.get("ci95") or [None, None])[:2]
+            if e.get("upper_bound_only"):
+                figs[label] = (
+                    f"< {hi:.2e} (95 % upper bound, none in {e.get('n', 0):,})"
+                    if hi is not None
+                    else "-"
+                )
+            elif e.get("value") is not None:
+                figs[label] = f"{e['value']:.3e} [{lo:.3e}, {hi:.3e}]"
+            else:
+                figs[label] = "-"
+        modes = p.get("failure_modes") or {}
+        planners.append({
+            "policy": p.get("policy"), "method": p.get("method"),
+            "n_simulations": p.get("n_simulations"), "figures": figs,
+            "reliable": (p.get("p_collision") or {}).get("reliable", False),
+            "notes": list(p.get("notes", [])),
+            "kinds": [f"{k['kind']}: {100 * k['share_of_p_collision']:.0f} %" for k in modes.get("kinds", [])],
+            "regions": [f"{r['rule']}: {100 * r['share_of_p_collision']:.0f} % of P(collision), "
+                        f"P(collision | region) {r['p_collision_in_region']:.2g}"
+                        for r in modes.get("regions", [])[:4]],
+        })  # fmt: skip
+    risk = {
+        "planners": planners,
+        "comparisons": [c.get("verdict", "") for c in doc.get("comparisons", [])],
+        "variation": [
+            f"{v['name']}: {v['distribution']}" for v in doc.get("variation_resolved", [])
+        ],
+    }
+    return risk, _probability_map(edir / "risk" / "samples.parquet", doc)
+
+
+def _probability_map(path: Path, doc: dict[str, Any]) -> dict[str, Any] | None:
+    """P(collision | cell) over the first two varied quantities from the risk estimate's
+    final sample of its first planner; cells whose 95 % CI is wider than +-0.1 unknown."""
+    from vei.sweep.riskmap import probability_grid
+
+    dims = [d for d in doc.get("dimensions", []) if not d.startswith("rider.")]
+    planners = doc.get("planners") or []
+    if len(dims) < 2 or not planners or not path.is_file():
+        return None
+    x, y = (
+        ("time_shift_s", "ego.cruise_speed_mps")
+        if {"time_shift_s", "ego.cruise_speed_mps"} <= set(dims)
+        else dims[:2]
+    )
+    s = pd.read_parquet(path, columns=[x, y, "failure", "weight", "in_estimate", "policy"])
+    s = s[s["in_estimate"] & (s["policy"] == planners[0]["policy"])]
+    if len(s) < 50:
+        return None
+    xs, ys = s[x].to_numpy(float), s[y].to_numpy(float)
+    nb = int(np.clip(np.sqrt(len(s) / 100.0), 3, 12))
+    xe = np.linspace(xs.min(), xs.max(), nb + 1)
+    ye = np.linspace(ys.min(), ys.max(), nb + 1)
+    g = probability_grid(xs, ys, s["failure"].to_numpy(bool), xe, ye,
+                         weights=s["weight"].to_numpy(float))  # fmt: skip
+    known = g["known"]
+    text = [[(f"P {g['p'][j, i]:.3f} [{g['lo'][j, i]:.3f}, {g['hi'][j, i]:.3f}]"
+              if np.isfinite(g["p"][j, i]) else "no sample") + ("" if known[j, i] else " (not known)")
+             for i in range(known.shape[1])] for j in range(known.shape[0])]  # fmt: skip
+    return {
+        "x": g["x_centres"], "y": g["y_centres"],
+        "z": np.where(known, g["p"], np.nan), "unknown": np.where(known, np.nan, 1.0),
+        "text": text, "x_label": x, "y_label": y, "policy": planners[0]["policy"],
+        "n": int(len(s)),
+    }  # fmt: skip
+
+
 def collect(catalogue_dir: str | Path) -> dict[str, Any]:
     """Everything the report shows, as one JSON-ready mapping (see the module docstring).
 
@@ -241,6 +348,10 @@ def collect(catalogue_dir: str | Path) -> dict[str, Any]:
         if len(rows)
         else pd.DataFrame(columns=[c for c, *_ in OVERVIEW_COLUMNS])
     )
+    columns = OVERVIEW_COLUMNS
+    if "risk_expected_harm" in enc:
+        columns = (OVERVIEW_COLUMNS[0], OVERVIEW_COLUMNS[1], OVERVIEW_COLUMNS[2],
+                   *RISK_COLUMNS, *OVERVIEW_COLUMNS[3:])  # fmt: skip
     encounters = []
     for rec in enc.to_dict("records"):
         eid = rec["encounter_id"]
@@ -250,10 +361,16 @@ def collect(catalogue_dir: str | Path) -> dict[str, Any]:
         scen = read_json(edir / "scenario" / "scenario.json")
         dims = {a["agent_id"]: (a["length_m"], a["width_m"]) for a in scen["agents"]}
         er = rows[rows["encounter_id"] == eid]
+        risk, probmap = _risk_panel(edir)  # issue 23
+        if "risk_expected_harm" in rec:
+            rec["risk_harm_ci"] = _ci_text(rec, "risk_expected_harm")
+            rec["risk_p_collision_ci"] = _ci_text(rec, "risk_p_collision")
         encounters.append(
             {
                 "id": eid,
-                "row": {c: rec.get(c) for c, *_ in OVERVIEW_COLUMNS},
+                "risk": risk,
+                "probmap": probmap,
+                "row": {c: rec.get(c) for c, *_ in columns},
                 "rider_id": rec["rider_id"],
                 "recording": rec["recording"],
                 "tracks": _tracks(edir / "scenario"),
@@ -298,9 +415,8 @@ def collect(catalogue_dir: str | Path) -> dict[str, Any]:
         "settings": manifest.get("settings"),
         "recordings": recs,
         "failed_encounters": manifest.get("failed_encounters", []),
-        "columns": [
-            {"key": k, "label": lab, "fmt": f, "title": t} for k, lab, f, t in OVERVIEW_COLUMNS
-        ],
+        "columns": [{"key": k, "label": lab, "fmt": f, "title": t} for k, lab, f, t in columns],
+        "ranked_by": "expected harm" if "risk_expected_harm" in enc else "criticality",
         "encounters": encounters,
     }
 

@@ -121,9 +121,11 @@ ROW_ORDER: tuple[tuple[str, bool], ...] = (
 def encounter_scores(rows: pd.DataFrame) -> pd.DataFrame:
     """One row per encounter with its criticality and rank (1 = most critical).
 
-    Criticality of an encounter: ``collision_share`` = share of its simulated
-    configurations (case study + sweep) that collide, then the lowest mean safety index,
-    then the smallest minimum gap over them. Returns columns encounter_id, recording,
+    Criticality of an encounter: with a risk estimate (issue 23; ``risk_*`` columns of
+    its rows), the expected harm (probability x injury risk) and then P(collision), the
+    encounters with only an upper bound after those with an estimate; then (and without
+    one) ``collision_share`` = share of its simulated configurations (case study + sweep)
+    that collide, the lowest mean safety index, the smallest minimum gap over them. Returns columns encounter_id, recording,
     rider_id, category, the recorded geometry, n_configs, collision_share,
     mean_safety_index, worst_min_gap_m, worst_min_ttc_s, casestudy_collisions, rank.
     """
@@ -154,11 +156,17 @@ def encounter_scores(rows: pd.DataFrame) -> pd.DataFrame:
     out["casestudy_collisions"] = (
         cs.groupby("encounter_id")["collision"].sum().reindex(out.index).fillna(0).astype(int)
     )
-    out = out.reset_index().sort_values(
-        ["collision_share", "mean_safety_index", "worst_min_gap_m", "encounter_id"],
-        ascending=[False, True, True, True],
-        kind="stable",
-    )
+    risk_cols = [c for c in rows.columns if c.startswith("risk_")]
+    for c in risk_cols:  # issue 23: one estimate per encounter, constant over its rows
+        out[c] = g[c].first()
+    keys = ["collision_share", "mean_safety_index", "worst_min_gap_m", "encounter_id"]
+    asc = [False, True, True, True]
+    if "risk_expected_harm" in out:  # ranked by expected harm, then P(collision)
+        out["_harm"] = out["risk_expected_harm"].fillna(0.0)  # a bound only: after estimates
+        out["_p"] = out["risk_p_collision"].fillna(0.0)
+        keys, asc = ["_harm", "_p", *keys], [False, False, *asc]
+    out = out.reset_index().sort_values(keys, ascending=asc, kind="stable")
+    out = out.drop(columns=[c for c in ("_harm", "_p") if c in out])
     out["rank"] = np.arange(1, len(out) + 1)
     return out.reset_index(drop=True)
 

@@ -135,9 +135,8 @@ def _print_result(console, result, top: int) -> None:
         console.print(f"encounter failed {f['encounter_id']}: {f['reason']}", style="red")
     enc = result.encounters
     if len(enc):
-        t = Table(
-            title=f"encounters ranked by criticality (top {min(top, len(enc))} of {len(enc)})"
-        )
+        by = "expected harm" if "risk_expected_harm" in enc else "criticality"  # issue 23
+        t = Table(title=f"encounters ranked by {by} (top {min(top, len(enc))} of {len(enc)})")
         cols = (
             ("rank", "rank", "{:d}"),
             ("encounter_id", "encounter", "{}"),
@@ -152,6 +151,13 @@ def _print_result(console, result, top: int) -> None:
             ("worst_min_gap_m", "worst gap [m]", "{:.2f}"),
             ("casestudy_collisions", "case-study collisions", "{:d}"),
         )
+        if by == "expected harm":  # issue 23: the risk estimate with its 95 % intervals
+            enc = enc.assign(
+                _harm=[_ci(r, "risk_expected_harm") for r in enc.to_dict("records")],
+                _p=[_ci(r, "risk_p_collision") for r in enc.to_dict("records")],
+            )
+            cols = (*cols[:3], ("_harm", "expected harm [95 % CI]", "{}"),
+                    ("_p", "P(collision) [95 % CI]", "{}"), *cols[3:])  # fmt: skip
         for c, head, _ in cols:
             t.add_column(
                 head,
@@ -166,6 +172,14 @@ def _print_result(console, result, top: int) -> None:
         f"{result.n_done_before} encounter(s) done by an earlier run; "
         f"status {'complete' if result.complete else 'partial'}"
     )
+
+
+def _ci(rec: dict, name: str) -> str:
+    """'2.6e-04 [2.2e-04, 3.1e-04]', or '< 1.8e-03' with only an upper bound."""
+    v, lo, hi = rec.get(name), rec.get(f"{name}_lo"), rec.get(f"{name}_hi")
+    if v is None or v != v:
+        return f"< {hi:.1e}" if hi is not None and hi == hi else "-"
+    return f"{v:.1e} [{lo:.1e}, {hi:.1e}]"
 
 
 def report_cmd(

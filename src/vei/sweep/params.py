@@ -249,6 +249,46 @@ def parse_perception(raw: Any, where: str) -> PerceptionConfig | None:
         raise ConfigError(f"{where}: {exc}") from None
 
 
+def parse_variation_section(raw: Any, where: str) -> tuple[tuple[str, Any], ...]:
+    """A sweep spec's ``variation: {parameter: {dist: ...}}`` -> ((name,
+    vei.config.distributions.Distribution), ...) in PARAMETERS order (float parameters
+    whose distribution stays within their bounds; () when absent).
+
+    Raises:
+        ConfigError: not a mapping, an unknown or non-float parameter, an impossible
+            distribution, one that leaves the parameter's bounds (naming ``where``).
+    """
+    from vei.config.distributions import parse_distribution
+
+    if raw is None:
+        return ()
+    if not isinstance(raw, Mapping) or not raw:
+        raise ConfigError(f"{where}: 'variation' must be a non-empty mapping of parameters")
+    out = {}
+    for key, val in raw.items():
+        name = str(key)
+        check_name(name, where)
+        if name not in PARAMETERS or PARAMETERS[name].kind != "float":
+            floats = [n for n, p in PARAMETERS.items() if p.kind == "float"]
+            raise ConfigError(
+                f"{where}: variation.{name}: expected a float parameter ({', '.join(floats)})"
+            )
+        dist = parse_distribution(val, f"{where}: variation.{name}")
+        pdef = PARAMETERS[name]
+        for v in (dist.low, dist.high) if not dist.is_fixed else (dist.value,):
+            if np.isfinite(v):
+                pdef.check(v, f"{where}: variation.{name}")
+        for bound, v in ((pdef.lower, dist.low), (pdef.upper, dist.high)):
+            if bound is not None and not np.isfinite(v) and not dist.is_fixed:
+                raise ConfigError(
+                    f"{where}: variation.{name} must stay within [{pdef.lower}, {pdef.upper}] "
+                    f"[{pdef.unit}]: give the distribution min / max"
+                )
+        out[name] = dist
+    order = list(PARAMETERS)
+    return tuple(sorted(out.items(), key=lambda kv: order.index(kv[0])))
+
+
 def resolve_policy(value: Any, where: str, base_dir: Path | None) -> Any:
     """A sweep's ``ego.policy`` value with a relative file path made absolute.
 

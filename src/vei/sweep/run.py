@@ -9,6 +9,8 @@ Output folder layout (``out_dir``)::
     configs/<variant_id>.yaml   each critical variant as a run configuration (vei run --config)
     riskmap.png           mean safety index over the first two range parameters + boundary
     severity_map.png      mean injury risk of the rider over the same plane + boundary
+    probability_map.png   P(collision | cell) where its 95 % CI is within +-0.1, the rest
+                          hatched as not known (vei.sweep.riskmap.sweep_probability_map)
                           (severity_map_<policy>.png, one per policy, when it is swept)
     policy_comparison.csv when the policy is swept with 'none': per policy, collisions,
                           impact speeds, injury risk and the verdicts against 'none' at the
@@ -316,6 +318,9 @@ def run_sweep(
         from vei.sweep.riskmap import sweep_risk_map, sweep_severity_maps
 
         risk = sweep_risk_map(results, spec, out / "riskmap.png")
+        from vei.sweep.riskmap import sweep_probability_map
+
+        sweep_probability_map(results, spec, out / "probability_map.png")  # issue 23
         sweep_severity_maps(results, spec, out)
         if "ego.policy" in spec.names and (results["ego.policy"].astype(str) == "none").any():
             from vei.calibrate.population import RIDER_COLUMN

@@ -215,8 +215,38 @@
     document.getElementById("summary-table").innerHTML = h;
   }
 
+  function esc(v) { var span = document.createElement("span"); span.textContent = String(v); return span.innerHTML; }
+  function drawProbabilities(e) {
+    var el = document.getElementById("prob-table"), r = e.risk;
+    if (!r) { el.textContent = "no risk estimate (catalogue setting risk: null)"; return; }
+    var h = "<p class=\"note\">variation: " + r.variation.map(esc).join("; ") + "</p>";
+    r.planners.forEach(function (p) {
+      h += "<h4>" + esc(p.policy) + " (" + esc(p.method) + ", " + esc(p.n_simulations) + " simulations" + (p.reliable ? "" : ", unreliable") + ")</h4><table><tbody>";
+      Object.keys(p.figures).forEach(function (k) { h += "<tr><th>" + esc(k) + "</th><td>" + esc(p.figures[k]) + "</td></tr>"; });
+      h += "</tbody></table>";
+      if (p.kinds.length) { h += "<p>failure kinds: " + p.kinds.map(esc).join("; ") + "</p>"; }
+      if (p.regions.length) { h += "<p>failure regions:</p><ul>" + p.regions.map(function (x) { return "<li>" + esc(x) + "</li>"; }).join("") + "</ul>"; }
+      p.notes.forEach(function (n) { h += "<p class=\"note\">" + esc(n) + "</p>"; });
+    });
+    r.comparisons.forEach(function (c) { h += "<p>" + esc(c) + "</p>"; });
+    el.innerHTML = h;
+  }
+  function drawProbMap(e, el) {
+    var m = e.probmap;
+    el.textContent = "";
+    var traces = [
+      { type: "heatmap", x: m.x, y: m.y, z: m.z, zmin: 0, zmax: 1, colorscale: "Reds", colorbar: { title: { text: "P(collision | cell)" } },
+        text: m.text, hovertemplate: "%{x:.2f}, %{y:.2f}<br>%{text}<extra></extra>" },
+      { type: "heatmap", x: m.x, y: m.y, z: m.unknown, zmin: 0, zmax: 1, showscale: false, opacity: 0.45,
+        colorscale: [[0, "#9e9e9e"], [1, "#9e9e9e"]], text: m.text, hovertemplate: "%{text}<extra>not known</extra>", name: "not known" }
+    ];
+    Plotly.newPlot(el, traces, lay({ xaxis: { title: { text: m.x_label } }, yaxis: { title: { text: m.y_label } },
+      annotations: [{ text: "grey: not known (95 % CI wider than +-0.1); " + m.n + " samples of " + m.policy, xref: "paper", yref: "paper", x: 0, y: 1.08, showarrow: false, font: { size: 10 } }] }), CONF);
+  }
+
   function drawRisk(e) {
     var m = e.riskmap, el = document.getElementById("risk-plot");
+    if (e.probmap) { drawProbMap(e, el); return; }
     if (!m) { Plotly.purge(el); el.textContent = "no sweep over time shift and cruise speed"; return; }
     el.textContent = "";
     var coll = m.points.collision;
@@ -260,7 +290,7 @@
     state.cfg = 0;
     var slider = document.getElementById("time-slider");
     slider.max = String(e.replay.t.length - 1); slider.value = "0";
-    drawMap(e); drawSpeed(e); drawTTC(e); drawSummary(e); drawRisk(e); drawReplay();
+    drawMap(e); drawSpeed(e); drawTTC(e); drawSummary(e); drawRisk(e); drawProbabilities(e); drawReplay();
   }
 
   document.getElementById("encounter-select").addEventListener("change", function (ev) { showEncounter(ev.target.value); });
