@@ -73,6 +73,10 @@ def print_summary(result, out: Path | None = None, console=None) -> None:
         ("impact speed [m/s]", "impact_speed_mps", ".2f"),
         ("injury risk", "injury_risk", ".3g"),
         ("verdict", "verdict", None),
+        # Could the car have known (issue 22), the relative-TTC safety index (28.7)
+        ("SI rel", "safety_index_rel", ".3f"),
+        ("first seen gap [m]", "first_seen_gap_m", ".1f"),
+        ("seen too late", "seen_too_late", None),
     ]
     from rich.markup import escape
 
@@ -85,6 +89,15 @@ def print_summary(result, out: Path | None = None, console=None) -> None:
     for rec in summary_records(result.summary):
         table.add_row(*[escape(_cell(rec, key, fmt)) for _, key, fmt in cols])
     console.print(table)
+    flagged = [r["name"] for r in summary_records(result.summary) if r.get("seen_too_late")]
+    if flagged:
+        console.print(
+            escape(
+                f"seen too late (no planner could have reacted: first seen within the "
+                f"reaction time of contact or closer than the stopping distance): "
+                f"{', '.join(flagged)}"
+            )
+        )
     crit = getattr(result, "criticality", None) or {}
     for key in ("perturbation_message", "message"):
         if crit.get(key):

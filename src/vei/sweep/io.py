@@ -208,11 +208,16 @@ def assemble_results(out_dir: str | Path, table: pd.DataFrame | None = None) -> 
 def most_critical(results: pd.DataFrame, k: int = 20) -> pd.DataFrame:
     """The ``k`` most critical variants: collisions first, then the lowest safety index,
     then the smallest minimum gap (columns that exist are used; NaN last; ties keep table
-    order). Ranks numeric keys with one stable ``numpy.lexsort`` (no sorted copy of a
-    10^6-row table)."""
+    order). Runs flagged ``seen_too_late`` (no planner could have reacted: the rider was
+    first seen too late, vei.metrics.seen) never rank before an unflagged one: they come
+    last, so they are listed only when fewer than ``k`` runs are unflagged. Ranks numeric
+    keys with one stable ``numpy.lexsort`` (no sorted copy of a 10^6-row table)."""
     if results.empty:
         return results
     keys, asc = [], []
+    if "seen_too_late" in results:
+        keys.append("seen_too_late")
+        asc.append(True)
     if "collision" in results:
         keys.append("collision")
         asc.append(False)

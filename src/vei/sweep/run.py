@@ -352,6 +352,10 @@ def run_sweep(
                     per_point, risk["x"], risk["y"], out / "reconstruction_share.png"
                 )
         timings["post"] = time.perf_counter() - t_post
+        from vei.metrics.seen import flag_counts
+
+        # runs no planner could have reacted to (vei.metrics.seen), counted apart
+        manifest["seen_too_late"] = flag_counts(results)
         manifest["status"] = "complete"
         manifest["updated_utc"] = datetime.now(UTC).isoformat(timespec="seconds")
         manifest["timings_s"] = {k: round(v, 3) for k, v in timings.items()}
@@ -376,6 +380,8 @@ _POST_COLUMNS = (
     "safety_index",
     "min_gap_m",
     "injury_risk",
+    "impact_speed_mps",
+    "seen_too_late",
 )
 
 
