@@ -224,7 +224,8 @@ def sample(end: EndState, mov: Motion, path: FloatArray, decay_m: float) -> dict
         th = np.unwrap(path[:, 2])
         k_path = float((th[1] - th[0]) / (arc[1] - arc[0])) if arc.size > 1 else 0.0
         slope = off / length + end.yaw_curvature_per_m - k_path
-        yaw = wrap(course + (off + slope * s) * np.exp(-s / length))
+        yaw = course + (off + slope * s) * np.exp(-s / length)
+        yaw = yaw + (end.yaw_rad - (th[0] + off))  # = yaw at s = 0: joins unwrapped
     return {
         "t_s": end.t_s + mov.t_rel_s,
         "x_m": x,
@@ -243,7 +244,7 @@ def run_in(
         -np.asarray(t_s, dtype=np.float64)[::-1],
         np.asarray(x_m, dtype=np.float64)[::-1],
         np.asarray(y_m, dtype=np.float64)[::-1],
-        np.asarray(wrap(np.asarray(yaw_rad, dtype=np.float64) + np.pi))[::-1],
+        (np.asarray(yaw_rad, dtype=np.float64) + np.pi)[::-1],
         np.asarray(speed_mps, dtype=np.float64)[::-1],
     )
 
@@ -254,9 +255,16 @@ def reverse_samples(samples: dict[str, FloatArray]) -> dict[str, FloatArray]:
         "t_s": -samples["t_s"][::-1],
         "x_m": samples["x_m"][::-1],
         "y_m": samples["y_m"][::-1],
-        "yaw_rad": wrap(samples["yaw_rad"] - np.pi)[::-1],
+        "yaw_rad": (samples["yaw_rad"] - np.pi)[::-1],
         "speed_mps": samples["speed_mps"][::-1],
     }
+
+
+def near_turn(yaw: FloatArray, ref: float) -> FloatArray:
+    """``yaw`` shifted by whole turns so that its last element lies within pi of ``ref``."""
+    if yaw.size == 0 or not math.isfinite(ref):
+        return yaw
+    return yaw + 2.0 * np.pi * np.round((ref - yaw[-1]) / (2.0 * np.pi))
 
 
 def lateral_accel(x_m: FloatArray, y_m: FloatArray, t_s: FloatArray) -> FloatArray:

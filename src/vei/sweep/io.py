@@ -291,6 +291,7 @@ def write_variant_configs(
     variants: pd.DataFrame,
     spec: SweepSpec,
     auto_shift_s: float | None,
+    reach_speed_mps: float | None = None,
 ) -> list[Path]:
     """One run-configuration YAML per variant row: ``folder/<variant_id>.yaml``.
 
@@ -312,7 +313,13 @@ def write_variant_configs(
         params = {n: row[n] for n in (*spec.names, *RIDER_PARAM_COLUMNS) if n in row}
         # Named by the variant id, the sweep's label of the variant: the perception's
         # random numbers are keyed by it (vei.policy.perception_random.label_keys).
-        cfg = variant_config(params, spec, auto_shift_s=auto_shift_s, name=str(row["variant_id"]))
+        cfg = variant_config(
+            params,
+            spec,
+            auto_shift_s=auto_shift_s,
+            name=str(row["variant_id"]),
+            reach_speed_mps=reach_speed_mps,
+        )
         doc = config_to_dict(cfg)
         header = (
             f"# vei run configuration of sweep variant {row['variant_id']} "

@@ -266,12 +266,16 @@ def run_sweep(
     ):
         raise ConfigError(f"chunk_size must be an integer >= 1, got {chunk_size!r}")
     if evaluator is None:
+        from vei.sweep.params import reach_sim, reach_speed_of
+
         evaluator = EngineEvaluator(
             time_shift_reference=spec.time_shift_reference,
             base=spec.base,
             reconstruction_samples=spec.reconstruction_samples,
             sample_seed=spec.seed,
             perception=spec.perception,
+            # continuations reach beyond the car at the sweep's largest cruise speed
+            sim=reach_sim(reach_speed_of(spec)),
         )
     if progress is None:
         progress = sys.stderr.isatty()
