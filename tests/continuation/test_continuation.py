@@ -181,7 +181,7 @@ def test_engine_uses_the_continuation() -> None:
     assert arr.rider_track.t_end_s == pytest.approx(8.0 + n * 0.05)
     assert arr.rider_recorded_span_s == (5.0, 8.0)
     assert arr.rider_path.end_x_m == pytest.approx(12.0 + 4.0 * n * 0.05)
-    assert arr.rider_sfm_entry_s == arr.rider_track.t0_s  # a moving run-in is ridden
+    assert arr.rider_sfm_entry_s == 5.0  # the run-in is replayed; the SFM from its start
     off = prepare_scenario(scen, SimConfig(continuation=ContinuationConfig(enabled=False)))
     assert (off.rider_track.t0_s, off.rider_track.t_end_s) == pytest.approx((5.0, 8.0))
     assert arr.n_steps == off.n_steps  # the simulated span is the recorded one

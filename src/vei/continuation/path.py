@@ -227,12 +227,26 @@ def sample(end: EndState, mov: Motion, path: FloatArray, decay_m: float) -> dict
         yaw = course + (off + slope * s) * np.exp(-s / length)
         yaw = yaw + (end.yaw_rad - (th[0] + off))  # = yaw at s = 0: joins unwrapped
     return {
-        "t_s": end.t_s + mov.t_rel_s,
+        "t_s": grid_times(end, mov.t_rel_s.size),
         "x_m": x,
         "y_m": y,
         "yaw_rad": yaw,
         "speed_mps": mov.speed_mps.copy(),
     }
+
+
+def grid_times(end: EndState, k: int) -> FloatArray:
+    """[k] the times of the k samples after the end sample [s]: on the track's grid,
+    written as (i + j) / rate like the recorded times ``i / rate`` where the step is a
+    whole-number rate (20 Hz: 0.05 s), so that the spacing is the recording's own."""
+    j = np.arange(1, k + 1)
+    if end.dt_s <= 0.0:
+        return end.t_s + j * 0.05
+    rate = 1.0 / end.dt_s
+    i_end = end.t_s * round(rate)
+    if abs(rate - round(rate)) < 1e-6 and abs(i_end - round(i_end)) < 1e-6:
+        return (round(i_end) + j) / float(round(rate))
+    return end.t_s + j * end.dt_s
 
 
 def run_in(

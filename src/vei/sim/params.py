@@ -239,7 +239,9 @@ class VariantParams:
 
             tr = arrays.rider_track
             v0, vmax = speed_from_recording(
-                recorded_column(tr, "speed_mps", arrays.rider_recorded_span_s),
+                recorded_column(
+                    tr, "speed_mps", getattr(arrays, "rider_recorded_span_s", (-math.inf, math.inf))
+                ),
                 sfm.lookahead_m,
                 sfm.sigma_m,
                 v0,
