@@ -79,7 +79,26 @@ DIGESTS = {
 }
 
 #: The same with continuations (the default since issue 22), recorded with its kernel.
-DIGESTS_CONTINUED: dict[str, str] = {}
+DIGESTS_CONTINUED: dict[str, str] = {
+    "cross/aggressive": "64790a931655852e8cad0c97db7fd9ec",
+    "cross/aggressive-cap": "ea355d8f95189e6fed653763b9ac3ca5",
+    "cross/mixed": "fad8f0463dd1f639c3ed8e479b79ae44",
+    "cross/normal": "01e03bf8d0e8ab7da02df2c6b44abea3",
+    "cross/normal-cap": "658105f5c349f247130a959d0bf73341",
+    "cross/replay": "d80a96483786a6c015c4f38b44a080df",
+    "demo/aggressive": "81409419693e061b278226e4b0340bd0",
+    "demo/aggressive-cap": "962fc0b1bc5e4f1cad138d277be0ac22",
+    "demo/mixed": "a35af06a4093646897942eb3951a7385",
+    "demo/normal": "da71deb88ee9b71f8d394219e20f3001",
+    "demo/normal-cap": "e9fc71f475155be05f018d1daf8702f8",
+    "demo/replay": "34065d7b71b9e7a094eac07602280028",
+    "riders/aggressive": "09516f7bbf084255d6c0b0f69f24bb07",
+    "riders/aggressive-cap": "2583d4b3f875ed0b5a5c071d7de9bcb5",
+    "riders/mixed": "3f7ddfa0df5df01569f311e4e9ac6238",
+    "riders/normal": "1b3eff6e444d1db2955fef51aa23b3c2",
+    "riders/normal-cap": "e54fc1fd43b804bdd54daf25fbac0c35",
+    "riders/replay": "07e6b13d0d00dedc48fbdca32b36ca73",
+}
 
 _EXTRA = (
     "extra_x_m", "extra_y_m", "extra_yaw_rad", "extra_speed_mps", "extra_accel_mps2",
