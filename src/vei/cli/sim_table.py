@@ -73,11 +73,14 @@ def print_summary(result, out: Path | None = None, console=None) -> None:
         ("impact speed [m/s]", "impact_speed_mps", ".2f"),
         ("injury risk", "injury_risk", ".3g"),
         ("verdict", "verdict", None),
-        # Could the car have known (issue 22), the relative-TTC safety index (28.7)
-        ("SI rel", "safety_index_rel", ".3f"),
-        ("first seen gap [m]", "first_seen_gap_m", ".1f"),
-        ("seen too late", "seen_too_late", None),
     ]
+    # could the car have known (issue 22): beside the collision; the relative-TTC safety
+    # index (issue 28.7): beside the paper's
+    cols.insert(2, ("seen too late", "seen_too_late", None))
+    cols.insert(
+        cols.index(("safety index", "safety_index", ".3f")) + 1,
+        ("SI rel", "safety_index_rel", ".3f"),
+    )
     from rich.markup import escape
 
     for head, _, _ in cols:
