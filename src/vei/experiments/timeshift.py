@@ -334,7 +334,17 @@ def find_time_shift(
     if not (np.isfinite(lo) and np.isfinite(hi)) or hi < lo:
         raise InputError(f"invalid time-shift search range ({lo}, {hi})", field="search_range_s")
     dt = f.dt_s
-    taus = lo + np.arange(int(np.floor((hi - lo) / dt + 1e-9)) + 1) * dt
+    # The grid is anchored where the shifts that bring the *recorded* route into the run
+    # begin, and runs on in whole steps to the range's ends: the same grid points with or
+    # without continuations (and whatever their length), so the same shift is found.
+    anchor, top = lo, hi
+    if search_range_s is None:  # (a recorded end within 1 us of the track's is the track's)
+        if f.rec_t_end_s < f.rider_t_end_s - 1e-6:
+            anchor = max(lo, float(t[0] - f.rec_t_end_s))
+        if f.rec_t0_s > f.rider_t0_s + 1e-6:
+            top = min(hi, float(t[-1] - f.rec_t0_s))
+    k0 = int(np.floor((anchor - lo) / dt + 1e-9))
+    taus = anchor + np.arange(-k0, int(np.floor((hi - anchor) / dt + 1e-9)) + 1) * dt
 
     d_grid, arg_grid = f.miss(taus, t, fx, fy)
     if not np.isfinite(d_grid).any():
@@ -353,7 +363,7 @@ def find_time_shift(
     ffy = np.interp(fine_t, t, fy)
     step_s, centre = dt / 4.0, tau0
     for _ in range(4):  # dt/4 -> dt/80 -> dt/1600 -> dt/32000 resolution
-        cand = np.clip(centre + np.arange(-20, 21) * step_s, lo, hi)
+        cand = np.clip(centre + np.arange(-20, 21) * step_s, anchor, top)
         d_fine, arg = f.miss(cand, fine_t, ffx, ffy)
         fbest = float(d_fine.min())
         fties = np.flatnonzero(d_fine <= fbest + 1e-9)
