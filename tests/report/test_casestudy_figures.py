@@ -223,3 +223,19 @@ def test_cap_band_has_a_legend_of_every_state_and_the_note_stays_in_its_panel():
         box = notes[0].get_window_extent(renderer)
         frame_box = ax.get_window_extent(renderer)
         assert box.x0 >= frame_box.x0 - 1 and box.x1 <= frame_box.x1 + 1, (box, frame_box)
+
+
+def test_birdseye_shades_the_run_in_and_run_out():
+    """Issue 22: the rider's continuation samples (column ``continuation``) are drawn as a
+    shaded band under its path (gid 'continuation'), NaN between run-in and run-out."""
+    frame = _frame()
+    rider = frame["agent_id"] == "s1"
+    frame["continuation"] = rider & (frame["t_s"] <= 0.5)  # the first active step: run-in
+    fig = plot_birdseye_configs(frame, other_id="s1")
+    lines = {ln.get_label(): ln for ln in fig.axes[0].get_lines()}
+    band = lines["run-in / run-out"]
+    assert band.get_gid() == "continuation" and band.get_alpha() == 0.25
+    ys = band.get_ydata()
+    assert ys[0] == -3.0 and np.isnan(ys[1:]).all()  # active rider steps: 0.5 (run-in), 1, 1.5
+    no = plot_birdseye_configs(_frame(), other_id="s1")
+    assert "run-in / run-out" not in {ln.get_label() for ln in no.axes[0].get_lines()}

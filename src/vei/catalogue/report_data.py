@@ -37,8 +37,20 @@ OVERVIEW_COLUMNS: tuple[tuple[str, str, str, str], ...] = (
     ("rec_min_gap_m", "rec. gap [m]", ".2f", "smallest same-time distance (recorded)"),
     ("time_shift_auto_s", "shift [s]", ".2f", "automatic time shift of the rider"),
     ("n_configs", "configs", "d", "simulated configurations (case study + sweep)"),
-    ("collision_share", "collision share", ".3f", "share of configurations that collide"),
-    ("mean_safety_index", "mean SI", ".3f", "mean safety index over the configurations"),
+    (
+        "n_flagged",
+        "seen too late",
+        "d",
+        "configurations in which the rider was first seen too late for any planner "
+        "(seen_too_late): counted apart, left out of every score",
+    ),
+    (
+        "collision_share",
+        "collision share",
+        ".3f",
+        "share of the unflagged configurations that collide",
+    ),
+    ("mean_safety_index", "mean SI", ".3f", "mean safety index over the unflagged configurations"),
     ("worst_min_gap_m", "worst gap [m]", ".2f", "smallest simulated box gap"),
     ("casestudy_collisions", "case-study collisions", "d", "of the paper's five configurations"),
 )
@@ -193,10 +205,16 @@ def _risk_map(rows: pd.DataFrame) -> dict[str, Any] | None:
     sw = rows[rows["kind"] == "sweep"]
     if len(sw) < 4 or x not in sw or y not in sw or sw[x].isna().all() or sw[y].isna().all():
         return None
-    xs, ys = sw[x].to_numpy(float), sw[y].to_numpy(float)
+    from vei.metrics.seen import flagged_mask
+
+    flag = flagged_mask(sw)  # never coloured by: marked (points.flagged)
+    xs_all, ys_all = sw[x].to_numpy(float), sw[y].to_numpy(float)
     n = int(np.clip(np.sqrt(len(sw) / 6.0), 3, 15))
-    xe = np.linspace(xs.min(), xs.max(), n + 1)
-    ye = np.linspace(ys.min(), ys.max(), n + 1)
+    xe = np.linspace(xs_all.min(), xs_all.max(), n + 1)
+    ye = np.linspace(ys_all.min(), ys_all.max(), n + 1)
+    coll_all = sw["collision"].astype(bool).to_numpy()
+    sw = sw[~flag]
+    xs, ys = sw[x].to_numpy(float), sw[y].to_numpy(float)
     si = sw["safety_index"].to_numpy(float)
     fin = np.isfinite(si)  # NaN: the shifted rider never met the ego in the simulated span
     num, _, _ = np.histogram2d(xs[fin], ys[fin], bins=[xe, ye], weights=si[fin])
@@ -218,7 +236,8 @@ def _risk_map(rows: pd.DataFrame) -> dict[str, Any] | None:
         "x_label": "time-shift offset to the automatic shift [s]",
         "y_label": "ego cruise speed [m/s]",
         "n": int(len(sw)),
-        "points": {"x": xs, "y": ys, "collision": sw["collision"].astype(bool).to_numpy()},
+        "n_flagged": int(flag.sum()),
+        "points": {"x": xs_all, "y": ys_all, "collision": coll_all, "flagged": flag},
     }
 
 
@@ -391,10 +410,13 @@ def collect(catalogue_dir: str | Path) -> dict[str, Any]:
                             "collision",
                             "collision_time_s",
                             "safety_index",
+                            "safety_index_rel",
                             "min_gap_m",
                             "min_ttc_s",
                             "peak_decel_mps2",
                             "ego_speed_std_mps",
+                            "first_seen_gap_m",
+                            "seen_too_late",
                         )
                     }
                     for c in summary["configs"]

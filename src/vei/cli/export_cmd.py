@@ -27,6 +27,19 @@ def _safe_stem(text: str) -> str:
     return stem or "vei_scenario"
 
 
+def replay_trajectories(scenario):  # type: ignore[no-untyped-def]
+    """The trajectories the replay export plays: the recorded ones with every road user's
+    run-in and run-out (vei.continuation, default settings), over the recorded span
+    [0, last recorded time] (continuation samples outside it are left out)."""
+    from vei.continuation import recorded_rows, with_continuations
+
+    cont = with_continuations(scenario)
+    traj = cont.trajectories
+    t_end = float(recorded_rows(traj)["t_s"].max())
+    t = traj["t_s"].to_numpy(dtype=float)
+    return traj[(t >= -1e-9) & (t <= t_end + 1e-9)].reset_index(drop=True)
+
+
 def export_scenario(
     scenario_dir: Path,
     out_dir: Path,
@@ -56,8 +69,8 @@ def export_scenario(
         base = scenario.root if scenario.root is not None else Path(scenario_dir)
         xodr = base / scenario.maps["opendrive"]
     if config is None:
-        traj = scenario.trajectories
-        label = "replay of the recorded trajectories"
+        traj = replay_trajectories(scenario)
+        label = "replay of the recorded trajectories with their run-ins and run-outs"
         name = _safe_stem(scenario.id)
     else:
         # the same configuration loading and engine run as `vei run`

@@ -104,10 +104,23 @@ def print_summary(result, out: Path | None = None, console=None) -> None:
         ("injury risk", "injury_risk", ".3g"),
         ("verdict", "verdict", None),
     ]
-    cells = [
-        [_cell(rec, key, fmt) for _, key, fmt in cols] for rec in summary_records(result.summary)
-    ]
+    # could the car have known (issue 22): beside the collision; the relative-TTC safety
+    # index (issue 28.7): beside the paper's
+    cols.insert(2, ("seen too late", "seen_too_late", None))
+    cols.insert(
+        cols.index(("safety index", "safety_index", ".3f")) + 1,
+        ("SI rel", "safety_index_rel", ".3f"),
+    )
+    records = summary_records(result.summary)
+    cells = [[_cell(rec, key, fmt) for _, key, fmt in cols] for rec in records]
     console.print(summary_table(title, [head for head, _, _ in cols], cells, console.width))
+    flagged = [r["name"] for r in records if r.get("seen_too_late")]
+    if flagged:
+        console.print(
+            "seen too late (no planner could have reacted: first seen within the "
+            "reaction time of contact or closer than the stopping distance): "
+            f"{', '.join(flagged)}"
+        )
     crit = getattr(result, "criticality", None) or {}
     for key in ("perturbation_message", "message"):
         if crit.get(key):

@@ -249,10 +249,20 @@ def sweep(
         import pyarrow.parquet as pq
 
         have = set(pq.read_schema(result.results).names)
-        res = read_results(out, columns=[c for c in ("collision", "safety_index") if c in have])
+        wanted = ("collision", "safety_index", "seen_too_late", "impact_speed_mps")
+        res = read_results(out, columns=[c for c in wanted if c in have])
         if "collision" in res:
             table.add_row(
                 "collisions", f"{int(res['collision'].sum())} ({res['collision'].mean():.1%})"
+            )
+        if "seen_too_late" in res:  # issue 22: counted apart, never ranked
+            from vei.metrics.seen import flag_counts
+
+            fc = flag_counts(res)
+            table.add_row(
+                "seen too late (not ranked)",
+                f"{fc['flagged']} ({fc['flagged_share']:.1%}); collisions among them "
+                f"{fc['collisions_flagged']}, unflagged collisions {fc['collisions_unflagged']}",
             )
         if "safety_index" in res:
             table.add_row("mean safety index", f"{res['safety_index'].mean():.3f}")

@@ -14,6 +14,7 @@ presets, the settings table, and files read into them.
 nothing of vei but vei.errors and vei.types (DESIGN.md, dependency direction).
 """
 
+from vei.config.continuation import ContinuationConfig
 from vei.config.load import config_to_dict, load_config
 from vei.config.metrics import MetricsConfig
 from vei.config.models import (
@@ -64,6 +65,7 @@ __all__ = [
     "BrakingLaw",
     "CAPConfig",
     "CaseConfig",
+    "ContinuationConfig",
     "DesiredVelocityForm",
     "EgoConfig",
     "EgoMode",

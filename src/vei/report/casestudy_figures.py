@@ -451,6 +451,19 @@ def plot_birdseye_configs(
             label=f"{other_id} (sim)",
             zorder=5,
         )
+        if "continuation" in rider and rider["continuation"].astype(bool).any():
+            # its run-in and run-out (vei.continuation): not recorded, marked
+            cont = rider["continuation"].to_numpy(bool)
+            ax.plot(
+                np.where(cont, rider["x_m"].to_numpy(), np.nan),
+                np.where(cont, rider["y_m"].to_numpy(), np.nan),
+                "-",
+                color="tab:green",
+                lw=6.0,
+                alpha=0.25,
+                label="run-in / run-out",
+                zorder=4,
+            ).__getitem__(0).set_gid("continuation")
         hit = rider[rider["collided"].astype(bool)]
         if len(hit):
             t_hit = float(hit["t_s"].iloc[0])
@@ -483,8 +496,8 @@ def plot_birdseye_configs(
     if axes:
         axes[0].legend(fontsize=7, loc="best")
     fig.suptitle(
-        f"Bird's-eye view: ego (red), original keyframes (dashed black), simulated {other_id} (dashed green); "
-        "dots every 1 s coloured by time",
+        f"Bird's-eye view: ego (red), original keyframes (dashed black), simulated {other_id} (dashed green; "
+        "shaded: its run-in / run-out); dots every 1 s coloured by time",
         fontsize=10,
     )
     fig.tight_layout(rect=(0.0, 0.0, 0.92, 0.97))

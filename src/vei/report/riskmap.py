@@ -27,6 +27,8 @@ def risk_map_figure(
     vmin: float = 0.0,
     vmax: float = 1.0,
     cmap: str = "RdYlGn",
+    flagged_x: np.ndarray | None = None,
+    flagged_y: np.ndarray | None = None,
 ):
     """Build the risk-map figure.
 
@@ -40,6 +42,9 @@ def risk_map_figure(
         x_label, y_label, value_label, title: texts.
         vmin, vmax: colour scale of ``value``; cmap: its matplotlib colormap (default
             red-yellow-green, high = green; 'RdYlGn_r' where high is bad).
+        flagged_x, flagged_y: optional [M] runs flagged ``seen_too_late`` (no planner
+            could have reacted, vei.metrics.seen): left out of ``value`` by the caller and
+            drawn here as grey plus signs (gid 'flagged').
 
     Returns:
         the matplotlib Figure (Agg canvas).
@@ -72,6 +77,12 @@ def risk_map_figure(
             sx[~col], sy[~col], marker=".", s=6, c="white", edgecolors="none", label="no collision"
         )
         b.set_gid("safe")
+    if flagged_x is not None and flagged_y is not None and len(flagged_x):
+        f = ax.scatter(
+            np.asarray(flagged_x, float), np.asarray(flagged_y, float), marker="+", s=14,
+            c="dimgrey", linewidths=0.6, label="seen too late (not coloured)",
+        )  # fmt: skip
+        f.set_gid("flagged")
     seg = np.asarray(segments, float).reshape(-1, 2, 2)
     lc = LineCollection(seg, colors="black", linewidths=2.0, label="collision boundary")
     lc.set_gid("boundary")

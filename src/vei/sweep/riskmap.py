@@ -94,6 +94,7 @@ def sweep_risk_map(
     if axes is None or not {"safety_index", "collision"} <= set(results.columns):
         return None
     x, y = axes
+    results, flagged = _unflagged(results, x, y)
     binned = _binned(results, spec, x, y, "safety_index", bins)
     segments, crossings = share_boundary(binned)
     n_sc = results["scenario_id"].nunique() if "scenario_id" in results else 1
@@ -106,7 +107,8 @@ def sweep_risk_map(
         x_label=x,
         y_label=y,
         title=f"mean safety index of {len(results)} variants ({n_sc} scenario(s)); "
-        "boundary: collision share 0.5",
+        "boundary: collision share 0.5" + _flag_note(flagged),
+        **flagged,
     )
     return {"x": x, "y": y, "binned": binned, "segments": segments, "crossings": crossings}
 
@@ -142,8 +144,9 @@ def sweep_severity_map(
     if axes is None or not {value, "collision"} <= set(results.columns):
         return None
     x, y = axes
-    # One binning for the boundary (every variant) and the value (the rows that have one):
-    # the bin count follows the whole sweep, never the rows left after dropping NaNs.
+    results, flagged = _unflagged(results, x, y)
+    # One binning for the boundary (every unflagged variant) and the value (the rows that
+    # have one): the bin count follows the sweep, never the rows left after dropping NaNs.
     bins = default_bins(len(results)) if bins is None else bins
     binned = _binned(results, spec, x, y, "collision", bins)
     v = results[value].to_numpy(float)
@@ -174,9 +177,31 @@ def sweep_severity_map(
         vmax=vmax,
         cmap="RdYlGn_r",
         title=f"{label} of {len(results)} variants ({n_sc} scenario(s)); "
-        "boundary: collision share 0.5",
+        "boundary: collision share 0.5" + _flag_note(flagged),
+        **flagged,
     )
     return {"x": x, "y": y, "value": value, "binned": binned, "segments": segments}
+
+
+def _unflagged(results: pd.DataFrame, x: str, y: str) -> tuple[pd.DataFrame, dict[str, np.ndarray]]:
+    """(the rows not flagged ``seen_too_late``, {'flagged_x', 'flagged_y'}: where the
+    flagged ones lie). A map never colours by a run no planner could have reacted to
+    (vei.metrics.seen): it marks them instead."""
+    from vei.metrics.seen import flagged_mask
+
+    flag = flagged_mask(results)
+    if not flag.any():
+        return results, {}
+    pts = {
+        "flagged_x": results[x].to_numpy(float)[flag],
+        "flagged_y": results[y].to_numpy(float)[flag],
+    }
+    return results[~flag], pts
+
+
+def _flag_note(flagged: dict[str, np.ndarray]) -> str:
+    n = len(flagged.get("flagged_x", ()))
+    return f"\n{n} run(s) seen too late: marked +, not coloured" if n else ""
 
 
 def _centre_edges(c: np.ndarray) -> np.ndarray:

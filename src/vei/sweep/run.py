@@ -251,12 +251,16 @@ def run_sweep(
     ):
         raise ConfigError(f"chunk_size must be an integer >= 1, got {chunk_size!r}")
     if evaluator is None:
+        from vei.sweep.params import reach_sim, reach_speed_of
+
         evaluator = EngineEvaluator(
             time_shift_reference=spec.time_shift_reference,
             base=spec.base,
             reconstruction_samples=spec.reconstruction_samples,
             sample_seed=spec.seed,
             perception=spec.perception,
+            # continuations reach beyond the car at the sweep's largest cruise speed
+            sim=reach_sim(reach_speed_of(spec)),
         )
     dirs = (
         find_scenarios(scenarios)
@@ -342,6 +346,10 @@ def run_sweep(
                     per_point, risk["x"], risk["y"], out / "reconstruction_share.png"
                 )
         timings["post"] = time.perf_counter() - t_post
+        from vei.metrics.seen import flag_counts
+
+        # runs no planner could have reacted to (vei.metrics.seen), counted apart
+        manifest["seen_too_late"] = flag_counts(results)
         manifest["status"] = "complete"
         manifest["updated_utc"] = datetime.now(UTC).isoformat(timespec="seconds")
         manifest["timings_s"] = {k: round(v, 3) for k, v in timings.items()}
@@ -366,6 +374,8 @@ _POST_COLUMNS = (
     "safety_index",
     "min_gap_m",
     "injury_risk",
+    "impact_speed_mps",
+    "seen_too_late",
 )
 
 

@@ -198,9 +198,12 @@
 
   function drawSummary(e) {
     var cols = ["name", "collision", "collision_time_s", "safety_index", "min_gap_m", "min_ttc_s", "peak_decel_mps2", "ego_speed_std_mps"];
+    // issue 22 / 28.7: the relative-TTC safety index and whether the rider was seen too late
+    cols = cols.concat(["safety_index_rel", "first_seen_gap_m", "seen_too_late"]);
     /* short headers that wrap at their spaces: the table fits its panel (it was cut off) */
     var heads = { name: "config", collision: "collision", collision_time_s: "t collision [s]", safety_index: "safety index",
-                  min_gap_m: "min gap [m]", min_ttc_s: "min TTC [s]", peak_decel_mps2: "peak decel [m/s\u00b2]", ego_speed_std_mps: "speed std [m/s]" };
+                  min_gap_m: "min gap [m]", min_ttc_s: "min TTC [s]", peak_decel_mps2: "peak decel [m/s\u00b2]", ego_speed_std_mps: "speed std [m/s]",
+                  safety_index_rel: "SI rel", first_seen_gap_m: "first seen gap [m]", seen_too_late: "seen too late" };
     var h = "<table><thead><tr>" + cols.map(function (c) { return "<th title=\"" + c + "\">" + (heads[c] || c) + "</th>"; }).join("") + "</tr></thead><tbody>";
     e.summary.forEach(function (r) {
       h += "<tr>" + cols.map(function (c) {
@@ -256,6 +259,11 @@
       { x: m.points.x.filter(function (_, i) { return coll[i]; }), y: m.points.y.filter(function (_, i) { return coll[i]; }),
         mode: "markers", name: "collision", marker: { symbol: "x", color: "#000", size: 5 } }
     ];
+    var flag = m.points.flagged;  // runs seen too late: never coloured, marked
+    if (flag && m.n_flagged) {
+      traces.push({ x: m.points.x.filter(function (_, i) { return flag[i]; }), y: m.points.y.filter(function (_, i) { return flag[i]; }),
+        mode: "markers", name: "seen too late (not coloured)", marker: { symbol: "cross-thin-open", color: "#666", size: 7 } });
+    }
     Plotly.newPlot(el, traces, lay({ xaxis: { title: { text: m.x_label } }, yaxis: { title: { text: m.y_label } }, showlegend: true,
       legend: { x: 0, y: 1.12, orientation: "h" } }), CONF);
   }
