@@ -4,9 +4,10 @@ long time series (:func:`mark_frame`), for any backend.
 A replayed road user (the primary rider in a replay configuration, every other road user,
 an extra rider in a replay configuration) is on its continuation while its recording
 time lies outside its recorded span: t - shift for the primary rider, t for the others.
-A social-force rider has no recording time of its own: it is on its continuation where
-its position is nearest to a continuation sample of its track (its run-in before the
-recorded route, its run-out after it). The ego is never on one.
+A social-force rider rides its run-in replayed (vei.sim.riders.sfm_entry_s), so it is on
+its continuation before its recorded span too; from then on it has no recording time of
+its own: it is on its run-out where its position is nearest to a continuation sample of
+its track. The ego is never on one.
 """
 
 from __future__ import annotations
@@ -74,10 +75,8 @@ def mark_frame(
 
                 _, j = cKDTree(pts).query(q[ok])
                 near[ok] = lab[j]
-            # waiting replayed on a standing run-in (vei.sim.riders.sfm_entry_s)
-            rep = scenario.extra.get("continuation", {}).get("agents", {}).get(aid, {})
-            if rep.get("run_in", {}).get("kind") == "standing":
-                near |= t_rec[sfm] < lo - _EPS_S
+            # replayed on its run-in until its first recorded sample (sfm_entry_s)
+            near |= t_rec[sfm] < lo - _EPS_S
             sub = on.copy()
             sub[sfm] = near
             on = sub

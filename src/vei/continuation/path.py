@@ -224,14 +224,29 @@ def sample(end: EndState, mov: Motion, path: FloatArray, decay_m: float) -> dict
         th = np.unwrap(path[:, 2])
         k_path = float((th[1] - th[0]) / (arc[1] - arc[0])) if arc.size > 1 else 0.0
         slope = off / length + end.yaw_curvature_per_m - k_path
-        yaw = wrap(course + (off + slope * s) * np.exp(-s / length))
+        yaw = course + (off + slope * s) * np.exp(-s / length)
+        yaw = yaw + (end.yaw_rad - (th[0] + off))  # = yaw at s = 0: joins unwrapped
     return {
-        "t_s": end.t_s + mov.t_rel_s,
+        "t_s": grid_times(end, mov.t_rel_s.size),
         "x_m": x,
         "y_m": y,
         "yaw_rad": yaw,
         "speed_mps": mov.speed_mps.copy(),
     }
+
+
+def grid_times(end: EndState, k: int) -> FloatArray:
+    """[k] the times of the k samples after the end sample [s]: on the track's grid,
+    written as (i + j) / rate like the recorded times ``i / rate`` where the step is a
+    whole-number rate (20 Hz: 0.05 s), so that the spacing is the recording's own."""
+    j = np.arange(1, k + 1)
+    if end.dt_s <= 0.0:
+        return end.t_s + j * 0.05
+    rate = 1.0 / end.dt_s
+    i_end = end.t_s * round(rate)
+    if abs(rate - round(rate)) < 1e-6 and abs(i_end - round(i_end)) < 1e-6:
+        return (round(i_end) + j) / float(round(rate))
+    return end.t_s + j * end.dt_s
 
 
 def run_in(
@@ -243,7 +258,7 @@ def run_in(
         -np.asarray(t_s, dtype=np.float64)[::-1],
         np.asarray(x_m, dtype=np.float64)[::-1],
         np.asarray(y_m, dtype=np.float64)[::-1],
-        np.asarray(wrap(np.asarray(yaw_rad, dtype=np.float64) + np.pi))[::-1],
+        (np.asarray(yaw_rad, dtype=np.float64) + np.pi)[::-1],
         np.asarray(speed_mps, dtype=np.float64)[::-1],
     )
 
@@ -254,9 +269,16 @@ def reverse_samples(samples: dict[str, FloatArray]) -> dict[str, FloatArray]:
         "t_s": -samples["t_s"][::-1],
         "x_m": samples["x_m"][::-1],
         "y_m": samples["y_m"][::-1],
-        "yaw_rad": wrap(samples["yaw_rad"] - np.pi)[::-1],
+        "yaw_rad": (samples["yaw_rad"] - np.pi)[::-1],
         "speed_mps": samples["speed_mps"][::-1],
     }
+
+
+def near_turn(yaw: FloatArray, ref: float) -> FloatArray:
+    """``yaw`` shifted by whole turns so that its last element lies within pi of ``ref``."""
+    if yaw.size == 0 or not math.isfinite(ref):
+        return yaw
+    return yaw + 2.0 * np.pi * np.round((ref - yaw[-1]) / (2.0 * np.pi))
 
 
 def lateral_accel(x_m: FloatArray, y_m: FloatArray, t_s: FloatArray) -> FloatArray:

@@ -26,6 +26,7 @@ import pandas as pd
 
 from vei.config.continuation import ContinuationConfig
 from vei.continuation.tracks import continue_track
+from vei.errors import InputError
 from vei.types import CONTINUATION_COLUMN, EGO_ID, Scenario
 
 #: Key of Scenario.extra holding the continuation report.
@@ -100,13 +101,26 @@ def map_features(scenario: Scenario, cfg: ContinuationConfig) -> tuple[Any, Any]
     if cfg.follow_roads and xodr and (scenario.root / xodr).is_file():
         from vei.continuation.lanes import load_lanes
 
-        lanes = load_lanes(scenario.root / xodr)
+        try:
+            lanes = load_lanes(scenario.root / xodr)
+        except InputError as exc:  # a broken map: the free continuation; the error is kept
+            lanes = _Unusable(str(exc))
     osm = scenario.maps.get("osm")
     if cfg.avoid_buildings and osm and (scenario.root / osm).is_file():
         from vei.continuation.buildings import load_buildings
 
-        buildings = load_buildings(scenario.root / osm, scenario.projection)
+        try:
+            buildings = load_buildings(scenario.root / osm, scenario.projection)
+        except InputError as exc:
+            buildings = _Unusable(str(exc))
     return lanes, buildings
+
+
+class _Unusable:
+    """A map file the continuations could not read (its error, for the report)."""
+
+    def __init__(self, error: str) -> None:
+        self.error = error
 
 
 def with_continuations(
@@ -140,6 +154,13 @@ def with_continuations(
         scenario = strip_continuations(scenario)
     reach = cfg.reach_m(v)
     lanes, buildings = map_features(scenario, cfg)
+    map_report: dict[str, Any] = {"lanes": lanes is not None, "buildings": buildings is not None}
+    for key, feat in (("lanes", lanes), ("buildings", buildings)):
+        if isinstance(feat, _Unusable):
+            map_report[key] = False
+            map_report[f"{key}_error"] = feat.error
+    lanes = None if isinstance(lanes, _Unusable) else lanes
+    buildings = None if isinstance(buildings, _Unusable) else buildings
     traj = scenario.trajectories
     rec = traj.assign(**{CONTINUATION_COLUMN: False})
     added = []
@@ -192,7 +213,7 @@ def with_continuations(
     extra[EXTRA_KEY] = {
         "settings": settings,
         "reach_m": reach,
-        "map": {"lanes": lanes is not None, "buildings": buildings is not None},
+        "map": map_report,
         "agents": report,
     }
     return dataclasses.replace(scenario, trajectories=out, extra=extra)

@@ -26,6 +26,7 @@ from vei.continuation.path import (
     end_state,
     free_path,
     motion,
+    near_turn,
     path_arc,
     reverse_samples,
     run_in,
@@ -208,4 +209,7 @@ def continue_track(
     kw: dict[str, Any] = {"reach_m": reach_m, "cfg": cfg, "lanes": lanes, "buildings": buildings}
     rev, rep_in = continue_end(*run_in(t_s, x_m, y_m, yaw_rad, speed_mps), **kw)
     out, rep_out = continue_end(t_s, x_m, y_m, yaw_rad, speed_mps, **kw)
-    return reverse_samples(rev), out, {"run_in": rep_in, "run_out": rep_out}
+    before = reverse_samples(rev)
+    yaw0 = float(np.asarray(yaw_rad, dtype=np.float64)[0])
+    before["yaw_rad"] = near_turn(before["yaw_rad"], yaw0)  # the recording's own turns
+    return before, out, {"run_in": rep_in, "run_out": rep_out}

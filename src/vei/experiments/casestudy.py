@@ -237,20 +237,11 @@ def continuation_sim(sim: SimConfig, cases: Sequence[CaseConfig], scenario: Scen
 
 
 def parse_time_shift(value: str | float | None) -> float | str:
-    """'auto' (or None) -> 'auto'; a number or numeric text -> float seconds (ConfigError otherwise)."""
-    if value is None:
-        return "auto"
-    if isinstance(value, str):
-        if value.strip().lower() == "auto":
-            return "auto"
-        try:
-            value = float(value)
-        except ValueError:
-            raise ConfigError(f"--time-shift must be 'auto' or seconds, got {value!r}") from None
-    shift = float(value)
-    if not np.isfinite(shift):
-        raise ConfigError(f"time shift must be finite, got {value!r}")
-    return shift
+    """'auto' (or None) -> 'auto'; a number or numeric text -> float seconds
+    (:func:`vei.experiments.timeshift.parse_time_shift`; InputError otherwise)."""
+    from vei.experiments.timeshift import parse_time_shift as parse
+
+    return "auto" if value is None else parse(value)
 
 
 # ------------------------------------------------------------------------------ backends

@@ -121,3 +121,50 @@ def safety_index_rel(a: TraceArrays, cfg: MetricsConfig) -> FloatArray:
     with np.errstate(divide="ignore", invalid="ignore"):
         index = np.where(n_all > 0, n_ok / np.maximum(n_all, 1), np.nan)
     return np.where(coll.any(axis=1), 0.0, index)
+
+
+#: The flag's column in summaries, sweep results and catalogues.
+FLAG_COLUMN = "seen_too_late"
+
+
+def flagged_mask(table: object) -> npt.NDArray[np.bool_]:
+    """[N] the rows of a results table (DataFrame) flagged ``seen_too_late`` (all False
+    when the table has no such column, e.g. one written before the flag existed)."""
+    import pandas as pd
+
+    assert isinstance(table, pd.DataFrame)
+    if FLAG_COLUMN not in table.columns:
+        return np.zeros(len(table), dtype=bool)
+    return table[FLAG_COLUMN].fillna(False).to_numpy(dtype=bool)
+
+
+def flag_counts(table: object) -> dict[str, float | int]:
+    """How many runs of a results table are flagged ``seen_too_late``, counted apart:
+    {'runs', 'flagged', 'flagged_share', 'collisions', 'collisions_flagged',
+    'collisions_unflagged', 'collisions_without_approach', 'collisions_without_approach_unflagged'}
+    (a collision without approach: impact speed NaN, the rider appeared in contact)."""
+    import pandas as pd
+
+    assert isinstance(table, pd.DataFrame)
+    flag = flagged_mask(table)
+    n = len(table)
+    hit = (
+        table["collision"].fillna(False).to_numpy(dtype=bool)
+        if "collision" in table
+        else np.zeros(n, dtype=bool)
+    )
+    no_app = (
+        hit & ~np.isfinite(table["impact_speed_mps"].to_numpy(dtype=np.float64))
+        if "impact_speed_mps" in table
+        else np.zeros(n, dtype=bool)
+    )
+    return {
+        "runs": int(n),
+        "flagged": int(flag.sum()),
+        "flagged_share": float(flag.mean()) if n else float("nan"),
+        "collisions": int(hit.sum()),
+        "collisions_flagged": int((hit & flag).sum()),
+        "collisions_unflagged": int((hit & ~flag).sum()),
+        "collisions_without_approach": int(no_app.sum()),
+        "collisions_without_approach_unflagged": int((no_app & ~flag).sum()),
+    }

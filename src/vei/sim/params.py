@@ -266,7 +266,9 @@ class VariantParams:
             v0, vmax = speed_from_recording(
                 moving
                 if moving is not None
-                else recorded_column(tr, "speed_mps", arrays.rider_recorded_span_s),
+                else recorded_column(
+                    tr, "speed_mps", getattr(arrays, "rider_recorded_span_s", (-math.inf, math.inf))
+                ),
                 sfm.lookahead_m,
                 sfm.sigma_m,
                 v0,

@@ -263,14 +263,15 @@ def prepare_extra_riders(
 
 
 def sfm_entry_s(scenario: Scenario, agent_id: str, track: TimeTable) -> float:
-    """Recording time [s] from which a social-force rider is driven by its forces: the
-    start of its track (its run-in: it rides in), except where its run-in stands
-    (vei.continuation: a rider standing at its first recorded sample waits there until
-    then, replayed; a social-force rider would ride off at once and arrive early)."""
-    rep = scenario.extra.get("continuation", {}).get("agents", {}).get(agent_id, {})
-    if rep.get("run_in", {}).get("kind") == "standing":
-        return float(recorded_span_s(scenario, agent_id)[0])
-    return float(track.t0_s)
+    """Recording time [s] from which a social-force rider is driven by its forces: its
+    first *recorded* sample. Before it the rider rides (or stands on) its run-in replayed
+    (vei.continuation): present and seen, on the time line of its recording, so that the
+    social force takes over where and when it did without a run-in (a rider faster than
+    its recording would otherwise gain on it over the whole run-in, and the time shift,
+    found under replay, would no longer bring it to the car). The run-in keeps beyond the
+    car's reach, where the vehicle force (A exp(-b d), 4e-6 N at 5 m) is nil anyway."""
+    first = recorded_span_s(scenario, agent_id)[0]
+    return float(first) if np.isfinite(first) else float(track.t0_s)
 
 
 # --------------------------------------------------------------------------------------
