@@ -346,8 +346,7 @@ def reach_speed_of(spec: SpecLike) -> float | None:
     beyond the car's reach at this speed (vei.config.ContinuationConfig.ego_speed_mps), in
     the sweep and in each variant's run configuration alike. A cruise speed drawn from a
     ``variation:`` distribution reaches for its 99.9 % quantile
-    (:data:`REACH_QUANTILE`); one whose mean is each scenario's 'recorded' speed is not
-    known before the scenario is read: None (the recorded speed, docs/continuations.md)."""
+    (:data:`REACH_QUANTILE`)."""
     if CRUISE_PARAM not in spec.names:
         return None
     drawn = dict(getattr(spec, "variation", ()) or ())
