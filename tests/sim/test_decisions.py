@@ -17,14 +17,19 @@ from vei.sim.testing import crossing_scenario
 
 KERNELS = ["numpy", pytest.param("numba", marks=pytest.mark.slow)]
 # the crossing scene at 4 m/s: the e-scooter (1.2 x 0.6 m) crosses the ego's lane at
-# x = 60 m, 8 s late; the sedan (4.7 x 1.85 m) at 4 m/s
+# x = 60 m, its centre there 13.41 s into the run; the sedan (4.7 x 1.85 m) at 4 m/s. Its
+# recording starts 30 m before the lane (not 15 m): a social-force rider takes over at its
+# first recorded sample (vei.sim.riders.sfm_entry_s), and it must do so before the
+# decision horizon (4 s, 17.6 m at 4.4 m/s) so that the decision falls at the horizon.
 HZ_R = 0.925 + 0.6  # the zone along the rider's path (perpendicular crossing)
 HZ_E = 0.3 + 2.35  # along the ego's
+SHIFT_S = 8.0 - 15.0 / 4.4  # as a 15 m recording's 8 s shift
 
 
 @pytest.fixture(scope="module")
 def arrays():
-    return prepare_scenario(crossing_scenario(ego_speed_mps=4.0), SimConfig())
+    scene = crossing_scenario(ego_speed_mps=4.0, rider_y0_m=-30.0, rider_y1_m=15.0)
+    return prepare_scenario(scene, SimConfig())
 
 
 def _params(arrays, t_c: float | None, **decision) -> VariantParams:
@@ -33,7 +38,7 @@ def _params(arrays, t_c: float | None, **decision) -> VariantParams:
         case = dataclasses.replace(
             case, decision=DecisionConfig(enabled=True, critical_gap_s=t_c, **decision)
         )
-    return VariantParams.from_case(case, arrays, 1, time_shift_s=8.0, cruise_speed_mps=4.0)
+    return VariantParams.from_case(case, arrays, 1, time_shift_s=SHIFT_S, cruise_speed_mps=4.0)
 
 
 def test_the_crossing_is_one_conflict(arrays) -> None:
@@ -98,7 +103,7 @@ def test_both_kernels_agree_with_decisions(arrays) -> None:
 
 
 def test_decisions_off_change_nothing(arrays) -> None:
-    base = VariantParams.from_case(case_preset("paper-normal"), arrays, 1, time_shift_s=8.0)
+    base = VariantParams.from_case(case_preset("paper-normal"), arrays, 1, time_shift_s=SHIFT_S)
     off = base.with_values(critical_gap_s=5.0, decision_horizon_s=9.0, yield_decel_mps2=3.0)
     a = simulate(arrays, VariantParams.concat([base, off]), kernel="numpy")
     for name in ("rider_x_m", "rider_y_m", "rider_speed_mps", "ego_speed_mps"):
