@@ -453,6 +453,7 @@ def search_boundary(
             time_shift_reference=spec.time_shift_reference,
             base=spec.base,
             perception=spec.perception,
+            v2x=spec.v2x,
         )
     prepared = evaluator.prepare(Path(scenario_dir))
     sid = evaluator.scenario_id(prepared)

@@ -272,6 +272,7 @@ def run_sweep(
             reconstruction_samples=spec.reconstruction_samples,
             sample_seed=spec.seed,
             perception=spec.perception,
+            v2x=spec.v2x,
         )
     if progress is None:
         progress = sys.stderr.isatty()

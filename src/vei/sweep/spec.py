@@ -29,6 +29,9 @@ A sweep spec is a YAML (or JSON) mapping loaded into frozen dataclasses at the e
     perception: {enabled: true, fov_deg: 60.0, detection_probability: 0.7}
                                      # optional: the ego's sensor model for every variant
                                      # (the run config's case.perception keys)
+    v2x: {enabled: true, technology: its-g5}
+                                     # optional: V2X for every variant (the run config's
+                                     # case.v2x keys; v2x.* parameters need it enabled)
 
 A parameter's name is the path of its field in the run configuration (``cap.t_safe_s``,
 ``sfm.k_des_nspm``, ``ego.policy_params.ttc_full_s``; :mod:`vei.sweep.params`);
@@ -67,6 +70,7 @@ from vei.calibrate.population import (
 )
 from vei.config import CASE_PRESETS, RiderPopulationConfig
 from vei.config.perception import PerceptionConfig
+from vei.config.v2x import V2XConfig
 from vei.errors import ConfigError, InputError
 from vei.sweep.ids import (  # noqa: F401 - variant_id/_seed part of this API
     name_variants,
@@ -89,6 +93,7 @@ from vei.sweep.params import (  # noqa: F401 - part of this module's API
     check_aeb_rows,
     check_name,
     parse_perception,
+    parse_v2x,
     resolve_policy,
     variant_config,
 )
@@ -159,6 +164,8 @@ class SweepSpec:
             a_veh_n / b_veh_per_m / v0_mps / mass_kg (the population sets them).
         perception: the ego's sensor model for every variant (the run config's
             ``case.perception``); None: the base configuration's.
+        v2x: V2X for every variant (the run config's ``case.v2x``); None: the base
+            configuration's (off). Swept ``v2x.*`` parameters need it enabled.
         source: file it was loaded from, if any (for messages).
     """
 
@@ -171,6 +178,7 @@ class SweepSpec:
     reconstruction_samples: int | None = None
     rider: RiderPopulationConfig | None = None
     perception: PerceptionConfig | None = None
+    v2x: V2XConfig | None = None
     source: str | None = field(default=None, compare=False)
 
     def _check_policy_params(self, where: str) -> None:
@@ -240,6 +248,14 @@ class SweepSpec:
             raise ConfigError(f"{where}: a parameter is given twice: {names}")
         if self.perception is not None and not isinstance(self.perception, PerceptionConfig):
             raise ConfigError(f"{where}: perception must be a PerceptionConfig or None")
+        if self.v2x is not None and not isinstance(self.v2x, V2XConfig):
+            raise ConfigError(f"{where}: v2x must be a V2XConfig or None")
+        swept_v2x = [n for n in names if n.startswith("v2x.")]
+        if swept_v2x and (self.v2x is None or not self.v2x.enabled):
+            raise ConfigError(
+                f"{where}: parameters {', '.join(swept_v2x)} need V2X: add "
+                "'v2x: {enabled: true}' to the spec"
+            )
         if self.rider is not None:
             if not isinstance(self.rider, RiderPopulationConfig):
                 raise ConfigError(f"{where}: rider must be a mapping {{profile, sample}}")
@@ -293,6 +309,8 @@ class SweepSpec:
             }
         if self.perception is not None:
             out["perception"] = dataclasses.asdict(self.perception)
+        if self.v2x is not None:
+            out["v2x"] = dataclasses.asdict(self.v2x)
         return out
 
     def digest(self) -> str:
@@ -320,6 +338,7 @@ _SPEC_KEYS = {
     "reconstruction",
     "rider",
     "perception",
+    "v2x",
 }
 #: Variants-table column of the reconstruction sample a variant runs on.
 SAMPLE_COLUMN = "reconstruction_sample"
@@ -431,6 +450,7 @@ def spec_from_dict(raw: Any, *, source: str | None = None) -> SweepSpec:
         reconstruction_samples=_parse_reconstruction(raw.get("reconstruction"), where),
         rider=parse_population(raw.get("rider"), where, raw.get("seed", 0)),
         perception=parse_perception(raw.get("perception"), where),
+        v2x=parse_v2x(raw.get("v2x"), where),
         source=source,
     )
 
