@@ -159,7 +159,8 @@ class V2XConfig:
             uniform's width) (sweepable); None = the technology's.
         latency_distribution: 'exponential' or 'uniform'; None = the technology's.
         max_track_age_s: the car drops a V2X track whose last message is older than this
-            [s] (> 0). Default 5.5 (a standing rider sends every 5.1 s).
+            [s] (> 0). Default 10.2: 2 x (T_GenVamMax + T_CheckVamGen), one lost VAM of a
+            standing rider (it sends every 5.1 s) is bridged.
         policies_use_v2x: the built-in policies (none, paper-cap, aeb, idm) act on V2X
             objects; False = they see only their sensor's (V2X still in the observation
             of user policies). Default True.
@@ -189,7 +190,7 @@ class V2XConfig:
     latency_s: float | None = None
     latency_jitter_s: float | None = None
     latency_distribution: LatencyDistribution | None = None
-    max_track_age_s: float = 5.5
+    max_track_age_s: float = 10.2
     policies_use_v2x: bool = True
 
     def __post_init__(self) -> None:
