@@ -68,8 +68,8 @@ def plot_latency_pdr(results: pd.DataFrame) -> Any:
     ax.set_yticks(range(pdr.size), [f"{v:g}" for v in pdr])
     ax.set_xlabel("V2X latency, fixed part [s]")
     ax.set_ylabel("packet delivery factor (x the PDR table)")
-    ax.set_title("Collision share with perception + V2X")
-    fig.colorbar(im, ax=ax, label=_NOTE, shrink=0.85)
+    ax.set_title("Perception + V2X: collision share (synthetic occluded crossing)")
+    fig.colorbar(im, ax=ax, label="collision share in the occlusion window", shrink=0.85)
     return fig
 
 

@@ -78,9 +78,9 @@ def run_study(
     with atomic_path(cmp_path) as tmp:
         table.to_csv(tmp, index=False)
     window = occlusion_window(table)
-    n_shifts = 7 if quick else max(2, int(round((window[1] - window[0]) / 0.02)) + 1)
+    steps = (0.6, 0.6) if quick else (0.05, 0.025)
     sweeps: dict[str, Path] = {}
-    for name, raw in sweep_specs(window, n_shifts, quick=quick).items():
+    for name, raw in sweep_specs(window, *steps, quick=quick).items():
         spec = spec_from_dict(raw, source=f"v2x study: {name}")
         say(f"sweep {name}: {spec.n_variants()} variants")
         res = run_sweep(sc_dir, spec, out / "sweeps" / name, workers=workers,

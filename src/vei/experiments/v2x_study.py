@@ -154,18 +154,27 @@ PENETRATIONS = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
 GNSS_STDS_M = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
 
 
-def sweep_specs(window: tuple[float, float], n_shifts: int, *, quick: bool = False) -> dict:
+def sweep_specs(
+    window: tuple[float, float], step_2d_s: float, step_1d_s: float, *, quick: bool = False
+) -> dict:
     """The study's sweep specs (mappings, the YAML form) over the occlusion window.
 
     Every spec: base 'replay' with ego.policy paper-cap, perception on, V2X on with the
     corrected GNSS (:data:`PPP_GNSS_STD_M`) unless swept, absolute time shifts
-    (``time_shift_reference: zero``) over ``window`` in ``n_shifts`` steps.
+    (``time_shift_reference: zero``) over ``window`` every ``step_2d_s`` (latency x
+    delivery) or ``step_1d_s`` (penetration, GNSS) seconds.
 
     Returns:
         {'latency_pdr': spec, 'penetration': spec, 'gnss': spec}.
     """
-    pick = lambda seq: seq[::3] if quick else seq  # noqa: E731
-    shifts = {"min": float(window[0]), "max": float(window[1]), "num": int(n_shifts)}
+
+    def pick(seq: tuple[float, ...]) -> list[float]:
+        return list(seq[::3] if quick else seq)
+
+    def grid(step: float) -> dict:
+        num = max(2, int(round((window[1] - window[0]) / step)) + 1)
+        return {"min": float(window[0]), "max": float(window[1]), "num": num}
+
     common = {
         "design": "grid",
         "base": "replay",
@@ -173,15 +182,16 @@ def sweep_specs(window: tuple[float, float], n_shifts: int, *, quick: bool = Fal
         "perception": {"enabled": True},
         "v2x": {"enabled": True, "position_error_std_m": PPP_GNSS_STD_M},
     }
-    par = {"ego.policy": "paper-cap", "time_shift_s": shifts}
+    two = {"ego.policy": "paper-cap", "time_shift_s": grid(step_2d_s)}
+    one = {"ego.policy": "paper-cap", "time_shift_s": grid(step_1d_s)}
     return {
         "latency_pdr": {**common, "parameters": {
-            **par, "v2x.latency_s": {"choices": list(pick(LATENCIES_S))},
-            "v2x.pdr_factor": {"choices": list(pick(PDR_FACTORS))}}},
+            **two, "v2x.latency_s": {"choices": pick(LATENCIES_S)},
+            "v2x.pdr_factor": {"choices": pick(PDR_FACTORS)}}},
         "penetration": {**common, "parameters": {
-            **par, "v2x.penetration_rate": {"choices": list(pick(PENETRATIONS))}}},
+            **one, "v2x.penetration_rate": {"choices": pick(PENETRATIONS)}}},
         "gnss": {**common, "parameters": {
-            **par, "v2x.position_error_std_m": {"choices": list(pick(GNSS_STDS_M))}}},
+            **one, "v2x.position_error_std_m": {"choices": pick(GNSS_STDS_M)}}},
     }  # fmt: skip
 
 

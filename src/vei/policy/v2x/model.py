@@ -249,11 +249,13 @@ def step(
         world.yaw_rad[:, cols], ex, ey,
     )  # fmt: skip
     delivered, lat, blocked, prob = _deliver(cfg, params, gen, world, cols, keys, k)
-    # Messages into their slots.
-    msgs = {f: a.copy() for f, a in state.msgs.items()}
-    slot = state.slot.copy()
+    # Messages into their slots (copies only when one is written: state stays untouched).
+    msgs = dict(state.msgs)
+    slot = state.slot
     bi, si = np.nonzero(delivered)
     if bi.size:
+        msgs = {f: a.copy() for f, a in msgs.items()}
+        slot = slot.copy()
         q = slot[bi, si] % msgs["gen_s"].shape[2]
         std = params.position_error_std_m[bi]
         vals = {
