@@ -1,6 +1,7 @@
 """Benchmark: engine throughput with V2X on against perception on (issue 25's target).
 
-Scenes (20 Hz, record="none", one run after a warm-up at B = 10, best of ``REPEATS``):
+Scenes (20 Hz, record="none", after a warm-up at B = 10; the two configurations run
+alternately ``REPEATS`` times, best wall time of each):
 
 - ``occluded``: the V2X study's occluded crossing (vei.experiments.v2x_study; ego, the
   e-scooter rider and a parked van: N = 2 road users, 1 sender, 401 steps);
@@ -23,7 +24,7 @@ from dataclasses import replace
 import numpy as np
 
 BATCHES = (1_000, 10_000)
-REPEATS = 2
+REPEATS = 3
 
 
 def _case(v2x: bool):
@@ -48,8 +49,8 @@ def _scenes():
     }
 
 
-def _rate(arrays, shifts_span, v2x: bool, b: int) -> tuple[float, float]:
-    """(agent-steps/s, wall s) of B variants."""
+def _run(arrays, shifts_span, v2x: bool, b: int):
+    """A closure that simulates B variants once (record="none")."""
     from vei.sim.engine import simulate
     from vei.sim.state import VariantParams
 
@@ -57,25 +58,28 @@ def _rate(arrays, shifts_span, v2x: bool, b: int) -> tuple[float, float]:
     labels = np.array([f"v{i}" for i in range(b)], dtype=object)
     params = VariantParams.from_case(_case(v2x), arrays, b, time_shift_s=shifts)
     params = params.with_values(labels=labels)
-    n = 1 + len(arrays.other_ids) + arrays.riders.n
-    steps = arrays.t_s.size
-    best = float("inf")
-    for _ in range(REPEATS):
-        t0 = time.perf_counter()
-        simulate(arrays, params, record="none")
-        best = min(best, time.perf_counter() - t0)
-    return b * (1 + n) * steps / best, best
+    return lambda: simulate(arrays, params, record="none")
 
 
 def rows(batches: tuple[int, ...] = BATCHES) -> list[tuple]:
-    """(scene, B, perception rate, wall, V2X rate, wall, ratio) per scene and batch."""
+    """(scene, B, perception rate, wall, V2X rate, wall, ratio) per scene and batch: the two
+    configurations run alternately, ``REPEATS`` times each, best wall time of each (the
+    machine's other load hits both alike)."""
     out = []
     for name, (arrays, span) in _scenes().items():
-        _rate(arrays, span, True, 10)  # warm-up (imports, first allocations)
+        _run(arrays, span, True, 10)()  # warm-up (imports, first allocations)
+        n = 1 + len(arrays.other_ids) + arrays.riders.n
         for b in batches:
-            rp, wp = _rate(arrays, span, False, b)
-            rv, wv = _rate(arrays, span, True, b)
-            out.append((name, b, rp, wp, rv, wv, rv / rp))
+            runs = {v: _run(arrays, span, v, b) for v in (False, True)}
+            best = {False: float("inf"), True: float("inf")}
+            for _ in range(REPEATS):
+                for v, fn in runs.items():
+                    t0 = time.perf_counter()
+                    fn()
+                    best[v] = min(best[v], time.perf_counter() - t0)
+            rate = {v: b * (1 + n) * arrays.t_s.size / w for v, w in best.items()}
+            out.append((name, b, rate[False], best[False], rate[True], best[True],
+                        rate[True] / rate[False]))  # fmt: skip
     return out
 
 

@@ -183,7 +183,7 @@ def summarise(table: pd.DataFrame, window: tuple[float, float], sweeps: dict[str
         res = pd.read_parquet(Path(folder) / "results.parquet")
         share = collision_share(res, axes[name])
         out["sweeps"][name] = {
-            "folder": str(folder),
+            "folder": f"sweeps/{name}",
             "variants": int(len(res)),
             "share": share.to_dict(orient="records"),
         }

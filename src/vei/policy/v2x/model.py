@@ -36,8 +36,12 @@ from vei.policy.v2x import vam
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
-_MSG_FIELDS = ("arrive_s", "gen_s", "stamp_s", "x_m", "y_m", "speed_mps", "heading_rad", "std_m")
-_TRACK_FIELDS = ("gen_s", "stamp_s", "x_m", "y_m", "speed_mps", "heading_rad", "std_m")
+#: Rows of the stacked message array ``V2XState.msgs`` [8, b, S, Q] (the track fields are
+#: its rows 1.. : ``V2XState.tracks`` [7, b, S]).
+MSG_FIELDS = ("arrive_s", "gen_s", "stamp_s", "x_m", "y_m", "speed_mps", "heading_rad", "std_m")
+TRACK_FIELDS = MSG_FIELDS[1:]
+_M = {f: i for i, f in enumerate(MSG_FIELDS)}
+_T = {f: i for i, f in enumerate(TRACK_FIELDS)}
 
 
 @dataclass(frozen=True)
@@ -103,16 +107,16 @@ class V2XState:
 
     Attributes:
         senders: the riders' services (:class:`.vam.SenderState`, [b, S]).
-        msgs: messages in flight, field -> [b, S, Q] (NaN = empty slot).
+        msgs: messages in flight, [8, b, S, Q], rows :data:`MSG_FIELDS` (NaN = empty slot).
         slot: [b, S] the next slot to fill.
-        tracks: the car's tracks, field -> [b, S] (NaN = no track).
+        tracks: the car's tracks, [7, b, S], rows :data:`TRACK_FIELDS` (NaN = no track).
         first_rx_s: [b, S] when the car first received a VAM of that rider [s] (NaN: not yet).
     """
 
     senders: vam.SenderState
-    msgs: dict[str, FloatArray]
+    msgs: FloatArray
     slot: npt.NDArray[np.int64]
-    tracks: dict[str, FloatArray]
+    tracks: FloatArray
     first_rx_s: FloatArray
 
 
@@ -160,9 +164,9 @@ def init_state(
     q = slots_needed(cfg, params)
     return V2XState(
         senders=senders,
-        msgs={f: np.full((b, s, q), np.nan) for f in _MSG_FIELDS},
+        msgs=np.full((len(MSG_FIELDS), b, s, q), np.nan),
         slot=np.zeros((b, s), dtype=np.int64),
-        tracks={f: np.full((b, s), np.nan) for f in _TRACK_FIELDS},
+        tracks=np.full((len(TRACK_FIELDS), b, s), np.nan),
         first_rx_s=np.full((b, s), np.nan),
     )
 
@@ -249,55 +253,47 @@ def step(
         world.yaw_rad[:, cols], ex, ey,
     )  # fmt: skip
     delivered, lat, blocked, prob = _deliver(cfg, params, gen, world, cols, keys, k)
-    # Messages into their slots (copies only when one is written: state stays untouched).
-    msgs = dict(state.msgs)
+    # Messages into their slots (a copy only when one is written: state stays untouched).
+    msgs = state.msgs
     slot = state.slot
     bi, si = np.nonzero(delivered)
     if bi.size:
-        msgs = {f: a.copy() for f, a in msgs.items()}
+        msgs = msgs.copy()
         slot = slot.copy()
-        q = slot[bi, si] % msgs["gen_s"].shape[2]
-        std = params.position_error_std_m[bi]
-        vals = {
-            "arrive_s": t + lat[bi, si], "gen_s": np.full(bi.size, t),
-            "stamp_s": t + params.clock_offset_s[bi], "x_m": gen.x_m[bi, si],
-            "y_m": gen.y_m[bi, si], "speed_mps": gen.speed_mps[bi, si],
-            "heading_rad": gen.heading_rad[bi, si], "std_m": std,
-        }  # fmt: skip
-        for f, v in vals.items():
-            msgs[f][bi, si, q] = v
+        q = slot[bi, si] % msgs.shape[3]
+        vals = (t + lat[bi, si], np.full(bi.size, t), t + params.clock_offset_s[bi],
+                gen.x_m[bi, si], gen.y_m[bi, si], gen.speed_mps[bi, si],
+                gen.heading_rad[bi, si], params.position_error_std_m[bi])  # fmt: skip
+        msgs[:, bi, si, q] = np.stack(vals)
         slot[bi, si] += 1
     # Arrivals: the newest generation among them updates the track.
     with np.errstate(invalid="ignore"):
-        arrived = msgs["arrive_s"] <= t + vam.TOL
-    tracks = dict(state.tracks)
+        arrived = msgs[_M["arrive_s"]] <= t + vam.TOL
+    tracks = state.tracks
     first_rx = state.first_rx_s
     if arrived.any():
-        gen_key = np.where(arrived, msgs["gen_s"], -np.inf)
+        gen_key = np.where(arrived, msgs[_M["gen_s"]], -np.inf)
         best = np.argmax(gen_key, axis=2)
         newest = np.take_along_axis(gen_key, best[..., None], axis=2)[..., 0]
-        older = np.nan_to_num(state.tracks["gen_s"], nan=-np.inf)
+        older = np.nan_to_num(tracks[_T["gen_s"]], nan=-np.inf)
         take = np.isfinite(newest) & (newest > older)
-        for f in _TRACK_FIELDS:
-            got = np.take_along_axis(msgs[f], best[..., None], axis=2)[..., 0]
-            tracks[f] = np.where(take, got, state.tracks[f])
+        got = np.take_along_axis(msgs[1:], best[None, ..., None], axis=3)[..., 0]
+        tracks = np.where(take[None], got, tracks)
         first_rx = np.where(take & np.isnan(first_rx), t, first_rx)
-        for f in _MSG_FIELDS:
-            msgs[f] = np.where(arrived, np.nan, msgs[f])
+        msgs = np.where(arrived[None], np.nan, msgs)
     # Prediction to now; stale tracks dropped.
-    has = ~np.isnan(tracks["gen_s"])
-    age = np.where(has, np.maximum(0.0, t - tracks["stamp_s"]), np.nan)
+    has = ~np.isnan(tracks[_T["gen_s"]])
+    age = np.where(has, np.maximum(0.0, t - tracks[_T["stamp_s"]]), np.nan)
     stale = has & (age > cfg.max_track_age_s + vam.TOL)
     if stale.any():
-        tracks = {f: np.where(stale, np.nan, a) for f, a in tracks.items()}
+        tracks = np.where(stale[None], np.nan, tracks)
         has &= ~stale
         age = np.where(has, age, np.nan)
-    c, s = np.cos(tracks["heading_rad"]), np.sin(tracks["heading_rad"])
-    vxt, vyt = tracks["speed_mps"] * c, tracks["speed_mps"] * s
+    heading, speed = tracks[_T["heading_rad"]], tracks[_T["speed_mps"]]
+    vxt, vyt = speed * np.cos(heading), speed * np.sin(heading)
     objs = V2XObjects(
-        valid=has, x_m=tracks["x_m"] + vxt * age, y_m=tracks["y_m"] + vyt * age,
-        vx_mps=vxt, vy_mps=vyt, yaw_rad=tracks["heading_rad"], age_s=age,
-        std_m=tracks["std_m"],
+        valid=has, x_m=tracks[_T["x_m"]] + vxt * age, y_m=tracks[_T["y_m"]] + vyt * age,
+        vx_mps=vxt, vy_mps=vyt, yaw_rad=heading, age_s=age, std_m=tracks[_T["std_m"]],
     )  # fmt: skip
     new = replace(state, senders=senders, msgs=msgs, slot=slot, tracks=tracks,
                   first_rx_s=first_rx)  # fmt: skip
@@ -306,4 +302,14 @@ def step(
     return objs, new, events
 
 
-__all__ = ["V2XObjects", "V2XParams", "V2XState", "World", "init_state", "slots_needed", "step"]
+__all__ = [
+    "MSG_FIELDS",
+    "TRACK_FIELDS",
+    "V2XObjects",
+    "V2XParams",
+    "V2XState",
+    "World",
+    "init_state",
+    "slots_needed",
+    "step",
+]

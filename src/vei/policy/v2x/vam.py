@@ -34,19 +34,20 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from vei.policy.perception_random import counter_normal_pair, counter_uniform
+from vei.policy.perception_random import counter_bits, counter_uniform
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
 #: Random streams of V2X (perception uses 0-4; each effect its own stream).
 STREAM_EQUIPPED = 20
-STREAM_GNSS = 21  # and 22 (Box-Muller pair: x, y)
+STREAM_GNSS = 21
 STREAM_DELIVERY = 23
 STREAM_LATENCY = 24
 STREAM_BLOCKAGE = 25  # and 26
 #: Tolerance of the strict "exceeds" comparisons and the check instants [s, m, m/s, rad].
 TOL = 1e-9
+_TWO_M32 = 2.0**-32
 #: 95 % radius of a circular 2-D Gaussian in sigmas: sqrt(-2 ln 0.05).
 R95_PER_SIGMA = math.sqrt(-2.0 * math.log(0.05))
 
@@ -148,7 +149,8 @@ def gnss_error(
     """The GNSS error at step k: a first-order Gauss-Markov process per axis.
 
     ``e_0 = sigma z_0`` (stationary start), ``e_k = phi e_{k-1} + sigma sqrt(1 - phi^2) z_k``
-    with ``phi = exp(-dt / tau)`` and z standard normals of (seed, key, k, rider).
+    with ``phi = exp(-dt / tau)`` and z standard normals of (seed, key, k, rider): Box-Muller
+    on the two 32-bit halves of one counter-based 64-bit draw.
 
     Args:
         state: the senders (err_* of step k - 1; NaN before the first step).
@@ -163,8 +165,12 @@ def gnss_error(
         z = np.zeros(state.equipped.shape)
         return z, z.copy()
     n = int(cols.max()) + 1
-    zx, zy = counter_normal_pair(seed, keys, k, n, STREAM_GNSS)
-    zx, zy = zx[:, cols], zy[:, cols]
+    # One 64-bit draw per rider and step: its two 32-bit halves are the Box-Muller pair.
+    bits = counter_bits(seed, keys, k, n, STREAM_GNSS)[:, cols]
+    u1 = ((bits >> np.uint64(32)).astype(np.float64) + 0.5) * _TWO_M32  # (0, 1)
+    u2 = (bits & np.uint64(0xFFFFFFFF)).astype(np.float64) * _TWO_M32  # [0, 1)
+    r = np.sqrt(-2.0 * np.log(u1))
+    zx, zy = r * np.cos(2.0 * np.pi * u2), r * np.sin(2.0 * np.pi * u2)
     phi = math.exp(-dt_s / tau_s)
     gain = math.sqrt(max(0.0, 1.0 - phi * phi))
     first = np.isnan(state.err_x_m)
