@@ -107,22 +107,26 @@ def test_equipped_share_is_the_penetration_rate_and_grows_with_it():
     assert np.all(more[eq])  # the same riders and more
 
 
-def test_gnss_error_is_stationary_gauss_markov():
+def test_gnss_error_is_stationary_gauss_markov_from_fix_to_fix():
     b, n = 4000, 40
-    std, tau, dt = 3.0, 2.0, 0.1
+    std, tau, period = 3.0, 2.0, 0.1
     st = vam.init_senders(0, np.arange(b), np.array([0]), np.ones(b))
     xs = []
-    for k in range(n):
-        ex, ey = vam.gnss_error(st, 3, np.arange(b), np.array([0]), k, dt, np.full(b, std), tau)
-        st = replace(st, err_x_m=ex, err_y_m=ey)
+    for k in range(n):  # engine steps of 0.05 s: a new fix every second step
+        ex, ey, m = vam.gnss_error(st, 3, np.arange(b), np.array([0]), k * 0.05, period,
+                                   np.full(b, std), tau)  # fmt: skip
+        assert m == k // 2
+        if k % 2:  # between fixes the error holds
+            np.testing.assert_array_equal(ex, xs[-1][:, None])
+        st = replace(st, err_x_m=ex, err_y_m=ey, fix_index=np.array(m))
         xs.append(ex[:, 0])
-    xs = np.array(xs)
-    # Stationary: the standard deviation at the first and last step is std (4 sigma of the
+    fixes = np.array(xs[::2])
+    # Stationary: the standard deviation at the first and last fix is std (4 sigma of the
     # sample std: std / sqrt(2 b)).
     tol = 4 * std / math.sqrt(2 * b)
-    assert abs(xs[0].std() - std) < tol
-    assert abs(xs[-1].std() - std) < tol
-    # Lag-1 correlation exp(-dt / tau).
-    phi = math.exp(-dt / tau)
-    r = np.corrcoef(xs[10], xs[11])[0, 1]
+    assert abs(fixes[0].std() - std) < tol
+    assert abs(fixes[-1].std() - std) < tol
+    # Lag-1 correlation between fixes exp(-period / tau).
+    phi = math.exp(-period / tau)
+    r = np.corrcoef(fixes[10], fixes[11])[0, 1]
     assert abs(r - phi) < 4 * (1 - phi**2) / math.sqrt(b)

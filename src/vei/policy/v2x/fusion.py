@@ -46,43 +46,41 @@ def fuse(
         [b, N] (+inf where not valid)).
     """
     cols = np.asarray(columns, dtype=np.intp)
+    age = np.asarray(age_s, dtype=np.float64)
+    source = np.where(valid, SOURCE_SENSOR, SOURCE_NONE).astype(np.int8)
+    s_std = float(sensor_std_m)
+    std = np.where(valid, s_std, np.inf)
+    bi, si = np.nonzero(objs.valid)
+    if cols.size == 0 or bi.size == 0:
+        return world, valid, age, source, std
     out = world.copy()
     val = valid.copy()
-    age = np.array(age_s, dtype=np.float64, copy=True)
-    source = np.where(valid, SOURCE_SENSOR, SOURCE_NONE).astype(np.int8)
-    std = np.where(valid, float(sensor_std_m), np.inf)
-    if cols.size == 0:
-        return out, val, age, source, std
-    sv = valid[:, cols]
-    vv = objs.valid
-    only_v = vv & ~sv
-    both = vv & sv
-    sub = out[:, :, cols]
-    v2x = np.stack([objs.x_m, objs.y_m, objs.yaw_rad, objs.vx_mps, objs.vy_mps,
-                    vv.astype(np.float64)])  # fmt: skip
-    sub = np.where(only_v[None], v2x, sub)
-    s_std = float(sensor_std_m)
-    v_std = np.where(vv, objs.std_m, np.inf)
+    age = age.copy()
+    oj = cols[si]
+    seen = valid[bi, oj]
+    v_std = objs.std_m[bi, si]
+    vx, vy = objs.x_m[bi, si], objs.y_m[bi, si]
     if s_std == 0.0:
-        w_v = np.zeros(v_std.shape)
+        w_v = np.zeros(bi.size)
+        fused_std = np.zeros(bi.size)
     else:
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore"):
             ratio = (s_std / v_std) ** 2  # w_v / w_s
-        w_v = np.where(v_std == 0.0, 1.0, ratio / (1.0 + ratio))
-    for axis in (0, 1):
-        mixed = (1.0 - w_v) * sub[axis] + w_v * v2x[axis]
-        sub[axis] = np.where(both, mixed, sub[axis])
-    out[:, :, cols] = sub
-    if s_std == 0.0:
-        fused_std = np.zeros(v_std.shape)
-    else:
-        fused_std = np.where(v_std == 0.0, 0.0, 1.0 / np.sqrt(1.0 / s_std**2 + 1.0 / v_std**2))
-    std[:, cols] = np.where(both, fused_std, np.where(only_v, v_std, std[:, cols]))
-    v_age = np.where(vv, objs.age_s, np.inf)
-    age[:, cols] = np.where(both, np.minimum(age[:, cols], v_age),
-                            np.where(only_v, v_age, age[:, cols]))  # fmt: skip
-    val[:, cols] = sv | vv
-    source[:, cols] = np.where(both, SOURCE_BOTH, np.where(only_v, SOURCE_V2X, source[:, cols]))
+            w_v = np.where(v_std == 0.0, 1.0, ratio / (1.0 + ratio))
+            fused_std = np.where(v_std == 0.0, 0.0, 1.0 / np.sqrt(1.0 / s_std**2 + 1.0 / v_std**2))
+    # Both: inverse-variance position, the sensor's velocity, heading and box.
+    out[0, bi, oj] = np.where(seen, (1.0 - w_v) * world[0, bi, oj] + w_v * vx, vx)
+    out[1, bi, oj] = np.where(seen, (1.0 - w_v) * world[1, bi, oj] + w_v * vy, vy)
+    # V2X only: the predicted track.
+    out[2, bi, oj] = np.where(seen, world[2, bi, oj], objs.yaw_rad[bi, si])
+    out[3, bi, oj] = np.where(seen, world[3, bi, oj], objs.vx_mps[bi, si])
+    out[4, bi, oj] = np.where(seen, world[4, bi, oj], objs.vy_mps[bi, si])
+    out[5, bi, oj] = 1.0
+    v_age = objs.age_s[bi, si]
+    age[bi, oj] = np.where(seen, np.minimum(age[bi, oj], v_age), v_age)
+    std[bi, oj] = np.where(seen, fused_std, v_std)
+    val[bi, oj] = True
+    source[bi, oj] = np.where(seen, SOURCE_BOTH, SOURCE_V2X)
     return out, val, age, source, std
 
 

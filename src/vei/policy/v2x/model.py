@@ -246,12 +246,13 @@ def step(
     t = k * dt_s
     x, y = world.x_m[:, cols], world.y_m[:, cols]
     vx, vy = world.vx_mps[:, cols], world.vy_mps[:, cols]
-    ex, ey = vam.gnss_error(state.senders, cfg.seed, keys, cols, k, dt_s,
-                            params.position_error_std_m, cfg.position_error_tau_s)  # fmt: skip
+    ex, ey, fix = vam.gnss_error(state.senders, cfg.seed, keys, cols, t, cfg.t_check_vam_gen_s,
+                                 params.position_error_std_m, cfg.position_error_tau_s)  # fmt: skip
     gen, senders = vam.generate(
         vam.VamRules.of(cfg), state.senders, t, world.valid[:, cols], x, y, np.hypot(vx, vy),
-        world.yaw_rad[:, cols], ex, ey,
+        world.yaw_rad[:, cols], ex, ey, fix,
     )  # fmt: skip
+
     delivered, lat, blocked, prob = _deliver(cfg, params, gen, world, cols, keys, k)
     # Messages into their slots (a copy only when one is written: state stays untouched).
     msgs = state.msgs

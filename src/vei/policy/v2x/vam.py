@@ -17,9 +17,10 @@ clause 6.4 Table 17), batched over variants ``[b]`` and senders ``[b, S]``:
   against the summed steps). The clause's other triggers (trajectory interception
   probability, clusters, safe distances) are not modelled, nor redundancy mitigation.
 
-Estimates: the position is the GNSS fix, truth plus a time-correlated error (first-order
-Gauss-Markov per axis, stationary sigma ``position_error_std_m``, correlation time
-``position_error_tau_s``, the same for every variant of a seed and key); speed and heading
+Estimates: the position is the latest GNSS fix (one every T_CheckVamGen, 10 Hz by
+default), truth plus a time-correlated error (first-order Gauss-Markov per axis from fix to
+fix, stationary sigma ``position_error_std_m``, correlation time ``position_error_tau_s``,
+the same for every variant of a seed and key); speed and heading
 are the rider's own (a Doppler speed is far more accurate than a position fix; the heading
 is the rider's yaw, so that a standing rider keeps one). The engine steps at ``dt``; a
 check falls on the first step at or after its instant.
@@ -28,7 +29,7 @@ check falls on the first step at or after its instant.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -89,7 +90,9 @@ class SenderState:
         n_checks: checks done since then (the next is at start_s + (n + 1) T_check).
         last_tx_s: generation time of the last VAM [s] (NaN: none yet).
         sent_x_m, sent_y_m, sent_speed_mps, sent_heading_rad: the values lastly included.
-        err_x_m, err_y_m: the GNSS error now [m].
+        err_x_m, err_y_m: the GNSS error of the latest fix [m].
+        fix_index: the latest fix's index m (fixes at m T_check; -1 before the first), a
+            0-d int array.
     """
 
     equipped: BoolArray
@@ -103,6 +106,7 @@ class SenderState:
     sent_heading_rad: FloatArray
     err_x_m: FloatArray
     err_y_m: FloatArray
+    fix_index: npt.NDArray[np.int64] = field(default_factory=lambda: np.array(-1))
 
 
 def equipped_riders(
@@ -141,42 +145,51 @@ def gnss_error(
     seed: int,
     keys: npt.ArrayLike,
     columns: npt.ArrayLike,
-    k: int,
-    dt_s: float,
+    t_s: float,
+    fix_period_s: float,
     std_m: FloatArray,
     tau_s: float,
-) -> tuple[FloatArray, FloatArray]:
-    """The GNSS error at step k: a first-order Gauss-Markov process per axis.
+) -> tuple[FloatArray, FloatArray, int]:
+    """The GNSS error of the latest fix at time t: a first-order Gauss-Markov process per axis.
 
-    ``e_0 = sigma z_0`` (stationary start), ``e_k = phi e_{k-1} + sigma sqrt(1 - phi^2) z_k``
-    with ``phi = exp(-dt / tau)`` and z standard normals of (seed, key, k, rider): Box-Muller
-    on the two 32-bit halves of one counter-based 64-bit draw.
+    The device has a fix every ``fix_period_s`` (at m * period, m = 0, 1, ...; the VAM
+    generation checks read the latest); the error advances from fix to fix,
+    ``e_0 = sigma z_0`` (stationary start), ``e_m = phi e_(m-1) + sigma sqrt(1 - phi^2) z_m``
+    with ``phi = exp(-period / tau)`` (over a gap of several periods, phi of the gap), z
+    standard normals of (seed, key, m, rider): Box-Muller on the two 32-bit halves of one
+    counter-based 64-bit draw. Between fixes it holds.
 
     Args:
-        state: the senders (err_* of step k - 1; NaN before the first step).
-        seed, keys, columns: as :func:`equipped_riders`. k: step. dt_s: step [s].
-        std_m: [b] stationary sigma per axis [m]. tau_s: correlation time [s].
+        state: the senders (err_* and fix_index of the previous call).
+        seed, keys, columns: as :func:`equipped_riders`. t_s: now [s].
+        fix_period_s: time between fixes [s]. std_m: [b] stationary sigma per axis [m].
+        tau_s: correlation time [s].
     Returns:
-        (err_x_m, err_y_m) [b, S].
+        (err_x_m, err_y_m) [b, S], the fix index m.
     """
+    m = int(math.floor(t_s / fix_period_s + TOL))
+    last = int(state.fix_index)
+    if m == last:
+        return state.err_x_m, state.err_y_m, m
     cols = np.asarray(columns, dtype=np.intp)
     sig = np.asarray(std_m, dtype=np.float64)[:, None]
     if not np.any(sig > 0.0):
         z = np.zeros(state.equipped.shape)
-        return z, z.copy()
+        return z, z.copy(), m
     n = int(cols.max()) + 1
-    # One 64-bit draw per rider and step: its two 32-bit halves are the Box-Muller pair.
-    bits = counter_bits(seed, keys, k, n, STREAM_GNSS)[:, cols]
+    # One 64-bit draw per rider and fix: its two 32-bit halves are the Box-Muller pair.
+    bits = counter_bits(seed, keys, m, n, STREAM_GNSS)[:, cols]
     u1 = ((bits >> np.uint64(32)).astype(np.float64) + 0.5) * _TWO_M32  # (0, 1)
     u2 = (bits & np.uint64(0xFFFFFFFF)).astype(np.float64) * _TWO_M32  # [0, 1)
     r = np.sqrt(-2.0 * np.log(u1))
     zx, zy = r * np.cos(2.0 * np.pi * u2), r * np.sin(2.0 * np.pi * u2)
-    phi = math.exp(-dt_s / tau_s)
+    if last < 0:
+        return sig * zx, sig * zy, m
+    phi = math.exp(-(m - last) * fix_period_s / tau_s)
     gain = math.sqrt(max(0.0, 1.0 - phi * phi))
-    first = np.isnan(state.err_x_m)
-    ex = np.where(first, sig * zx, phi * state.err_x_m + sig * gain * zx)
-    ey = np.where(first, sig * zy, phi * state.err_y_m + sig * gain * zy)
-    return ex, ey
+    ex = phi * state.err_x_m + sig * gain * zx
+    ey = phi * state.err_y_m + sig * gain * zy
+    return ex, ey, m
 
 
 def _angle_diff(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -215,6 +228,7 @@ def generate(
     heading_rad: FloatArray,
     err_x_m: FloatArray,
     err_y_m: FloatArray,
+    fix_index: int = -1,
 ) -> tuple[Generated, SenderState]:
     """One step of the VRU basic service of every sender (pure).
 
@@ -222,7 +236,8 @@ def generate(
         rules: the generation rules. state: after the previous step. t_s: now [s].
         present: [b, S] the rider is in the scene. x_m, y_m, speed_mps, heading_rad:
             [b, S] its true position [m], ground speed [m/s] and yaw [rad].
-        err_x_m, err_y_m: [b, S] the GNSS error now [m] (:func:`gnss_error`).
+        err_x_m, err_y_m: [b, S] the GNSS error of the latest fix [m] (:func:`gnss_error`).
+        fix_index: that fix's index (kept in the state).
     Returns:
         (the VAMs generated now, the new state).
     """
@@ -265,6 +280,7 @@ def generate(
         sent_heading_rad=keep(heading_rad, state.sent_heading_rad),
         err_x_m=err_x_m,
         err_y_m=err_y_m,
+        fix_index=np.array(fix_index),
     )
     return out, new
 
