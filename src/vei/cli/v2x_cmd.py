@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Annotated
@@ -21,8 +22,7 @@ def register(app: typer.Typer) -> None:
     def scenario(
         out: Annotated[Path, typer.Option("--out", help="Scenario folder to write (replaced).")],
     ) -> None:
-        """Write the study's SYNTHETIC occluded crossing as a scenario folder (for vei run /
-        vei sweep with case.v2x)."""
+        """Write the V2X study's (synthetic) occluded crossing as a scenario folder."""
         from vei.experiments.v2x_study import occluded_crossing
         from vei.io.scenario import write_scenario
 
@@ -38,17 +38,35 @@ def register(app: typer.Typer) -> None:
         ] = False,
         workers: Annotated[int, typer.Option("--workers", help="Sweep worker processes.")] = 1,
     ) -> None:
-        """Perception alone vs perception + V2X on the occluded crossing: the comparison over
-        time shifts, sweeps of latency x packet delivery, penetration and GNSS error, the
-        figures (figures/*.png and .pdf) and summary.json."""
+        """Perception alone vs perception + V2X on the occluded crossing (docs/v2x.md).
+
+        The comparison over time shifts, sweeps of latency x packet delivery, penetration and
+        GNSS error, figures (PNG and PDF) and summary.json.
+        """
         from vei.experiments.v2x_run import run_study
 
         start = time.monotonic()
+        phase = ["starting"]
+        tty = sys.stderr.isatty()
 
         def log(msg: str) -> None:
+            phase[0] = msg
             print(f"[{time.monotonic() - start:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
-        res = run_study(out, quick=quick, workers=workers, log=log)
+        done = threading.Event()
+
+        def heartbeat() -> None:  # a line every 10 s when no progress bar shows
+            while not done.wait(10.0):
+                print(f"[{time.monotonic() - start:6.1f} s] still working: {phase[0]}",
+                      file=sys.stderr, flush=True)  # fmt: skip
+
+        beat = threading.Thread(target=heartbeat, daemon=True)
+        if not tty:
+            beat.start()
+        try:
+            res = run_study(out, quick=quick, workers=workers, log=log, progress=tty)
+        finally:
+            done.set()
         s = res.summary
         typer.echo(f"occlusion window (perception alone collides): "
                    f"{res.window_s[0]:+.2f} .. {res.window_s[1]:+.2f} s time shift")  # fmt: skip

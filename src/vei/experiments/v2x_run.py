@@ -46,6 +46,7 @@ def run_study(
     quick: bool = False,
     workers: int = 1,
     log: Callable[[str], None] | None = None,
+    progress: bool = False,
 ) -> StudyResult:
     """The whole case study into ``out_dir`` (resumable: the sweeps resume).
 
@@ -56,6 +57,7 @@ def run_study(
     Args:
         out_dir: output folder. quick: coarser grids (tests, a first look).
         workers: sweep workers. log: progress lines (default: none).
+        progress: the sweeps' progress bars (rich; for a terminal).
     """
     from vei.experiments import v2x_figures as figs
     from vei.io.atomic import write_json
@@ -84,7 +86,7 @@ def run_study(
         spec = spec_from_dict(raw, source=f"v2x study: {name}")
         say(f"sweep {name}: {spec.n_variants()} variants")
         res = run_sweep(sc_dir, spec, out / "sweeps" / name, workers=workers,
-                        progress=False, record_critical=False)  # fmt: skip
+                        progress=progress, record_critical=False)  # fmt: skip
         sweeps[name] = res.out_dir
     say("figures")
     paths = figs.write_figures(out / "figures", table, window, sweeps)
