@@ -7,13 +7,16 @@ STAMP  := $(VENV)/.installed-stamp
 QC_VENV  := .tools/qc
 QC_STAMP := $(QC_VENV)/.installed-stamp
 DEMO_OUT ?= demo-out
+# CommonRoad (vei export commonroad; docs/commonroad.md), without their protobuf pin.
+COMMONROAD := 'commonroad-io==2024.3' 'commonroad-vehicle-models==3.0.2' 'commonroad-drivability-checker==2025.4.0'
 
 .PHONY: demo test bench lint format venv qc-tools clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml Makefile
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[all,bench,dev]'
+	$(PY) -m pip install --quiet --no-deps $(COMMONROAD)
 	touch $(STAMP)
 
 venv: $(STAMP)

@@ -46,6 +46,11 @@ class InputError(VeiError):
         super().__init__(f"{prefix}: {message}" if prefix else message)
 
 
+class NoRidersError(InputError):
+    """A recording holds no e-scooter or cyclist: nothing to simulate. An importer refuses
+    it; a catalogue lists it as 'no-riders', not as a failed recording."""
+
+
 class ConfigError(VeiError):
     """An invalid configuration value or an unknown key in a configuration file."""
 

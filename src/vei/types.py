@@ -110,6 +110,11 @@ TRAJECTORY_COLUMNS: tuple[str, ...] = (
     "speed_mps",
 )
 
+#: Optional bool column of Scenario.trajectories and of run time series: the row is a
+#: continuation sample (a run-in before the recording or a run-out after it, added by
+#: vei.continuation), not a recorded one. Absent = every row is recorded.
+CONTINUATION_COLUMN = "continuation"
+
 
 @dataclass(frozen=True)
 class Scenario:

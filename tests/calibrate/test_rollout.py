@@ -190,7 +190,11 @@ def test_rollout_equals_the_engines_sfm_rider() -> None:
     scen = make_scenario(
         {"ego": ego_straight(5.0, 12.0), "r": TrackSpec("escooter", t, x, y)}, primary_threat="r"
     )
-    arrays = prepare_scenario(scen)
+    # the recorded path alone (the rollout's): without the engine's run-out (issue 22), which
+    # would bend the goal path past the recorded end where the rollout's goes straight on
+    from vei.config import ContinuationConfig, SimConfig
+
+    arrays = prepare_scenario(scen, SimConfig(continuation=ContinuationConfig(enabled=False)))
     sfm = replace(
         SFM_PRESETS["paper"], v0_mps=4.0, k_des_nspm=150.0, lookahead_m=2.0, max_accel_mps2=3.0
     )

@@ -27,11 +27,16 @@ SMALL_SWEEP = {
 }
 
 
+#: A small per-encounter risk estimate (issue 23): the default variation, 2,000 simulations.
+SMALL_RISK = {"budget": 2000, "target_rel_ci": 0.3, "method": "mc"}
+
+
 def small_config(**kw):
     """The CatalogueConfig of the small catalogue (figures off unless given)."""
     from vei.catalogue import CatalogueConfig
 
     kw.setdefault("figures", False)
+    kw.setdefault("risk", SMALL_RISK)
     kw.setdefault("sweep", SMALL_SWEEP)
     return CatalogueConfig(**kw)
 

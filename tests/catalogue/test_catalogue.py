@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import signal
@@ -98,8 +99,12 @@ def test_small_catalogue_table(small_catalogue):
     assert not (np.diff(coll.astype(int)) > 0).any()
     si = rows.loc[coll, "safety_index"].to_numpy()
     assert (si == 0).all()
-    # the encounter ranking follows the collision share
-    assert (np.diff(enc["collision_share"].to_numpy()) <= 1e-12).all()
+    # the encounter ranking follows the expected harm (issue 23: probability x injury
+    # risk with a 95 % CI), then P(collision); a bound only (no collision seen) counts 0
+    harm = enc["risk_expected_harm"].fillna(0.0).to_numpy()
+    assert (np.diff(harm) <= 1e-12).all()
+    assert (enc["risk_expected_harm_lo"] <= enc["risk_expected_harm"].fillna(0)).all()
+    assert (enc["risk_p_collision_hi"] > 0).all()  # never 0: an upper bound at least
     share = rows.groupby("encounter_id")["collision"].mean()
     for r in enc.itertuples():
         assert r.collision_share == pytest.approx(share[r.encounter_id])
@@ -164,7 +169,7 @@ def test_killed_run_resumes_without_loss_or_duplicates(
     pd.testing.assert_frame_equal(resumed, reference)
 
 
-def test_failed_recordings_are_reported_and_skipped(tmp_path, trafficmonitoring_root):
+def test_recordings_without_riders_are_reported_and_skipped(tmp_path, trafficmonitoring_root):
     result = run_catalogue(
         trafficmonitoring_root,
         tmp_path / "cat",
@@ -173,11 +178,12 @@ def test_failed_recordings_are_reported_and_skipped(tmp_path, trafficmonitoring_
         progress=False,
     )
     by = {d["recording"]: d for d in result.recordings}
-    bad = by["marktkauf_04_audi_rechtsabbiegen"]
-    assert bad["status"] == "failed" and "no e-scooter or cyclist" in bad["reason"]
+    none = by["marktkauf_04_audi_rechtsabbiegen"]  # nothing to simulate: not a failure
+    assert none["status"] == "no-riders" and "no e-scooter or cyclist" in none["reason"]
     ok = by["klinikum_01_marktkauf_geradeaus"]
     assert ok["status"] == "ok" and [e["rider_id"] for e in ok["encounters"]] == ["escooter_9"]
     assert result.complete and len(result.rows) == 5  # the case study only
+    assert result.failed_recordings == []
 
 
 def test_other_settings_refused(tmp_path, trafficmonitoring_root):
@@ -234,11 +240,32 @@ def test_folder_of_interaction_folders(tmp_path):
     for rec in ("rec_a", "rec_b"):
         # the synthetic e-scooter crosses the ego's path (helpers_interaction): an encounter
         assert "escooter_1" in [e["rider_id"] for e in by[rec]["encounters"]]
-    assert result.complete
+    # a failed recording makes the catalogue partial (exit code 3 at the CLI)
+    assert not result.complete and result.failed_recordings == ["rec_c"]
+    manifest = json.loads((tmp_path / "cat" / "catalogue.json").read_text())
+    assert manifest["status"] == "partial" and manifest["failed_recordings"] == ["rec_c"]
     assert set(result.rows["recording"]) == {"rec_a", "rec_b"}
     # a single interaction folder is a dataset of one recording
     one = run_catalogue(data / "rec_a", tmp_path / "one", small_config(sweep=None), progress=False)
     assert [d["recording"] for d in one.recordings] == ["rec_a"] and one.complete
+
+
+def test_cli_exit_code_3_for_a_partial_catalogue(tmp_path, capsys):
+    """Partial success (a recording failed, the others were catalogued) has its own exit
+    code: 3, documented in the README; the failures are listed."""
+    from tests.helpers_interaction import make_interaction
+    from vei.cli.main import main
+
+    data = tmp_path / "data"
+    make_interaction(data, name="rec_a", id="rec_a")
+    bad = make_interaction(data, name="rec_c", id="rec_c")
+    (bad / "ego.csv").write_text("t_s,lat_deg,lon_deg\n0,1e999,x\n")
+    code = main(["catalogue", str(data), "--out", str(tmp_path / "cat"), "--no-sweep",
+                 "--no-figures", "--no-report"])  # fmt: skip
+    out = " ".join(capsys.readouterr().out.split())
+    assert code == 3, out
+    assert "partial: 1 recording(s) and 0 encounter(s) failed" in out
+    assert "rec_c" in out and "status partial" in out
 
 
 def test_map_from_a_local_source(tmp_path, trafficmonitoring_root, data_dir):

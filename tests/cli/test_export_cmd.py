@@ -27,9 +27,11 @@ def test_export_replay_then_check(tmp_path, scenario_dir, capsys):
     assert validate_openscenario(xosc) == []
     back = read_openscenario_trajectories(xosc)
     assert set(back["agent_id"]) == {"ego", "s7", "c1"}
-    # the recorded scooter: 2 s .. 7 s
+    # the recorded scooter: 2 s .. 7 s, with its run-in before (from t = 0 on) and its
+    # run-out after (issue 22), its recorded span written as a property
     vx = back[(back["agent_id"] == "s7") & (back["kind"] == "vertex")]
-    assert vx["t_s"].min() == pytest.approx(2.0) and vx["t_s"].max() == pytest.approx(7.0)
+    assert vx["t_s"].min() == pytest.approx(0.0) and vx["t_s"].max() > 7.5
+    assert 'name="vei:recorded_span_s" value="2 7"' in xosc.read_text()
     assert main(["export", "check", str(xosc), "--no-qc"]) == 0
     assert "0 error(s)" in capsys.readouterr().out
 

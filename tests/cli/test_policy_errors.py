@@ -29,6 +29,17 @@ def helper(obs):
     raise ValueError("boom in my policy")
 
 
+class NaNAction:
+    def init_state(self, batch_size):
+        return None
+
+    def act(self, obs, state):
+        acc = np.zeros_like(obs.ego_speed_mps)
+        if obs.t_s[0] >= 0.5:
+            acc[:] = np.nan
+        return PolicyAction(accel_mps2=acc), state
+
+
 class BadInit:
     def init_state(self, batch_size):
         return {}["missing"]
@@ -60,7 +71,7 @@ def _vei(*args: str) -> subprocess.CompletedProcess[str]:
     ("cls", "call", "exc", "line"),
     [
         ("Bad", r"act\(\) at step 20 \(t = 1.000 s\)", "ValueError: boom in my policy", 17),
-        ("BadInit", r"init_state\(\)", "KeyError: 'missing'", 22),
+        ("BadInit", r"init_state\(\)", "KeyError: 'missing'", 33),
     ],
 )
 def test_a_raising_user_policy_exits_2_without_traceback(
@@ -82,3 +93,22 @@ def test_a_raising_user_policy_exits_2_without_traceback(
     assert re.search(call, text), text
     assert exc in text
     assert f"{bad}:{line} in " in text, text  # the frame in the user's file
+
+
+def test_a_nan_action_names_the_policy_file_step_and_variant(
+    demo_folder: Path, tmp_path: Path
+) -> None:
+    """Like an exception in act(): a NaN action names the policy's file, the step and the
+    time, and which variant gave it (exit 2, no traceback)."""
+    bad = tmp_path / "nan.py"
+    bad.write_text(BAD)
+    spec = f"{bad}:NaNAction"
+    res = _vei(
+        "run", str(demo_folder), "--config", "normal", "--policy", spec,
+        "--out", str(tmp_path / "out"), "--time-shift", "0", "--no-figures",
+    )  # fmt: skip
+    text = " ".join((res.stdout + res.stderr).split())
+    assert res.returncode == 2, text
+    assert "Traceback" not in text
+    assert f"policy {spec}: act() at step 10 (t = 0.500 s)" in text, text
+    assert "action.accel_mps2 has NaN or infinite values in variant(s) 0 (nan)" in text, text

@@ -20,7 +20,9 @@ def same_value(sweep_value, run_value) -> bool:
     and inf as null)."""
     a = sweep_value.item() if hasattr(sweep_value, "item") else sweep_value
     if a is None or (isinstance(a, float) and not math.isfinite(a)):
-        return run_value is None or (isinstance(run_value, float) and math.isnan(run_value))
+        return run_value is None or (
+            isinstance(run_value, float) and (math.isnan(run_value) or run_value == a)
+        )
     return a == run_value
 
 

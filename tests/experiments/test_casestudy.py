@@ -87,7 +87,12 @@ def test_casestudy_with_a_custom_backend_scores_and_writes(tmp_path, demo_scenar
     csv = pd.read_csv(paths["summary_csv"])
     assert csv["min_gap_m"].iloc[3] == pytest.approx(10.05)
     ts = pd.read_parquet(paths["timeseries"])
-    assert list(ts.columns) == list(TIMESERIES_COLUMNS) and len(ts) == 5 * 101 * 2
+    assert list(ts.columns) == [*TIMESERIES_COLUMNS, "continuation"] and len(ts) == 5 * 101 * 2
+    # the fake rider stands at (30, 0) from t = 0 to 10 s, its recording spanning 0 - 20 s
+    # shifted by 1.5 s: on its run-in until t = 1.5 s (issue 22), the ego never
+    rider = ts[ts["agent_id"] == demo_scenario.primary_threat]
+    np.testing.assert_array_equal(rider["continuation"], rider["t_s"] < 1.5 - 1e-9)
+    assert not ts.loc[ts["agent_id"] == "ego", "continuation"].any()
 
 
 def test_paper_outcome_flags_a_difference(demo_scenario):
@@ -141,9 +146,9 @@ def test_builtin_engine_batch_is_scored_like_the_engines_own_trace(demo_scenario
 def test_parse_time_shift_and_cases():
     assert parse_time_shift("auto") == "auto" and parse_time_shift(None) == "auto"
     assert parse_time_shift("-2.5") == -2.5 and parse_time_shift(3) == 3.0
-    with pytest.raises(ConfigError):
+    with pytest.raises(InputError, match="time-shift"):
         parse_time_shift("soon")
-    with pytest.raises(ConfigError):
+    with pytest.raises(InputError, match="finite"):
         parse_time_shift(float("nan"))
     assert [c.name for c in resolve_cases(None)] == list(PAPER_CASES)
     with pytest.raises(ConfigError, match="unique"):

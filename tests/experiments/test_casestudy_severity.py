@@ -87,9 +87,11 @@ def test_every_metric_is_bounded_on_the_demo(demo):
     # the ego cruises at ~5.6 m/s, the rider at most its max speed: 20 m/s is generous
     assert_bounded(res.summary, span, 20.0)
     # the demo's collisions are real impacts: before this work their DRAC was 273 m/s^2;
-    # at >= 0.5 s before contact braking at < 1 m/s^2 would have avoided them
+    # at >= 0.5 s before contact braking at < 1 m/s^2 would have avoided them (1.31 m/s^2
+    # since issue 22: the rider, arriving slowly along its run-in, is on the car's course
+    # earlier)
     s = res.summary.set_index("name")
-    assert not s["drac_unavoidable"].any() and (s["max_drac_mps2"] < 1.0).all()
+    assert not s["drac_unavoidable"].any() and (s["max_drac_mps2"] < 1.5).all()
     # impact speed of 'normal' by hand from the time series: |v_ego - v_rider| on the
     # step before the first contact, v = speed (cos yaw, sin yaw) (~0.83 m/s)
     f = res.frame[res.frame["config"] == "normal"]
@@ -102,7 +104,9 @@ def test_every_metric_is_bounded_on_the_demo(demo):
         return row["speed_mps"] * np.array([np.cos(row["yaw_rad"]), np.sin(row["yaw_rad"])])
 
     v_rel = np.linalg.norm(vel(ego.iloc[k - 1]) - vel(rid.iloc[k - 1]))
-    assert 0.8 < v_rel < 0.86
+    # 0.80 m/s (0.83 before issue 22: the rider's recorded velocity at its first sample is
+    # now a central difference with its run-in, no longer a one-sided one)
+    assert 0.77 < v_rel < 0.86
     assert s.loc["normal", "impact_speed_mps"] == pytest.approx(v_rel, rel=1e-9)
     m_c, m_r = CFG.car_mass_kg, case_preset("normal").sfm.mass_kg
     assert s.loc["normal", "delta_v_rider_mps"] == pytest.approx(m_c / (m_c + m_r) * v_rel)

@@ -103,12 +103,16 @@ def test_draw_roads_adds_the_lanes_under_everything(tmp_path):
     (traj,) = ax.plot([0, 1], [0, 1], "r-")
     xlim = ax.get_xlim()
     artists = draw_roads(ax, roads)
-    assert len(artists) == 3
-    drive, other, lines = artists
+    assert len(artists) == 4
+    drive, other, lines, kerbs = artists
     assert len(drive.get_paths()) == 2 and len(other.get_paths()) == 1
     assert all(a.get_zorder() < traj.get_zorder() for a in artists)
     segs = lines.get_segments()
-    assert sorted(round(float(seg[0][1]), 6) for seg in segs) == [16.5, 23.0]
+    # both borders of each driving lane (the centre line y = 20 twice)
+    assert sorted(round(float(seg[0][1]), 6) for seg in segs) == [16.5, 20.0, 20.0, 23.0]
+    # the kerb: the sidewalk's edge towards the carriageway (y = 20 - 3.5)
+    assert kerbs.get_label() == "_kerbs"
+    assert [round(float(y), 6) for y in np.unique(kerbs.get_segments()[0][:, 1])] == [16.5]
     assert ax.get_xlim() == xlim  # the map does not reframe the figure
     plt.close(fig)
 

@@ -136,8 +136,10 @@ def test_calibrated_preset_takes_the_riders_own_speed() -> None:
     cal = SFM_PRESETS["calibrated"]
     case = replace(case_preset("normal"), sfm=cal)
     p = VariantParams.from_case(case, arrays, 1)
-    tr = arrays.rider_track
-    sp = tr.data[:, tr.col("speed_mps")]
+    from vei.sim.tables import recorded_column
+
+    # the recorded samples (not the run-in / run-out the track also holds: issue 22)
+    sp = recorded_column(arrays.rider_track, "speed_mps", arrays.rider_recorded_span_s)
     med = float(np.median(sp[sp > 0.5]))
     # The demo's e-scooter rides at 4.0-4.8 m/s (the reconstruction's spline adds a few
     # percent): the calibrated rider cruises at its median.

@@ -159,7 +159,7 @@ def test_speed_profiles_show_rider_speed_and_cap_band_zoomed():
     (x0, y0), (x1, y1) = bars["BRAKE"].get_paths()[0].vertices[[0, 2]]
     assert (min(x0, x1), abs(x1 - x0)) == pytest.approx((0.5, 1.0))
     # the two rider curves are identical: the note says so
-    texts = [t.get_text() for t in rider_ax.texts]
+    texts = [" ".join(t.get_text().split()) for t in rider_ax.texts]  # wrapped lines
     assert any("replay = normal-cap" in t for t in texts)
 
 
@@ -193,3 +193,49 @@ def test_run_figures_are_titled_as_a_run(tmp_path):
     )  # fmt: skip
     assert not list(tmp_path.glob("*.pdf"))
     assert len(paths) == len(FIGURE_FILES)
+
+
+def test_cap_band_has_a_legend_of_every_state_and_the_note_stays_in_its_panel():
+    """The CAP band's colours are named (CRUISE / BRAKE / RECOVER, even a state that does
+    not occur); the 'identical curves' note is wrapped inside its own axes instead of
+    running into the next panel."""
+    frame = _frame()
+    on = (frame["config"] == "normal-cap") & (frame["agent_id"] == "ego")
+    frame.loc[on, "cap_state"] = ["CRUISE", "CRUISE", "CRUISE", "CRUISE"]
+    # five more configurations with the same rider curve: a long note
+    extra = []
+    for name in ("normal", "aggressive", "aggressive-cap", "paper-normal", "paper-normal-cap"):
+        extra.append(frame[frame["config"] == "normal-cap"].assign(config=name))
+    frame = pd.concat([frame, *extra], ignore_index=True)
+    fig = plot_speed_profiles(frame, other_id="s1")
+    ego_ax, rider_ax, cap_ax = fig.axes[:3]
+    legend = cap_ax.get_legend()
+    assert legend is not None
+    assert [t.get_text() for t in legend.get_texts()] == ["CRUISE", "BRAKE", "RECOVER"]
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    for ax in (ego_ax, rider_ax):
+        notes = [t for t in ax.texts if t.get_text().startswith("identical curves")]
+        assert notes, "the note is drawn"
+        box = notes[0].get_window_extent(renderer)
+        frame_box = ax.get_window_extent(renderer)
+        assert box.x0 >= frame_box.x0 - 1 and box.x1 <= frame_box.x1 + 1, (box, frame_box)
+
+
+def test_birdseye_shades_the_run_in_and_run_out():
+    """Issue 22: the rider's continuation samples (column ``continuation``) are drawn as a
+    shaded band under its path (gid 'continuation'), NaN between run-in and run-out."""
+    frame = _frame()
+    rider = frame["agent_id"] == "s1"
+    frame["continuation"] = rider & (frame["t_s"] <= 0.5)  # the first active step: run-in
+    fig = plot_birdseye_configs(frame, other_id="s1")
+    lines = {ln.get_label(): ln for ln in fig.axes[0].get_lines()}
+    band = lines["run-in / run-out"]
+    assert band.get_gid() == "continuation" and band.get_alpha() == 0.25
+    ys = band.get_ydata()
+    assert ys[0] == -3.0 and np.isnan(ys[1:]).all()  # active rider steps: 0.5 (run-in), 1, 1.5
+    no = plot_birdseye_configs(_frame(), other_id="s1")
+    assert "run-in / run-out" not in {ln.get_label() for ln in no.axes[0].get_lines()}

@@ -191,3 +191,42 @@ def test_screenshot_not_blank(loaded, small_catalogue):
         shutil.copy(out, Path(shots) / "report_overview.png")
         loaded.execute_script("document.getElementById('encounter-section').scrollIntoView()")
         loaded.save_screenshot(str(Path(shots) / "report_encounter.png"))
+
+
+def test_toolbar_never_covers_a_legend_and_zones_are_named(loaded):
+    """Plotly's toolbar (modebar) sits above each plot's legend, not on its first entry;
+    the TTC plot's zone bands and the replay's zone-coloured ego are named in the legend."""
+    rects = loaded.execute_script(
+        """
+        var out = {};
+        document.querySelectorAll('.js-plotly-plot').forEach(function (el) {
+          var bar = el.querySelector('.modebar'), leg = el.querySelector('.legend');
+          if (!bar || !leg) { return; }
+          var b = bar.getBoundingClientRect(), l = leg.getBoundingClientRect();
+          out[el.id] = [b.left, b.top, b.right, b.bottom, l.left, l.top, l.right, l.bottom];
+        });
+        return out;
+        """
+    )
+    assert {"map-plot", "replay-plot", "speed-plot", "ttc-plot"} <= set(rects), rects
+    for pid, (bl, bt, br, bb, ll, lt, lr, lb) in rects.items():
+        overlap = min(br, lr) > max(bl, ll) and min(bb, lb) > max(bt, lt)
+        assert not overlap, f"{pid}: toolbar {bl, bt, br, bb} covers legend {ll, lt, lr, lb}"
+    names = loaded.execute_script(
+        "return ['ttc-plot', 'replay-plot'].map(function (id) {"
+        " return document.getElementById(id).data.map(function (t) { return t.name; }); })"
+    )
+    assert {"TTC safe (> 2 s)", "TTC attention (1-2 s]", "TTC alert (0-1 s]"} <= set(names[0])
+    assert "collision" in names[1] and "TTC alert (0-1 s]" in names[1]
+
+
+def test_case_study_summary_fits_its_panel(loaded):
+    """The case-study summary table shows every column within its panel (it was cut off on
+    the right, behind a scroll bar)."""
+    widths = loaded.execute_script(
+        "var box = document.getElementById('summary-table');"
+        "return [box.scrollWidth, box.clientWidth, box.querySelectorAll('th').length];"
+    )
+    scroll, client, n_cols = widths
+    assert n_cols >= 8
+    assert scroll <= client, f"the table needs {scroll} px in a {client} px panel"

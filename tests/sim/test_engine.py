@@ -221,9 +221,14 @@ def test_rider_inactive_outside_its_shifted_span_and_sfm_starts_from_the_recordi
     inside = (t - shift >= tr.t0_s - 1e-9) & (t - shift <= tr.t_end_s + 1e-9)
     assert np.array_equal(r.rider_active[0], inside)
     k = int(np.argmax(r.rider_active[1]))
-    assert t[k] == pytest.approx(tr.t0_s + shift)
-    assert (r.rider_x_m[1, k], r.rider_y_m[1, k]) == pytest.approx((60.0, -15.0))
-    assert r.rider_speed_mps[1, k] == pytest.approx(4.4)
+    assert t[k] == pytest.approx(tr.t0_s + shift)  # enters at its run-in's start (issue 22)
+    assert (r.rider_x_m[1, k], r.rider_y_m[1, k]) == pytest.approx(tuple(tr.data[0, :2]))
+    # rides the run-in replayed; the social force takes over at the first recorded sample
+    k2 = int(np.argmin(np.abs(t - (crossing_arrays.rider_recorded_span_s[0] + shift))))
+    assert crossing_arrays.rider_recorded_span_s[0] == pytest.approx(2.0)
+    np.testing.assert_allclose(r.rider_y_m[1, k : k2 + 1], r.rider_y_m[0, k : k2 + 1])
+    assert (r.rider_x_m[1, k2], r.rider_y_m[1, k2]) == pytest.approx((60.0, -15.0))
+    assert r.rider_speed_mps[1, k2] == pytest.approx(4.4)
 
 
 def test_other_road_users_are_replayed_and_contacts_recorded() -> None:
@@ -326,7 +331,9 @@ def test_rider_options_paper_velocity_and_limits(crossing_arrays) -> None:
         ]
     )
     r = simulate(crossing_arrays, p)
-    act = r.rider_active
+    # the social force drives the rider from its first recorded sample (its run-in before
+    # is replayed, issue 22)
+    act = r.rider_active & (r.t_s >= crossing_arrays.rider_sfm_entry_s - 1e-9)
     # Normalised form: ~v0 * 5 / sqrt(26) = 4.90 m/s cruising at the look-ahead distance.
     k0 = int(np.argmax(act[0]))
     assert np.median(r.rider_speed_mps[0, k0 + 80 : k0 + 110]) == pytest.approx(

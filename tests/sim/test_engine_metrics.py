@@ -164,6 +164,9 @@ def test_sweep_chunk_rows_unchanged(demo, tmp_path) -> None:
                 "time_shift_s": {"min": -3.0, "max": 3.0, "num": 6},
                 "ego.cruise_speed_mps": {"min": 3.0, "max": 9.0, "num": 5},
                 "sfm.mass_kg": {"choices": [70.0, 110.0]},
+                # without avoidance too: the CAP alone avoids every collision now that the
+                # rider arrives along its run-in (issue 22)
+                "ego.policy": {"choices": ["none", "paper-cap"]},
             },
         }
     )

@@ -102,9 +102,9 @@ def test_critical_config_reruns_to_the_same_result(demo_scenario, tmp_path):
     configs = sorted((tmp_path / "out" / "configs").glob("*.yaml"))
     assert len(configs) == min(20, len(df))
     scenario = read_scenario(demo_scenario)
-    arrays = prepare_scenario(scenario)
     for path in configs[:4]:
         cfg = load_config(path, RunConfig)
+        arrays = prepare_scenario(scenario, cfg.sim)  # its continuations' reach (issue 22)
         row = df[df["variant_id"] == path.stem].iloc[0]
         assert cfg.time_shift == pytest.approx(row["time_shift_applied_s"], abs=0)
         p = VariantParams.from_case(cfg.case, arrays, 1, time_shift_s=cfg.time_shift)

@@ -79,7 +79,11 @@ def test_only_the_critical_variants_are_recorded(swept):
     crit = pd.read_csv(out / "critical.csv")
     ts = pd.read_parquet(out / "critical" / "timeseries.parquet")
     assert len(crit) == K
-    assert list(ts.columns) == ["scenario_id", *TIMESERIES_COLUMNS]
+    assert list(ts.columns) == ["scenario_id", *TIMESERIES_COLUMNS, "continuation"]
+    assert (
+        ts["continuation"].dtype == bool
+        and not ts.loc[ts["agent_id"] == "ego", "continuation"].any()
+    )
     assert list(dict.fromkeys(ts["config"])) == list(crit["variant_id"])
     assert len(read_results(out)) == 9  # ... out of 9 variants
     meta = json.loads((out / "critical" / "recorded.json").read_text())

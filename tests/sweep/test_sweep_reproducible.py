@@ -14,6 +14,7 @@ import pandas as pd
 import pytest
 
 from tests.experiments.rerun import assert_runs_equal_sweep
+from vei.sweep.params import reach_sim, reach_speed_of
 from vei.sweep.run import (
     DEFAULT_METRICS,
     EngineEvaluator,
@@ -66,7 +67,8 @@ def test_vei_run_of_each_variant_equals_the_sweep_row(demo_scenario, tmp_path, c
     cmp = pd.read_csv(tmp_path / "sweep" / "policy_comparison.csv").set_index("ego.policy")
     assert cmp.loc[other, "variants"] == 6
     assert cmp.loc["none", "collisions"] == df.loc[df["ego.policy"] == "none", "collision"].sum()
-    auto = EngineEvaluator().prepare(demo_scenario).auto_shift_s
+    # the sweep's own engine settings: continuations reaching for its largest cruise speed
+    auto = EngineEvaluator(sim=reach_sim(reach_speed_of(spec))).prepare(demo_scenario).auto_shift_s
     paths = write_variant_configs(tmp_path / "configs", df, spec, auto)
     assert df["collision"].any() and not df["collision"].all()  # both outcomes compared
     compared = assert_runs_equal_sweep(demo_scenario, paths, df, tmp_path / "runs")

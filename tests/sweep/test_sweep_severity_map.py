@@ -66,3 +66,34 @@ def test_no_plane_no_map(tmp_path):
     df = variants_table(spec, "s").assign(collision=False, injury_risk=0.0)
     assert sweep_severity_map(df, spec, tmp_path / "x.png") is None
     assert not (tmp_path / "x.png").exists()
+
+
+def test_lhs_map_with_many_unknown_values_keeps_one_binning(tmp_path):
+    """A Latin-hypercube sweep in which many collisions have no known value (contact
+    without approach: NaN): the value's bins are the boundary's bins (the bin count was
+    derived twice, from all rows and from the finite ones, and the map crashed with
+    'Dimensions of C (9, 9) should be one smaller than X(11) and Y(11)')."""
+    spec = spec_from_dict(
+        {
+            "design": "lhs",
+            "n_samples": 1200,
+            "seed": 3,
+            "parameters": {
+                "time_shift_s": {"min": -3.0, "max": 3.0},
+                "ego.cruise_speed_mps": {"min": 3.0, "max": 9.0},
+            },
+        }
+    )
+    df = variants_table(spec, "s")
+    v = df["ego.cruise_speed_mps"].to_numpy()
+    df["collision"] = v > 4.0
+    known = df["time_shift_s"].to_numpy() > 0.5  # 5/12 of the collisions have a speed
+    df["impact_speed_mps"] = np.where(df["collision"] & known, v, np.nan)
+    df["injury_risk"] = np.where(df["collision"], np.where(known, 0.3, np.nan), 0.0)
+    for value in ("injury_risk", "impact_speed_mps"):
+        drawn = sweep_severity_map(df, spec, tmp_path / f"{value}.png", value=value)
+        grid = drawn["binned"]
+        assert (
+            grid["value"].shape == (grid["y_centres"].size, grid["x_centres"].size) == (10, 10)
+        )  # sqrt(1200 / 10)
+        assert (tmp_path / f"{value}.png").is_file()

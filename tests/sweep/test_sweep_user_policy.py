@@ -15,6 +15,7 @@ from typer.testing import CliRunner
 from tests.experiments.rerun import same_value
 from vei.cli.main import app
 from vei.errors import ConfigError
+from vei.sweep.params import reach_sim, reach_speed_of
 from vei.sweep.run import (
     DEFAULT_METRICS,
     EngineEvaluator,
@@ -95,7 +96,11 @@ def test_user_policy_rows_differ_from_none_and_equal_vei_run(
     assert bool(none_row["collision"]) and not bool(user_row["collision"])
     assert user_row["peak_decel_mps2"] > 3.0 > none_row["peak_decel_mps2"]
 
-    auto = EngineEvaluator(base="normal-cap").prepare(demo_scenario).auto_shift_s
+    auto = (
+        EngineEvaluator(base="normal-cap", sim=reach_sim(reach_speed_of(spec)))
+        .prepare(demo_scenario)
+        .auto_shift_s
+    )
     cfg_none, cfg_user = write_variant_configs(
         tmp_path / "configs",
         df.set_index("variant_id")

@@ -267,6 +267,21 @@ def _to_params(
     }
 
 
+def population_params(
+    profile: Mapping[str, Any], vals: Mapping[str, FloatArray], n: int
+) -> dict[str, FloatArray]:
+    """VariantParams-ready arrays [n] of n riders given their population parameters.
+
+    Args:
+        profile: a loaded profile. vals: {POP_PARAMETERS name: [n] values} (already in
+            SAMPLE_BOUNDS). n: number of riders.
+    Returns:
+        As :func:`sample_population` (k_des_nspm = mass / tau; A, b, mass, sigma the
+        profile's).
+    """
+    return _to_params(profile, vals, n)
+
+
 def cruise_v0_mps(
     cruise_speed_mps: npt.ArrayLike, lookahead_m: npt.ArrayLike, sigma_m: float
 ) -> FloatArray:

@@ -53,6 +53,7 @@ from vei.calibrate.rollout import (
 )
 from vei.calibrate.tracks import RiderTrack, SceneTracks
 from vei.errors import InputError
+from vei.io.progress import progress
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -219,34 +220,38 @@ def validate_loso(
     errs: dict[str, dict[float, list[FloatArray]]] = {m: {h: [] for h in hs} for m in MODELS}
     fdes: dict[str, dict[float, list[FloatArray]]] = {m: {h: [] for h in hs} for m in MODELS}
     cats: dict[float, list[npt.NDArray[np.object_]]] = {h: [] for h in hs}
-    for held in folds:
-        train = [t for s in scenes if s.scenario != held for t in s.riders]
-        test = list(by_name[held].riders)
-        result = fit_tracks(train, by_name, dt_s=dt_s, bootstrap=0)
-        profile = build_profile(result, {"held_out": held})
-        paths = pack_paths(test)
-        for h in hs:
-            win = make_windows(test, by_name, paths, h, stride_s, dt_s)
-            if win.size == 0:
-                continue
-            preds = {
-                "CV": rollout_cv(win),
-                "CA": rollout_ca(win),
-                "CS-path": rollout_path_cs(paths, win),
-                "SFM paper": rollout_sfm(paths, win, PAPER_PARAMS),
-                "SFM calibrated": rollout_sfm(paths, win, _sfm_params_recorded(profile, test, win)),
-                "SFM start-speed": rollout_sfm(
-                    paths, win, _start_speed(_sfm_params_recorded(profile, test, win), win)
-                ),
-                "SFM population": rollout_sfm(
-                    paths, win, _sfm_params_population(profile, test, win)
-                ),
-            }
-            for m, (x, y) in preds.items():
-                a, f = displacement_errors(win, x, y)
-                errs[m][h].append(a)
-                fdes[m][h].append(f)
-            cats[h].append(np.array([test[j].category for j in win.track], dtype=object))
+    with progress("validate (leave one scenario out)", len(folds), unit="folds") as rep:
+        for held in folds:
+            train = [t for s in scenes if s.scenario != held for t in s.riders]
+            test = list(by_name[held].riders)
+            result = fit_tracks(train, by_name, dt_s=dt_s, bootstrap=0)
+            profile = build_profile(result, {"held_out": held})
+            paths = pack_paths(test)
+            for h in hs:
+                win = make_windows(test, by_name, paths, h, stride_s, dt_s)
+                if win.size == 0:
+                    continue
+                preds = {
+                    "CV": rollout_cv(win),
+                    "CA": rollout_ca(win),
+                    "CS-path": rollout_path_cs(paths, win),
+                    "SFM paper": rollout_sfm(paths, win, PAPER_PARAMS),
+                    "SFM calibrated": rollout_sfm(
+                        paths, win, _sfm_params_recorded(profile, test, win)
+                    ),
+                    "SFM start-speed": rollout_sfm(
+                        paths, win, _start_speed(_sfm_params_recorded(profile, test, win), win)
+                    ),
+                    "SFM population": rollout_sfm(
+                        paths, win, _sfm_params_population(profile, test, win)
+                    ),
+                }
+                for m, (x, y) in preds.items():
+                    a, f = displacement_errors(win, x, y)
+                    errs[m][h].append(a)
+                    fdes[m][h].append(f)
+                cats[h].append(np.array([test[j].category for j in win.track], dtype=object))
+            rep.advance()
     empty = [h for h in hs if not errs["CV"][h]]
     if empty:
         raise InputError(

@@ -31,6 +31,14 @@ DEFAULT_SWEEP: dict[str, Any] = {
     },
 }
 
+#: The default per-encounter risk estimate (issue 23, ``vei risk``): the default variation
+#: (vei.risk.defaults), the base configuration's planner, P(collision) to +-20 % within
+#: 20,000 simulations (Monte Carlo, or cross-entropy importance sampling when rare). Keys:
+#: a risk spec's (base, time_shift_reference, seed, variation, fixed, perception,
+#: injury_relevant_speed_mps; docs/risk.md) and budget, target_rel_ci, method, policies.
+DEFAULT_RISK: dict[str, Any] = {"budget": 20_000, "target_rel_ci": 0.2, "method": "auto"}
+RISK_RUN_KEYS: tuple[str, ...] = ("budget", "target_rel_ci", "method", "policies")
+
 #: The case study's configurations (the paper's five).
 DEFAULT_CASES: tuple[str, ...] = ("replay", "normal", "aggressive", "normal-cap", "aggressive-cap")
 
@@ -51,6 +59,9 @@ class CatalogueConfig:
         max_encounters_per_recording: keep at most this many encounters per recording
             (the most critical by PET first); None = all.
         figures: write the case-study PNG/PDF figures per encounter.
+        risk: the per-encounter risk estimate (``vei risk``: a risk spec's keys and
+            budget, target_rel_ci, method, policies), None = none; encounters are then
+            ranked by collision share instead of expected harm.
     """
 
     rule: EncounterRule = field(default_factory=EncounterRule)
@@ -63,6 +74,7 @@ class CatalogueConfig:
     map_source: str | None = None
     max_encounters_per_recording: int | None = None
     figures: bool = True
+    risk: dict[str, Any] | None = field(default_factory=lambda: dict(DEFAULT_RISK))
 
     def __post_init__(self) -> None:
         rule = self.rule
@@ -105,6 +117,11 @@ class CatalogueConfig:
         # Validate the nested settings now, so a typo fails before any work starts.
         self.sweep_spec()
         self.recon_config()
+        if self.risk is not None and not isinstance(self.risk, Mapping):
+            raise ConfigError(f"risk must be a mapping (a risk spec) or null, got {self.risk!r}")
+        if self.risk is not None:
+            object.__setattr__(self, "risk", dict(self.risk))
+        self.risk_settings()
         from vei.experiments.casestudy import resolve_cases
 
         resolve_cases(list(self.cases))
@@ -116,6 +133,39 @@ class CatalogueConfig:
         from vei.sweep.spec import spec_from_dict
 
         return spec_from_dict(self.sweep, source="catalogue sweep")
+
+    def risk_settings(self) -> tuple[Any, dict[str, Any]] | None:
+        """(VariationModel, {budget, target_rel_ci, method, policies}) of the risk
+        estimate, or None without one. Raises ConfigError on a bad value."""
+        if self.risk is None:
+            return None
+        from vei.risk.assess import METHODS, check_budget
+        from vei.risk.variation import parse_variation
+
+        raw = dict(self.risk)
+        run = {k: raw.pop(k) for k in RISK_RUN_KEYS if k in raw}
+        model = parse_variation(raw, "catalogue risk")
+        opts = {
+            "budget": run.get("budget", DEFAULT_RISK["budget"]),
+            "target_rel_ci": run.get("target_rel_ci", DEFAULT_RISK["target_rel_ci"]),
+            "method": run.get("method", DEFAULT_RISK["method"]),
+            "policies": run.get("policies") or [],
+        }
+        try:
+            check_budget(opts["budget"], opts["target_rel_ci"])
+        except ConfigError as exc:
+            raise ConfigError(f"catalogue risk: {exc}".replace("--", "")) from None
+        if opts["method"] not in METHODS:
+            raise ConfigError(
+                f"catalogue risk: method must be one of {', '.join(METHODS)}, got {opts['method']!r}"
+            )
+        pols = opts["policies"]
+        if isinstance(pols, str):
+            pols = [pols]
+        if not isinstance(pols, list | tuple) or not all(isinstance(p, str) for p in pols):
+            raise ConfigError(f"catalogue risk: policies must be a list of names, got {pols!r}")
+        opts["policies"] = list(pols)
+        return model, opts
 
     def recon_config(self):
         """The reconstruction settings as a ReconstructionConfig."""
@@ -140,7 +190,7 @@ class CatalogueConfig:
 
 def load_catalogue_config(path: str | Path | None, **overrides: Any) -> CatalogueConfig:
     """A CatalogueConfig from a YAML/JSON file (keys: rule, sweep, cases, annotation_rate_hz,
-    recon, map_source, max_encounters_per_recording, figures; unknown keys are errors), with
+    recon, map_source, max_encounters_per_recording, figures, risk; unknown keys are errors), with
     ``overrides`` (not None) applied on top. ``path`` None: the defaults."""
     raw: dict[str, Any] = {}
     if path is not None:
@@ -164,6 +214,7 @@ def load_catalogue_config(path: str | Path | None, **overrides: Any) -> Catalogu
         "map_source",
         "max_encounters_per_recording",
         "figures",
+        "risk",
     }
     unknown = sorted(set(raw) - known)
     if unknown:

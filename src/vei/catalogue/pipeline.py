@@ -24,7 +24,7 @@ import pandas as pd
 from vei.catalogue.config import CatalogueConfig
 from vei.catalogue.encounters import Encounter, find_encounters
 from vei.catalogue.store import encounter_dir, is_done, mark_done, read_json, recording_dir
-from vei.errors import VeiError
+from vei.errors import NoRidersError, VeiError
 from vei.io.atomic import write_json, write_parquet
 
 #: Dataset kinds :func:`list_recordings` recognises.
@@ -82,17 +82,27 @@ def process_recording(
     """Import/read, reconstruct and find the encounters of one recording.
 
     Returns (and writes as recordings/<rec>/status.json) {'recording', 'status': 'ok' |
-    'failed', 'reason', 'encounters': [Encounter.as_dict()], 'others': [...], 'n_riders'}.
-    Never raises for a bad recording: the failure is the returned status.
+    'no-riders' | 'failed', 'reason', 'encounters': [Encounter.as_dict()], 'others': [...],
+    'n_riders'}. Never raises for a bad recording: the failure is the returned status; a
+    recording without any e-scooter or cyclist is 'no-riders' (nothing to do, not a failure).
     """
     rec_dir = recording_dir(Path(out), recording)
     status_path = rec_dir / "status.json"
     if status_path.is_file():
         old = read_json(status_path)
-        if old.get("status") == "ok":
+        if old.get("status") in ("ok", "no-riders"):
             return old
     try:
         doc = _recording(Path(dataset), kind, recording, rec_dir, config)
+    except NoRidersError as exc:
+        doc = {
+            "recording": recording,
+            "status": "no-riders",
+            "reason": _reason(exc),
+            "encounters": [],
+            "others": [],
+            "n_riders": 0,
+        }
     except Exception as exc:  # a recording that fails never stops the others
         doc = {
             "recording": recording,
@@ -308,6 +318,7 @@ def _encounter(out: Path, enc: Encounter, config: CatalogueConfig) -> int:
         sweep.insert(0, "kind", "sweep")
         parts.append(sweep)
     rows = pd.concat(parts, ignore_index=True)
+    ident.update(_encounter_risk(scen_dir, edir, config))  # issue 23: per-encounter risk
     clash = sorted(set(ident) & set(rows.columns))
     if clash:
         raise RuntimeError(f"identifier columns clash with metric columns: {clash}")
@@ -316,3 +327,21 @@ def _encounter(out: Path, enc: Encounter, config: CatalogueConfig) -> int:
     rows = _clean_object_columns(rows)
     write_parquet(edir / "rows.parquet", rows)
     return len(rows)
+
+
+def _encounter_risk(scen_dir: Path, edir: Path, config: CatalogueConfig) -> dict[str, Any]:
+    """The encounter's risk estimate (``vei risk`` into ``edir/risk``) as identifier
+    columns of its rows (vei.risk.output.encounter_columns); {} without one."""
+    settings = config.risk_settings()
+    if settings is None:
+        return {}
+    from vei.risk.output import encounter_columns
+    from vei.risk.run import assess_risk
+
+    model, opts = settings
+    result = assess_risk(
+        scen_dir, model, policies=tuple(opts["policies"]), method=opts["method"],
+        budget=opts["budget"], target_rel_ci=opts["target_rel_ci"], sobol_n=0,
+        out_dir=edir / "risk", configs="failures",
+    )  # fmt: skip
+    return encounter_columns(result)

@@ -37,8 +37,20 @@ OVERVIEW_COLUMNS: tuple[tuple[str, str, str, str], ...] = (
     ("rec_min_gap_m", "rec. gap [m]", ".2f", "smallest same-time distance (recorded)"),
     ("time_shift_auto_s", "shift [s]", ".2f", "automatic time shift of the rider"),
     ("n_configs", "configs", "d", "simulated configurations (case study + sweep)"),
-    ("collision_share", "collision share", ".3f", "share of configurations that collide"),
-    ("mean_safety_index", "mean SI", ".3f", "mean safety index over the configurations"),
+    (
+        "n_flagged",
+        "seen too late",
+        "d",
+        "configurations in which the rider was first seen too late for any planner "
+        "(seen_too_late): counted apart, left out of every score",
+    ),
+    (
+        "collision_share",
+        "collision share",
+        ".3f",
+        "share of the unflagged configurations that collide",
+    ),
+    ("mean_safety_index", "mean SI", ".3f", "mean safety index over the unflagged configurations"),
     ("worst_min_gap_m", "worst gap [m]", ".2f", "smallest simulated box gap"),
     ("casestudy_collisions", "case-study collisions", "d", "of the paper's five configurations"),
 )
@@ -76,6 +88,51 @@ def _roads(scenario_dir: Path) -> dict[str, Any] | None:
         xs += [*ring[:, 0].tolist(), None]
         ys += [*ring[:, 1].tolist(), None]
     return {"x": xs, "y": ys} if xs else None
+
+
+#: Road layers (sidewalks, lane borders, kerbs) are kept within this margin of the
+#: encounter's tracks [m] (a city map holds thousands of lanes).
+ROAD_LAYER_MARGIN_M = 60.0
+
+
+def _road_layers(scenario_dir: Path) -> dict[str, Any]:
+    """The map's layers under the report's map and replay, besides the drivable lanes of
+    :func:`_roads`: ``sidewalks`` (outlines of the non-drivable lanes: sidewalks, bike
+    lanes), ``lines`` (lane borders) and ``kerbs`` (vei.maps.roads.RoadGeometry.kerbs),
+    each {x, y} [m] with None between pieces (thinned to <= 80 points a piece), kept within
+    ROAD_LAYER_MARGIN_M of the tracks; or ``note`` (why nothing is drawn) without a map."""
+    doc = read_json(scenario_dir / "scenario.json")
+    name = (doc.get("maps") or {}).get("opendrive")
+    if not name or not (scenario_dir / name).is_file():
+        from vei.maps.roads import NO_MAP_NOTE
+
+        return {"note": NO_MAP_NOTE}
+    from vei.maps import load_roads
+
+    roads = load_roads(scenario_dir / name)
+    traj = pd.read_parquet(scenario_dir / "trajectories.parquet", columns=["x_m", "y_m"])
+    m = ROAD_LAYER_MARGIN_M
+    lo = np.array([traj["x_m"].min() - m, traj["y_m"].min() - m])
+    hi = np.array([traj["x_m"].max() + m, traj["y_m"].max() + m])
+
+    def pieces(lines: list[np.ndarray], closed: bool = False) -> dict[str, Any] | None:
+        xs: list[float | None] = []
+        ys: list[float | None] = []
+        for line in lines:
+            if len(line) < 2 or np.any(line.max(axis=0) < lo) or np.any(line.min(axis=0) > hi):
+                continue
+            pts = line[:: max(1, len(line) // 80)]
+            if closed or len(pts) < 2 or not np.array_equal(pts[-1], line[-1]):
+                pts = np.vstack([pts, line[-1:]])
+            xs += [*np.round(pts[:, 0], 2).tolist(), None]
+            ys += [*np.round(pts[:, 1], 2).tolist(), None]
+        return {"x": xs, "y": ys} if xs else None
+
+    return {
+        "sidewalks": pieces([ln.outline for ln in roads.lanes if not ln.drivable], closed=True),
+        "lines": pieces(list(roads.lane_borders)),
+        "kerbs": pieces(list(roads.kerbs)),
+    }
 
 
 def _replay(
@@ -148,10 +205,16 @@ def _risk_map(rows: pd.DataFrame) -> dict[str, Any] | None:
     sw = rows[rows["kind"] == "sweep"]
     if len(sw) < 4 or x not in sw or y not in sw or sw[x].isna().all() or sw[y].isna().all():
         return None
-    xs, ys = sw[x].to_numpy(float), sw[y].to_numpy(float)
+    from vei.metrics.seen import flagged_mask
+
+    flag = flagged_mask(sw)  # never coloured by: marked (points.flagged)
+    xs_all, ys_all = sw[x].to_numpy(float), sw[y].to_numpy(float)
     n = int(np.clip(np.sqrt(len(sw) / 6.0), 3, 15))
-    xe = np.linspace(xs.min(), xs.max(), n + 1)
-    ye = np.linspace(ys.min(), ys.max(), n + 1)
+    xe = np.linspace(xs_all.min(), xs_all.max(), n + 1)
+    ye = np.linspace(ys_all.min(), ys_all.max(), n + 1)
+    coll_all = sw["collision"].astype(bool).to_numpy()
+    sw = sw[~flag]
+    xs, ys = sw[x].to_numpy(float), sw[y].to_numpy(float)
     si = sw["safety_index"].to_numpy(float)
     fin = np.isfinite(si)  # NaN: the shifted rider never met the ego in the simulated span
     num, _, _ = np.histogram2d(xs[fin], ys[fin], bins=[xe, ye], weights=si[fin])
@@ -173,8 +236,116 @@ def _risk_map(rows: pd.DataFrame) -> dict[str, Any] | None:
         "x_label": "time-shift offset to the automatic shift [s]",
         "y_label": "ego cruise speed [m/s]",
         "n": int(len(sw)),
-        "points": {"x": xs, "y": ys, "collision": sw["collision"].astype(bool).to_numpy()},
+        "n_flagged": int(flag.sum()),
+        "points": {"x": xs_all, "y": ys_all, "collision": coll_all, "flagged": flag},
     }
+
+
+#: Overview columns of the risk estimate (issue 23), shown when the catalogue has one.
+RISK_COLUMNS: tuple[tuple[str, str, str, str], ...] = (
+    ("risk_expected_harm", "expected harm", ".2e",
+     "probability x injury risk: the expected injury risk of the rider per encounter under "
+     "the variation (the ranking's key)"),
+    ("risk_harm_ci", "harm 95 % CI", "s", "95 % confidence interval of the expected harm"),
+    ("risk_p_collision", "P(collision)", ".2e",
+     "probability of a collision under the variation ('-' with only an upper bound)"),
+    ("risk_p_collision_ci", "P 95 % CI", "s",
+     "95 % confidence interval of P(collision) ('< x': no collision seen, upper bound)"),
+    ("risk_n_simulations", "risk sims", "d", "simulations of the risk estimate"),
+)  # fmt: skip
+
+
+def _ci_text(rec: dict[str, Any], name: str) -> str:
+    lo, hi = rec.get(f"{name}_lo"), rec.get(f"{name}_hi")
+    v = rec.get(name)
+    if v is None or not np.isfinite(v):
+        return f"< {hi:.2e}" if hi is not None and np.isfinite(hi) else "-"
+    return f"[{lo:.2e}, {hi:.2e}]"
+
+
+def _risk_panel(edir: Path) -> tuple[dict[str, Any] | None, dict[str, Any] | None]:
+    """(the risk estimate's figures as text, its probability map) of an encounter, from
+    its ``risk/`` folder (vei risk); (None, None) without one."""
+    path = edir / "risk" / "risk.json"
+    if not path.is_file():
+        return None, None
+    doc = read_json(path)
+    planners = []
+    for p in doc.get("planners", []):
+        figs = {}
+        for key, label in (
+            ("p_collision", "P(collision)"),
+            ("p_injury_relevant_collision", "P(injury-relevant collision)"),
+            ("expected_injury_risk", "expected injury risk (harm)"),
+            ("p_seen_too_late", "P(seen too late)"),
+        ):
+            e = p.get(key) or {}
+            lo, hi = (e.get("ci95") or [None, None])[:2]
+            if e.get("upper_bound_only"):
+                figs[label] = (
+                    f"< {hi:.2e} (95 % upper bound, none in {e.get('n', 0):,})"
+                    if hi is not None
+                    else "-"
+                )
+            elif e.get("value") is not None:
+                figs[label] = f"{e['value']:.3e} [{lo:.3e}, {hi:.3e}]"
+            else:
+                figs[label] = "-"
+        modes = p.get("failure_modes") or {}
+        planners.append({
+            "policy": p.get("policy"), "method": p.get("method"),
+            "n_simulations": p.get("n_simulations"), "figures": figs,
+            "reliable": (p.get("p_collision") or {}).get("reliable", False),
+            "notes": list(p.get("notes", [])),
+            "kinds": [f"{k['kind']}: {100 * k['share_of_p_collision']:.0f} %" for k in modes.get("kinds", [])],
+            "regions": [f"{r['rule']}: {100 * r['share_of_p_collision']:.0f} % of P(collision), "
+                        f"P(collision | region) {r['p_collision_in_region']:.2g}"
+                        for r in modes.get("regions", [])[:4]],
+        })  # fmt: skip
+    risk = {
+        "planners": planners,
+        "comparisons": [c.get("verdict", "") for c in doc.get("comparisons", [])],
+        "variation": [
+            f"{v['name']}: {v['distribution']}" for v in doc.get("variation_resolved", [])
+        ],
+    }
+    return risk, _probability_map(edir / "risk" / "samples.parquet", doc)
+
+
+def _probability_map(path: Path, doc: dict[str, Any]) -> dict[str, Any] | None:
+    """P(collision | cell) over the first two varied quantities from the risk estimate's
+    final sample of its first planner; cells whose 95 % CI is wider than +-0.1 unknown."""
+    from vei.sweep.riskmap import probability_grid
+
+    dims = [d for d in doc.get("dimensions", []) if not d.startswith("rider.")]
+    planners = doc.get("planners") or []
+    if len(dims) < 2 or not planners or not path.is_file():
+        return None
+    x, y = (
+        ("time_shift_s", "ego.cruise_speed_mps")
+        if {"time_shift_s", "ego.cruise_speed_mps"} <= set(dims)
+        else dims[:2]
+    )
+    s = pd.read_parquet(path, columns=[x, y, "failure", "weight", "in_estimate", "policy"])
+    s = s[s["in_estimate"] & (s["policy"] == planners[0]["policy"])]
+    if len(s) < 50:
+        return None
+    xs, ys = s[x].to_numpy(float), s[y].to_numpy(float)
+    nb = int(np.clip(np.sqrt(len(s) / 100.0), 3, 12))
+    xe = np.linspace(xs.min(), xs.max(), nb + 1)
+    ye = np.linspace(ys.min(), ys.max(), nb + 1)
+    g = probability_grid(xs, ys, s["failure"].to_numpy(bool), xe, ye,
+                         weights=s["weight"].to_numpy(float))  # fmt: skip
+    known = g["known"]
+    text = [[(f"P {g['p'][j, i]:.3f} [{g['lo'][j, i]:.3f}, {g['hi'][j, i]:.3f}]"
+              if np.isfinite(g["p"][j, i]) else "no sample") + ("" if known[j, i] else " (not known)")
+             for i in range(known.shape[1])] for j in range(known.shape[0])]  # fmt: skip
+    return {
+        "x": g["x_centres"], "y": g["y_centres"],
+        "z": np.where(known, g["p"], np.nan), "unknown": np.where(known, np.nan, 1.0),
+        "text": text, "x_label": x, "y_label": y, "policy": planners[0]["policy"],
+        "n": int(len(s)),
+    }  # fmt: skip
 
 
 def collect(catalogue_dir: str | Path) -> dict[str, Any]:
@@ -196,6 +367,10 @@ def collect(catalogue_dir: str | Path) -> dict[str, Any]:
         if len(rows)
         else pd.DataFrame(columns=[c for c, *_ in OVERVIEW_COLUMNS])
     )
+    columns = OVERVIEW_COLUMNS
+    if "risk_expected_harm" in enc:
+        columns = (OVERVIEW_COLUMNS[0], OVERVIEW_COLUMNS[1], OVERVIEW_COLUMNS[2],
+                   *RISK_COLUMNS, *OVERVIEW_COLUMNS[3:])  # fmt: skip
     encounters = []
     for rec in enc.to_dict("records"):
         eid = rec["encounter_id"]
@@ -205,14 +380,21 @@ def collect(catalogue_dir: str | Path) -> dict[str, Any]:
         scen = read_json(edir / "scenario" / "scenario.json")
         dims = {a["agent_id"]: (a["length_m"], a["width_m"]) for a in scen["agents"]}
         er = rows[rows["encounter_id"] == eid]
+        risk, probmap = _risk_panel(edir)  # issue 23
+        if "risk_expected_harm" in rec:
+            rec["risk_harm_ci"] = _ci_text(rec, "risk_expected_harm")
+            rec["risk_p_collision_ci"] = _ci_text(rec, "risk_p_collision")
         encounters.append(
             {
                 "id": eid,
-                "row": {c: rec.get(c) for c, *_ in OVERVIEW_COLUMNS},
+                "risk": risk,
+                "probmap": probmap,
+                "row": {c: rec.get(c) for c, *_ in columns},
                 "rider_id": rec["rider_id"],
                 "recording": rec["recording"],
                 "tracks": _tracks(edir / "scenario"),
                 "roads": _roads(edir / "scenario"),
+                "road_layers": _road_layers(edir / "scenario"),
                 "replay": _replay(
                     edir,
                     rec["rider_id"],
@@ -228,10 +410,13 @@ def collect(catalogue_dir: str | Path) -> dict[str, Any]:
                             "collision",
                             "collision_time_s",
                             "safety_index",
+                            "safety_index_rel",
                             "min_gap_m",
                             "min_ttc_s",
                             "peak_decel_mps2",
                             "ego_speed_std_mps",
+                            "first_seen_gap_m",
+                            "seen_too_late",
                         )
                     }
                     for c in summary["configs"]
@@ -252,9 +437,8 @@ def collect(catalogue_dir: str | Path) -> dict[str, Any]:
         "settings": manifest.get("settings"),
         "recordings": recs,
         "failed_encounters": manifest.get("failed_encounters", []),
-        "columns": [
-            {"key": k, "label": lab, "fmt": f, "title": t} for k, lab, f, t in OVERVIEW_COLUMNS
-        ],
+        "columns": [{"key": k, "label": lab, "fmt": f, "title": t} for k, lab, f, t in columns],
+        "ranked_by": "expected harm" if "risk_expected_harm" in enc else "criticality",
         "encounters": encounters,
     }
 

@@ -11,7 +11,6 @@ on where they ran. Progress bars (rich) show both phases when stderr is a termin
 from __future__ import annotations
 
 import contextlib
-import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -42,11 +41,14 @@ class CatalogueResult:
     Attributes:
         out_dir: the catalogue folder. rows: catalogue table (one row per encounter x
         configuration, ranked). encounters: one row per encounter, ranked.
-        recordings: per recording {'recording', 'status', 'reason', 'encounters', ...}.
-        failed_encounters: [{'encounter_id', 'reason'}]. n_done_before: encounters a
+        recordings: per recording {'recording', 'status' ('ok', 'no-riders', 'failed'),
+        'reason', 'encounters', ...}.
+        failed_encounters: [{'encounter_id', 'reason'}]. failed_recordings: names of the
+        recordings (of this folder, any run) that failed. n_done_before: encounters a
         previous (interrupted) run had finished. seconds: wall time of this call.
-        complete: every encounter of every recording this folder holds (this run's and
-        earlier runs') is done: none failed, none left undone by ``max_encounters``.
+        complete: no recording and no encounter failed, and every encounter of every
+        recording this folder holds (this run's and earlier runs') is done (none left
+        undone by ``max_encounters``); otherwise the catalogue is partial.
         rows / encounters / the manifest cover every recording processed in this folder
         so far, not only this run's ``recordings``.
     """
@@ -56,6 +58,7 @@ class CatalogueResult:
     encounters: pd.DataFrame
     recordings: list[dict[str, Any]]
     failed_encounters: list[dict[str, Any]]
+    failed_recordings: list[str]
     n_done_before: int
     seconds: float
     complete: bool
@@ -92,6 +95,14 @@ class _Ray:
                 yield self.ray.get(r)
 
 
+def check_executor(engine: str, workers: int) -> None:
+    """Raise ConfigError unless ``engine`` is known and ``workers`` an integer >= 1."""
+    if engine not in ENGINES:
+        raise ConfigError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ConfigError(f"workers must be an integer >= 1, got {workers!r}")
+
+
 @contextlib.contextmanager
 def executor(engine: str, workers: int) -> Iterator[Any]:
     """A job executor with ``map(fn, calls)`` yielding results as jobs finish.
@@ -102,10 +113,7 @@ def executor(engine: str, workers: int) -> Iterator[Any]:
     'ray': Ray tasks (``ray.init(num_cpus=workers)`` unless Ray is initialised already,
     e.g. ``ray.init(address='auto')`` on a cluster: then the cluster's CPUs are used).
     """
-    if engine not in ENGINES:
-        raise ConfigError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ConfigError(f"workers must be an integer >= 1, got {workers!r}")
+    check_executor(engine, workers)
     if engine == "ray":
         from vei.sweep.workers import ray_session
 
@@ -122,23 +130,23 @@ def executor(engine: str, workers: int) -> Iterator[Any]:
 
 
 @contextlib.contextmanager
-def _progress(enabled: bool) -> Iterator[Callable[[str, int, int], None]]:
-    """update(phase, done, total); a rich bar per phase when enabled."""
-    if not enabled:
-        yield lambda phase, done, total: None
-        return
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+def _progress(enabled: bool | None) -> Iterator[Callable[[str, int, int], None]]:
+    """update(phase, done, total): per phase a bar on a terminal, a line at least every
+    10 s otherwise (None), or nothing (False) (vei.io.progress)."""
+    from vei.io.progress import progress
 
-    with Progress(
-        TextColumn("{task.description:<12}"), BarColumn(), MofNCompleteColumn(),
-        TimeElapsedColumn(), transient=False,
-    ) as prog:  # fmt: skip
-        tasks: dict[str, Any] = {}
+    with contextlib.ExitStack() as stack:
+        phases: dict[str, Any] = {}
 
         def update(phase: str, done: int, total: int) -> None:
-            if phase not in tasks:
-                tasks[phase] = prog.add_task(phase, total=total)
-            prog.update(tasks[phase], completed=done, total=total)
+            if phase not in phases:
+                for other in list(phases):  # the previous phase ends: its last line
+                    stack.pop_all().close()
+                    phases.pop(other)
+                phases[phase] = stack.enter_context(
+                    progress(f"catalogue: {phase}", total, enabled=enabled)
+                )
+            phases[phase].update(done, total)
 
         yield update
 
@@ -163,7 +171,8 @@ def run_catalogue(
         config: what to compute (default CatalogueConfig()).
         recordings: only these recordings (names as listed; default all).
         engine, workers: where jobs run ('local' | 'ray'; >= 1 workers).
-        progress: progress bars; default when stderr is a terminal.
+        progress: None (default): a bar per phase on a terminal, else a line at least
+            every 10 s (vei.io.progress); False: silent.
         max_encounters: run at most this many encounters not done before (>= 0; tests,
             partial runs); the catalogue stays resumable and is assembled from what is done.
         on_event: callback(kind, doc) for each finished job ('recording' / 'encounter').
@@ -175,6 +184,7 @@ def run_catalogue(
     """
     t0 = time.perf_counter()
     config = config or CatalogueConfig()
+    check_executor(engine, workers)  # every argument checked before out_dir is touched
     if max_encounters is not None and (
         isinstance(max_encounters, bool)
         or not isinstance(max_encounters, int)
@@ -206,12 +216,15 @@ def run_catalogue(
         "recordings": (old or {}).get("recordings", {}),
     }
     write_manifest(out, manifest)
-    progress = sys.stderr.isatty() if progress is None else progress
     emit = on_event or (lambda kind, doc: None)
 
     rec_docs: list[dict[str, Any]] = []
     enc_docs: list[dict[str, Any]] = []
-    with executor(engine, workers) as ex, _progress(bool(progress)) as update:
+    if workers > 1 or engine == "ray":
+        from vei.sim.warmup import ensure_compiled
+
+        ensure_compiled()  # once here (announced), not in every worker at once
+    with executor(engine, workers) as ex, _progress(progress) as update:
         calls = [(str(dataset), kind, n, str(out), config) for n in names]
         update("recordings", 0, len(calls))
         for doc in ex.map(process_recording, calls):
@@ -257,8 +270,13 @@ def run_catalogue(
     manifest["recordings"] = dict(sorted(manifest["recordings"].items()))
     ids = [i for r in manifest["recordings"].values() for i in r.get("encounters", [])]
     rows, enc_table = assemble(out, ids)
-    complete = not failed and all(is_done(out, i) for i in ids)
+    failed_recordings = sorted(
+        k for k, r in manifest["recordings"].items() if r.get("status") == "failed"
+    )
+    # complete: nothing failed and every encounter done; else partial (exit code 3 at the CLI)
+    complete = not failed and not failed_recordings and all(is_done(out, i) for i in ids)
     manifest["failed_encounters"] = failed
+    manifest["failed_recordings"] = failed_recordings
     manifest["n_encounters"] = len(ids)
     manifest["n_rows"] = len(rows)
     manifest["status"] = "complete" if complete else "partial"
@@ -271,6 +289,7 @@ def run_catalogue(
         encounters=enc_table,
         recordings=rec_docs,
         failed_encounters=failed,
+        failed_recordings=failed_recordings,
         n_done_before=len(done_before) + sum(d["status"] == "done-before" for d in enc_docs),
         seconds=time.perf_counter() - t0,
         complete=complete,

@@ -109,8 +109,11 @@ def write_manifest(out: Path, doc: dict[str, Any]) -> Path:
     return write_json(Path(out) / MANIFEST, doc)
 
 
-#: Ranking of rows: collisions first, then the lowest safety index, the smallest gap, TTC.
+#: Ranking of rows: collisions first, then the lowest safety index, the smallest gap, TTC;
+#: rows flagged seen_too_late (no planner could have reacted, vei.metrics.seen) after
+#: every unflagged one.
 ROW_ORDER: tuple[tuple[str, bool], ...] = (
+    ("seen_too_late", True),
     ("collision", False),
     ("safety_index", True),
     ("min_gap_m", True),
@@ -121,12 +124,24 @@ ROW_ORDER: tuple[tuple[str, bool], ...] = (
 def encounter_scores(rows: pd.DataFrame) -> pd.DataFrame:
     """One row per encounter with its criticality and rank (1 = most critical).
 
-    Criticality of an encounter: ``collision_share`` = share of its simulated
-    configurations (case study + sweep) that collide, then the lowest mean safety index,
-    then the smallest minimum gap over them. Returns columns encounter_id, recording,
-    rider_id, category, the recorded geometry, n_configs, collision_share,
-    mean_safety_index, worst_min_gap_m, worst_min_ttc_s, casestudy_collisions, rank.
+    Criticality of an encounter: with a risk estimate (issue 23; ``risk_*`` columns of
+    its rows), the expected harm (probability x injury risk) and then P(collision), the
+    encounters with only an upper bound after those with an estimate; then (and without
+    one) ``collision_share`` = share of its simulated configurations (case study + sweep)
+    that collide, the lowest mean safety index, the smallest minimum gap over them.
+    Configurations flagged ``seen_too_late`` (the rider was first seen too late for any
+    planner, vei.metrics.seen) are counted apart (``n_flagged``, ``flagged_collisions``)
+    and left out of every score (the risk estimate leaves them out of its probabilities
+    too), so they never decide a rank; an encounter whose configurations are all flagged
+    ranks last. Returns columns encounter_id, recording, rider_id, category, the recorded
+    geometry, n_configs, n_flagged, flagged_collisions, collision_share,
+    mean_safety_index, worst_min_gap_m, worst_min_ttc_s, casestudy_collisions, the
+    ``risk_*`` columns where estimated, rank.
     """
+    from vei.metrics.seen import flagged_mask
+
+    flag = flagged_mask(rows)
+    all_rows, rows = rows, rows[~flag]
     geo_cols = [
         c
         for c in (
@@ -143,22 +158,34 @@ def encounter_scores(rows: pd.DataFrame) -> pd.DataFrame:
         )
         if c in rows
     ]
+    ga = all_rows.groupby("encounter_id", sort=True)
+    out = ga[geo_cols].first()
+    out["n_configs"] = ga.size()
+    fl = all_rows.assign(_f=flag, _fc=flag & all_rows["collision"].fillna(False).astype(bool))
+    out["n_flagged"] = fl.groupby("encounter_id")["_f"].sum().astype(int)
+    out["flagged_collisions"] = fl.groupby("encounter_id")["_fc"].sum().astype(int)
     g = rows.groupby("encounter_id", sort=True)
-    out = g[geo_cols].first()
-    out["n_configs"] = g.size()
-    out["collision_share"] = g["collision"].mean().astype(float)
-    out["mean_safety_index"] = g["safety_index"].mean()
-    out["worst_min_gap_m"] = g["min_gap_m"].min()
-    out["worst_min_ttc_s"] = g["min_ttc_s"].min() if "min_ttc_s" in rows else np.nan
+    out["collision_share"] = g["collision"].mean().astype(float).reindex(out.index)
+    out["mean_safety_index"] = g["safety_index"].mean().reindex(out.index)
+    out["worst_min_gap_m"] = g["min_gap_m"].min().reindex(out.index)
+    out["worst_min_ttc_s"] = (
+        g["min_ttc_s"].min().reindex(out.index) if "min_ttc_s" in rows else np.nan
+    )
     cs = rows[rows["kind"] == "casestudy"]
     out["casestudy_collisions"] = (
         cs.groupby("encounter_id")["collision"].sum().reindex(out.index).fillna(0).astype(int)
     )
-    out = out.reset_index().sort_values(
-        ["collision_share", "mean_safety_index", "worst_min_gap_m", "encounter_id"],
-        ascending=[False, True, True, True],
-        kind="stable",
-    )
+    risk_cols = [c for c in all_rows.columns if c.startswith("risk_")]
+    for c in risk_cols:  # issue 23: one estimate per encounter, constant over its rows
+        out[c] = ga[c].first()
+    keys = ["collision_share", "mean_safety_index", "worst_min_gap_m", "encounter_id"]
+    asc = [False, True, True, True]
+    if "risk_expected_harm" in out:  # ranked by expected harm, then P(collision)
+        out["_harm"] = out["risk_expected_harm"].fillna(0.0)  # a bound only: after estimates
+        out["_p"] = out["risk_p_collision"].fillna(0.0)
+        keys, asc = ["_harm", "_p", *keys], [False, False, *asc]
+    out = out.reset_index().sort_values(keys, ascending=asc, kind="stable", na_position="last")
+    out = out.drop(columns=[c for c in ("_harm", "_p") if c in out])
     out["rank"] = np.arange(1, len(out) + 1)
     return out.reset_index(drop=True)
 
@@ -186,6 +213,8 @@ def assemble(out: Path, ids: list[str] | None = None) -> tuple[pd.DataFrame, pd.
             enc[["encounter_id", "rank"]].rename(columns={"rank": "encounter_rank"}),
             on="encounter_id",
         )
+        if "seen_too_late" not in rows:  # rows made before the flag existed: unflagged
+            rows = rows.assign(seen_too_late=False)
         keys = [k for k, _ in ROW_ORDER if k in rows] + ["encounter_id", "kind", "config"]
         asc = [a for k, a in ROW_ORDER if k in rows] + [True, True, True]
         rows = rows.sort_values(keys, ascending=asc, kind="stable", na_position="last").reset_index(

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -65,9 +64,8 @@ def catalogue(
     """Find, simulate, sweep, score and rank every car-rider encounter of a dataset."""
     import time
 
-    from rich.console import Console
-
     from vei.catalogue import load_catalogue_config, run_catalogue
+    from vei.cli import output
     from vei.errors import ConfigError
 
     t0 = time.perf_counter()
@@ -87,7 +85,7 @@ def catalogue(
                 raise ConfigError("--n-variants needs a random or lhs sweep design")
             sweep["n_samples"] = n_variants
         config = dataclasses.replace(config, sweep=sweep)
-    console = Console(soft_wrap=True) if sys.stdout.isatty() else Console(width=200)
+    console = output.console()
     try:
         result = run_catalogue(
             dataset, out, config, recordings=recording or None, engine=engine, workers=workers
@@ -109,10 +107,17 @@ def catalogue(
         path = write_report(out)
         console.print(f"report: {path}")
     console.print(f"wall time: {time.perf_counter() - t0:.1f} s")
+    if not result.complete:
+        n_rec, n_enc = len(result.failed_recordings), len(result.failed_encounters)
+        console.print(
+            f"partial: {n_rec} recording(s) and {n_enc} encounter(s) failed (listed above); "
+            "exit code 3",
+            style="yellow",
+        )
+        raise typer.Exit(3)
 
 
 def _print_result(console, result, top: int) -> None:
-    from rich.markup import escape
     from rich.table import Table
 
     table = Table(title="recordings")
@@ -123,18 +128,15 @@ def _print_result(console, result, top: int) -> None:
             d["recording"],
             d["status"],
             ", ".join(e["rider_id"] for e in d.get("encounters", [])) or "-",
-            escape(d.get("reason", "")),
+            d.get("reason", ""),
         )
     console.print(table)
     for f in result.failed_encounters:
-        console.print(
-            f"[red]encounter failed[/] {escape(f['encounter_id'])}: {escape(f['reason'])}"
-        )
+        console.print(f"encounter failed {f['encounter_id']}: {f['reason']}", style="red")
     enc = result.encounters
     if len(enc):
-        t = Table(
-            title=f"encounters ranked by criticality (top {min(top, len(enc))} of {len(enc)})"
-        )
+        by = "expected harm" if "risk_expected_harm" in enc else "criticality"  # issue 23
+        t = Table(title=f"encounters ranked by {by} (top {min(top, len(enc))} of {len(enc)})")
         cols = (
             ("rank", "rank", "{:d}"),
             ("encounter_id", "encounter", "{}"),
@@ -149,11 +151,16 @@ def _print_result(console, result, top: int) -> None:
             ("worst_min_gap_m", "worst gap [m]", "{:.2f}"),
             ("casestudy_collisions", "case-study collisions", "{:d}"),
         )
-        from rich.markup import escape
-
+        if by == "expected harm":  # issue 23: the risk estimate with its 95 % intervals
+            enc = enc.assign(
+                _harm=[_ci(r, "risk_expected_harm") for r in enc.to_dict("records")],
+                _p=[_ci(r, "risk_p_collision") for r in enc.to_dict("records")],
+            )
+            cols = (*cols[:3], ("_harm", "expected harm [95 % CI]", "{}"),
+                    ("_p", "P(collision) [95 % CI]", "{}"), *cols[3:])  # fmt: skip
         for c, head, _ in cols:
             t.add_column(
-                escape(head),
+                head,
                 justify="left" if c in ("encounter_id", "category") else "right",
                 no_wrap=c == "encounter_id",
             )
@@ -165,6 +172,14 @@ def _print_result(console, result, top: int) -> None:
         f"{result.n_done_before} encounter(s) done by an earlier run; "
         f"status {'complete' if result.complete else 'partial'}"
     )
+
+
+def _ci(rec: dict, name: str) -> str:
+    """'2.6e-04 [2.2e-04, 3.1e-04]', or '< 1.8e-03' with only an upper bound."""
+    v, lo, hi = rec.get(name), rec.get(f"{name}_lo"), rec.get(f"{name}_hi")
+    if v is None or v != v:
+        return f"< {hi:.1e}" if hi is not None and hi == hi else "-"
+    return f"{v:.1e} [{lo:.1e}, {hi:.1e}]"
 
 
 def report_cmd(

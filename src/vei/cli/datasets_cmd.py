@@ -110,7 +110,8 @@ def _import_trafficmonitoring(
         spans = sub.groupby("track_id")["t_s"].agg(lambda t: t.max() - t.min())
         typer.echo(
             f"  {cat}: {sub['track_id'].nunique()} track(s), {len(sub)} annotations at {rate_hz:g} Hz, "
-            f"seen {spans.min():.1f}-{spans.max():.1f} s"
+            f"present t = {sub['t_s'].min():.1f}-{sub['t_s'].max():.1f} s, "
+            f"each track {spans.min():.1f}-{spans.max():.1f} s long"
         )
     for tr in s.track_times:
         typer.echo(
@@ -121,6 +122,8 @@ def _import_trafficmonitoring(
         typer.echo(
             f"  car's own camera track vs INS: median {s.own_track_median_m:.2f} m, p95 {s.own_track_p95_m:.2f} m"
         )
+    for warning in s.warnings:
+        typer.echo(f"warning: {warning}", err=True)
 
 
 def _download_trafficmonitoring(

@@ -19,10 +19,25 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
+from vei.cli.output import console
+
 
 def _safe_stem(text: str) -> str:
     stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("._")
     return stem or "vei_scenario"
+
+
+def replay_trajectories(scenario):  # type: ignore[no-untyped-def]
+    """The trajectories the replay export plays: the recorded ones with every road user's
+    run-in and run-out (vei.continuation, default settings), over the recorded span
+    [0, last recorded time] (continuation samples outside it are left out)."""
+    from vei.continuation import recorded_rows, with_continuations
+
+    cont = with_continuations(scenario)
+    traj = cont.trajectories
+    t_end = float(recorded_rows(traj)["t_s"].max())
+    t = traj["t_s"].to_numpy(dtype=float)
+    return traj[(t >= -1e-9) & (t <= t_end + 1e-9)].reset_index(drop=True)
 
 
 def export_scenario(
@@ -54,8 +69,8 @@ def export_scenario(
         base = scenario.root if scenario.root is not None else Path(scenario_dir)
         xodr = base / scenario.maps["opendrive"]
     if config is None:
-        traj = scenario.trajectories
-        label = "replay of the recorded trajectories"
+        traj = replay_trajectories(scenario)
+        label = "replay of the recorded trajectories with their run-ins and run-outs"
         name = _safe_stem(scenario.id)
     else:
         # the same configuration loading and engine run as `vei run`
@@ -241,6 +256,10 @@ def register(app: typer.Typer) -> None:
         if code:
             raise SystemExit(code)  # typer.Exit is swallowed by main() (standalone_mode=False)
 
+    # vei export commonroad (issue 26), in its own module
+    from vei.cli.commonroad_cmd import register as register_commonroad
+
+    register_commonroad(export_app)
     app.add_typer(export_app, name="export")
 
 
@@ -260,7 +279,7 @@ def _check(
     from vei.errors import ConfigError, DependencyError, InputError
     from vei.export.validate import declared_version, validate_openscenario
 
-    out = Console()
+    out = console()
     if not path.is_file():
         raise InputError("file not found", path=path)
     if not dt_s > 0:

@@ -11,9 +11,9 @@ import importlib
 import sys
 
 import typer
-from rich.console import Console
 
 from vei import __version__
+from vei.cli.output import console
 from vei.errors import VeiError
 
 #: Modules under vei.cli that define ``register(app)``; each owns its commands.
@@ -27,6 +27,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "catalogue_cmd",
     "calibrate_cmd",
     "v2x_cmd",
+    "risk_cmd",
 )
 
 app = typer.Typer(
@@ -67,18 +68,37 @@ def main(argv: list[str] | None = None) -> int:
 
     Usage errors are click's own (message + exit 2, in standalone mode); a VeiError raised
     by a command prints one clear line and returns 2; anything else is a bug and keeps its
-    traceback.
+    traceback. When stderr is not a terminal (a log, CI) a line names what the command is
+    doing whenever it has printed nothing for 10 s (:func:`vei.io.progress.heartbeat`).
+    Exit codes: :data:`EXIT_CODES`.
     """
-    err = Console(stderr=True)
+    from rich.text import Text
+
+    from vei.io.progress import heartbeat
+
+    args = sys.argv[1:] if argv is None else argv
+    command = " ".join(["vei", *[a for a in args[:2] if not a.startswith("-")]])
     try:
-        app(args=argv, prog_name="vei", standalone_mode=True)
+        with heartbeat(command):
+            app(args=argv, prog_name="vei", standalone_mode=True)
     except SystemExit as exc:
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else 1)
     except VeiError as exc:
-        err.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+        message = Text.assemble(("error:", "bold red"), " ", str(exc))
+        console(stderr=True).print(message, soft_wrap=True)
         return 2
     return 0
+
+
+#: The exit codes of every command (documented in the README).
+EXIT_CODES: dict[int, str] = {
+    0: "success",
+    1: "a bug (a traceback is printed; please report it)",
+    2: "a user error: bad file, row, field or option (one message names it); nothing written",
+    3: "partial success: a batch command finished, but some of its items failed (listed)",
+    130: "interrupted (Ctrl-C); long jobs resume when run again",
+}
 
 
 if __name__ == "__main__":

@@ -73,9 +73,9 @@ def _status(message: str) -> Iterator[None]:
     if not sys.stderr.isatty():
         yield
         return
-    from rich.console import Console
+    from vei.cli.output import console
 
-    with Console(stderr=True).status(message):
+    with console(stderr=True).status(message):
         yield
 
 

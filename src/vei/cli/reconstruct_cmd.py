@@ -203,12 +203,11 @@ def _uncertainty_figure(scenario, interaction):
 
 def print_report(scenario, out: Path) -> None:
     """Print the per-track table and the summary of a reconstructed scenario to stdout."""
-    import sys
-
-    from rich.console import Console
     from rich.table import Table
 
-    console = Console(soft_wrap=True) if sys.stdout.isatty() else Console(width=160)
+    from vei.cli.output import console as make_console
+
+    console = make_console(width=160)
     rec = scenario.extra.get("reconstruction", {})
     errors = scenario.extra.get("reconstruction_error")
     err_by_agent = {r["agent_id"]: r for r in (errors or {}).get("tracks", [])}

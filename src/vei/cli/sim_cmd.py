@@ -12,7 +12,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import os
 from pathlib import Path
@@ -478,23 +477,24 @@ def run_demo(
     Writes ``out/interaction`` (the input, synthetic or imported), ``out/scenario`` (the
     reconstruction) and the case study files into ``out``.
     """
-    from vei.experiments.casestudy import run_casestudy, write_casestudy
+    from vei.experiments.casestudy import parse_time_shift, run_casestudy, write_casestudy
     from vei.io.interaction import read_interaction
+    from vei.io.progress import activity as status
     from vei.io.scenario import write_scenario
     from vei.recon.pipeline import ReconstructionConfig, reconstruct
 
     console = console or _console()
     out = Path(out)
     inter_dir, scen_dir = out / "interaction", out / "scenario"
+    # every argument checked before anything is written
+    shift = parse_time_shift(time_shift)
+    recon = ReconstructionConfig(interp=interp)
+    root = find_trafficmonitoring_root(data_dir) if real else None
 
-    def status(msg: str):
-        return console.status(msg) if console.is_terminal else contextlib.nullcontext()
-
-    with status("step 1/3: preparing the interaction ..."):
+    with status("step 1/3: preparing the interaction"):
         if real:
             from vei.datasets.trafficmonitoring import import_scenario
 
-            root = find_trafficmonitoring_root(data_dir)
             import_scenario(root, REAL_DEMO_SCENARIO, inter_dir, rate_hz=1.0)
             console.print(
                 f"imported the real trafficmonitoring scenario {REAL_DEMO_SCENARIO} from {root}"
@@ -507,14 +507,22 @@ def run_demo(
                 "generated the built-in SYNTHETIC demo interaction (not a recording): "
                 + str(inter_dir)
             )
-    with status("step 2/3: reconstructing the scenario ..."):
-        scenario = reconstruct(read_interaction(inter_dir), ReconstructionConfig(interp=interp))
-        write_scenario(scenario, scen_dir)
+    with status("step 2/3: reconstructing the scenario"):
+        scenario = reconstruct(read_interaction(inter_dir), recon)
+        map_files = None
+        if not real:  # the synthetic street as a map: roads under the figures (issue 26)
+            from vei.experiments.demo_map import attach_demo_map
+            from vei.io.scenario import read_scenario
+
+            scenario, map_files = attach_demo_map(scenario)
+        write_scenario(scenario, scen_dir, extra_files=map_files)
+        if map_files:
+            scenario = read_scenario(scen_dir)  # its folder: the figures find the map
     console.print(
         f"reconstructed {scenario.id}: primary threat {scenario.primary_threat}, {scenario.rate_hz:g} Hz -> {scen_dir}"
     )
-    with status("step 3/3: time shift, five configurations, metrics and figures ..."):
-        result = run_casestudy(scenario, time_shift=time_shift)
+    with status("step 3/3: time shift, five configurations, metrics and figures"):
+        result = run_casestudy(scenario, time_shift=shift)
         write_casestudy(result, out)
     print_summary(result, out, console=console)
     return result

@@ -4,15 +4,14 @@ configuration with the collision, timing and conflict metrics and what a collisi
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Any
 
 
 def _console():
-    from rich.console import Console
+    from vei.cli.output import console
 
-    return Console(soft_wrap=True) if sys.stdout.isatty() else Console(width=200)
+    return console()
 
 
 def _fmt(value: Any, fmt: str = ".2f") -> str:
@@ -44,18 +43,49 @@ def _cell(rec: dict[str, Any], key: str, fmt: str | None) -> str:
     return _fmt(value, fmt) if fmt else _fmt(value)
 
 
+def summary_table(title: str, heads: list[str], rows: list[list[str]], width: int):
+    """The case-study table: one row per configuration when it fits ``width`` characters,
+    else transposed (one row per metric, one column per configuration), so that no value is
+    ever cut off; a value that still does not fit is folded, never truncated."""
+    from rich.table import Table
+
+    # one row per configuration fits when every column holds its widest value unwrapped
+    # (headers may wrap at their spaces): value or longest header word, + 3 for the borders
+    widths = [
+        max([len(r[j]) for r in rows] + [len(w) for w in head.split()])
+        for j, head in enumerate(heads)
+    ]
+    if 1 + sum(3 + w for w in widths) <= width:
+        wide = Table(title=title)
+        for j, head in enumerate(heads):
+            left = j == 0 or head == "verdict"
+            wide.add_column(
+                head, justify="left" if left else "right", overflow="fold", width=widths[j]
+            )
+        for row in rows:
+            wide.add_row(*row)
+        return wide
+    tall = Table(title=title)
+    tall.add_column(heads[0], justify="left", overflow="fold")
+    for row in rows:
+        tall.add_column(row[0], justify="right", overflow="fold")
+    for j, head in enumerate(heads[1:], start=1):
+        tall.add_row(head, *[row[j] for row in rows])
+    return tall
+
+
 def print_summary(result, out: Path | None = None, console=None) -> None:
     """Print the case-study table (one row per configuration: collision, timing and
     conflict metrics, and what a collision costs: impact speed, the rider's injury risk and
     the verdict against the no-avoidance configuration) and where it was written."""
-    from rich.table import Table
 
     from vei.metrics import summary_records
 
     console = console or _console()
     ts = result.time_shift_s
-    table = Table(
-        title=f"case study: {result.scenario.id} (time shift {ts:+.2f} s, {result.time_shift.get('mode')}; backend {result.backend})"
+    title = (
+        f"case study: {result.scenario.id} (time shift {ts:+.2f} s, "
+        f"{result.time_shift.get('mode')}; backend {result.backend})"
     )
     cols = [
         ("config", "name", None),
@@ -74,21 +104,27 @@ def print_summary(result, out: Path | None = None, console=None) -> None:
         ("injury risk", "injury_risk", ".3g"),
         ("verdict", "verdict", None),
     ]
-    from rich.markup import escape
-
-    for head, _, _ in cols:
-        table.add_column(
-            escape(head),
-            justify="left" if head in ("config", "verdict") else "right",
-            no_wrap=head in ("config", "verdict"),
+    # could the car have known (issue 22): beside the collision; the relative-TTC safety
+    # index (issue 28.7): beside the paper's
+    cols.insert(2, ("seen too late", "seen_too_late", None))
+    cols.insert(
+        cols.index(("safety index", "safety_index", ".3f")) + 1,
+        ("SI rel", "safety_index_rel", ".3f"),
+    )
+    records = summary_records(result.summary)
+    cells = [[_cell(rec, key, fmt) for _, key, fmt in cols] for rec in records]
+    console.print(summary_table(title, [head for head, _, _ in cols], cells, console.width))
+    flagged = [r["name"] for r in records if r.get("seen_too_late")]
+    if flagged:
+        console.print(
+            "seen too late (no planner could have reacted: first seen within the "
+            "reaction time of contact or closer than the stopping distance): "
+            f"{', '.join(flagged)}"
         )
-    for rec in summary_records(result.summary):
-        table.add_row(*[escape(_cell(rec, key, fmt)) for _, key, fmt in cols])
-    console.print(table)
     crit = getattr(result, "criticality", None) or {}
     for key in ("perturbation_message", "message"):
         if crit.get(key):
-            console.print(escape(crit[key]))
+            console.print(crit[key])
     outcome = result.paper_outcome()
     if outcome["reproduced"] is not None:
         verdict = "reproduced" if outcome["reproduced"] else "NOT reproduced"
@@ -99,11 +135,9 @@ def print_summary(result, out: Path | None = None, console=None) -> None:
         )
     if any(c.rider == "sfm" and c.sfm.speed_from_recording for c in getattr(result, "cases", ())):
         console.print(
-            escape(
-                f"SFM rider: speeds from {result.other_id}'s own recording (the calibrated "
-                "rider, the default; docs/riders.md); the paper's rider (v0 5 m/s): "
-                "--config paper-normal etc., or 'sfm: paper' in a configuration file"
-            )
+            f"SFM rider: speeds from {result.other_id}'s own recording (the calibrated "
+            "rider, the default; docs/riders.md); the paper's rider (v0 5 m/s): "
+            "--config paper-normal etc., or 'sfm: paper' in a configuration file"
         )
     if out is not None:
         console.print(f"output folder: {out.resolve()}")

@@ -156,13 +156,13 @@ def sweep(
     --x and --y: an adaptive critical-boundary search in that plane, every other parameter
     fixed by the spec (samples.parquet, boundary.json/csv, riskmap.png, critical.*, configs/).
     """
-    from rich.console import Console
     from rich.table import Table
 
+    from vei.cli.output import console as make_console
     from vei.sweep.run import find_scenarios, read_results, run_sweep
     from vei.sweep.spec import load_spec
 
-    console = Console()
+    console = make_console()
     sweep_spec = load_spec(spec)
     if critical < 1:
         raise ConfigError(f"--critical must be >= 1, got {critical}")
@@ -249,10 +249,20 @@ def sweep(
         import pyarrow.parquet as pq
 
         have = set(pq.read_schema(result.results).names)
-        res = read_results(out, columns=[c for c in ("collision", "safety_index") if c in have])
+        wanted = ("collision", "safety_index", "seen_too_late", "impact_speed_mps")
+        res = read_results(out, columns=[c for c in wanted if c in have])
         if "collision" in res:
             table.add_row(
                 "collisions", f"{int(res['collision'].sum())} ({res['collision'].mean():.1%})"
+            )
+        if "seen_too_late" in res:  # issue 22: counted apart, never ranked
+            from vei.metrics.seen import flag_counts
+
+            fc = flag_counts(res)
+            table.add_row(
+                "seen too late (not ranked)",
+                f"{fc['flagged']} ({fc['flagged_share']:.1%}); collisions among them "
+                f"{fc['collisions_flagged']}, unflagged collisions {fc['collisions_unflagged']}",
             )
         if "safety_index" in res:
             table.add_row("mean safety index", f"{res['safety_index'].mean():.3f}")

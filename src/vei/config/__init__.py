@@ -15,6 +15,7 @@ presets, the settings table, and files read into them.
 nothing of vei but vei.errors and vei.types (DESIGN.md, dependency direction).
 """
 
+from vei.config.continuation import ContinuationConfig
 from vei.config.load import config_to_dict, load_config
 from vei.config.metrics import MetricsConfig
 from vei.config.models import (
@@ -66,6 +67,7 @@ __all__ = [
     "BrakingLaw",
     "CAPConfig",
     "CaseConfig",
+    "ContinuationConfig",
     "DesiredVelocityForm",
     "EgoConfig",
     "EgoMode",

@@ -14,6 +14,7 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
+from vei.config.continuation import ContinuationConfig
 from vei.config.metrics import MetricsConfig
 from vei.config.models import KERNEL_POLICIES, SFM_PRESETS, CAPConfig, EgoConfig, SFMConfig
 from vei.config.perception import PerceptionConfig
@@ -67,6 +68,7 @@ def _build(cls: type[T], raw: Any, where: str) -> T:
         "case": CaseConfig,
         "sim": SimConfig,
         "metrics": MetricsConfig,
+        "continuation": ContinuationConfig,
     }
     if cls is RunConfig:  # CaseConfig.rider is a string; RunConfig.rider a population
         nested["rider"] = RiderPopulationConfig

@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
+from vei.config.continuation import ContinuationConfig
 from vei.config.metrics import MetricsConfig
 from vei.config.models import (
     BUILTIN_POLICIES,
@@ -66,6 +67,9 @@ class SimConfig:
             leaves at its final point after its last; all SFM riders repel each other and
             the recorded pedestrians (SFMConfig.a_rider_n / b_rider_per_m). In 'replay'
             configurations they are replayed.
+        continuation: run-in and run-out of every road user but the ego
+            (:class:`vei.config.continuation.ContinuationConfig`, vei.continuation):
+            added by :func:`vei.sim.state.prepare_scenario` to every scenario that has none.
     """
 
     dt_s: float = 0.05
@@ -79,8 +83,11 @@ class SimConfig:
     ego_max_lat_accel_mps2: float = 4.0
     ego_path_speed_mps: float | None = None
     sfm_riders: str | tuple[str, ...] = "primary"
+    continuation: ContinuationConfig = field(default_factory=ContinuationConfig)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.continuation, ContinuationConfig):
+            raise ConfigError("continuation must be a ContinuationConfig (a mapping of its fields)")
         riders = self.sfm_riders
         if isinstance(riders, list | tuple):
             if not riders or not all(isinstance(r, str) and r for r in riders):

@@ -55,7 +55,7 @@ from vei.datasets.trafficmonitoring_files import (
     read_ins,
     read_matching,
 )
-from vei.errors import InputError
+from vei.errors import InputError, NoRidersError
 from vei.geo.frame import LocalFrame
 from vei.types import Interaction, InteractionMeta
 
@@ -198,6 +198,13 @@ def _track_bearing_deg(track: pd.DataFrame, t_s: np.ndarray, frame: LocalFrame) 
 # ----------------------------------------------------------------------------- importer
 
 
+#: Median distance [m] between the car's own camera track and its INS above which an import
+#: warns: on the recordings of the dataset it is 0.2-0.42 m (docs/interaction-format.md);
+#: well above that the video and the INS are out of sync or the camera's calibration is
+#: off, and every rider's position inherits the error.
+OWN_TRACK_WARN_M = 1.0
+
+
 @dataclass(frozen=True)
 class ImportSummary:
     """What :func:`import_scenario` did (for the CLI and the notes).
@@ -228,6 +235,19 @@ class ImportSummary:
     own_track_median_m: float | None
     own_track_p95_m: float | None
     track_times: tuple[dict, ...] = ()
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """What the user should check before trusting the import (may be empty)."""
+        med = self.own_track_median_m
+        if med is None or not med > OWN_TRACK_WARN_M:
+            return ()
+        return (
+            f"the car's own camera track lies {med:.2f} m (median) from its INS, above "
+            f"{OWN_TRACK_WARN_M:g} m (0.2-0.42 m on the dataset's recordings): the video and "
+            "the INS are probably out of sync, or the camera calibration is off; every "
+            "rider's world position inherits this error",
+        )
 
 
 def _trim_ins(ins: InsRecord, t_lo: float, t_hi: float) -> InsRecord:
@@ -435,7 +455,7 @@ def import_scenario_with_summary(
         )
     riders_seen = any(bool(part["category"].isin(ANNOTATED_CATEGORIES).any()) for part in ann_parts)
     if not riders_seen:
-        raise InputError(
+        raise NoRidersError(
             f"scenario {scenario!r} has no e-scooter or cyclist seen by the camera while the car's INS records "
             f"([0, {t_end:.1f}] s after {ins.start_utc.isoformat()})",
             path=matching.path,

@@ -412,7 +412,6 @@ def search_boundary(
         ConfigError: an axis is not a float parameter, has no range, or another parameter
             varies.
     """
-    import sys
 
     from vei.io.atomic import write_json, write_parquet, write_text
     from vei.report.riskmap import write_risk_map
@@ -449,11 +448,19 @@ def search_boundary(
         )
     fixed = {p.name: p.value for p in spec.parameters if p.name not in (x, y)}
     if evaluator is None:
+        from vei.sweep.params import CRUISE_PARAM, reach_sim, reach_speed_of
+
+        # continuations reach beyond the car at the largest cruise speed searched
+        speed = reach_speed_of(spec)
+        for axis, rng in ((x, xr), (y, yr)):
+            if axis == CRUISE_PARAM:
+                speed = float(max(rng))
         evaluator = EngineEvaluator(
             time_shift_reference=spec.time_shift_reference,
             base=spec.base,
             perception=spec.perception,
             v2x=spec.v2x,
+            sim=reach_sim(speed),
         )
     prepared = evaluator.prepare(Path(scenario_dir))
     sid = evaluator.scenario_id(prepared)
@@ -482,15 +489,12 @@ def search_boundary(
                 out[c] = table[c].to_numpy()
         return out
 
-    show = sys.stderr.isatty() if progress is None else progress
     cb = None
-    if show:
-        from rich.console import Console
-
-        console = Console(stderr=True)
+    if progress is not False:  # None: a line per level, on a terminal or in a log
+        from vei.io.progress import note
 
         def cb(level: int, n: int) -> None:
-            console.print(f"boundary search: level {level}/{levels}, {n} variants evaluated")
+            note(f"boundary search: level {level}/{levels}, {n} variants evaluated")
 
     res = adaptive_boundary(
         oracle, xr, yr, coarse=coarse, levels=levels, x_name=x, y_name=y, progress=cb
@@ -543,5 +547,11 @@ def search_boundary(
     crit = most_critical(boundary_neighbours(res)[table.columns], k_critical)
     write_text(out / "critical.csv", crit.to_csv(index=False))
     write_json(out / "critical.json", json_records(crit))
-    write_variant_configs(out / "configs", crit, spec, evaluator.auto_shift_s(prepared))
+    write_variant_configs(
+        out / "configs",
+        crit,
+        spec,
+        evaluator.auto_shift_s(prepared),
+        evaluator.sim.continuation.ego_speed_mps,
+    )
     return res

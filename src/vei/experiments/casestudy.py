@@ -38,7 +38,7 @@ from vei.metrics import (
     summary_records,
     trace_from_timeseries,
 )
-from vei.types import EGO_ID, TIMESERIES_COLUMNS, Scenario
+from vei.types import CONTINUATION_COLUMN, EGO_ID, TIMESERIES_COLUMNS, Scenario
 
 #: Signature of a backend: (scenario, cases, time_shift_s, sim) -> long time series with
 #: TIMESERIES_COLUMNS, column 'config' = the case's name.
@@ -206,21 +206,40 @@ def add_verdicts(
     return out
 
 
+def timeseries_table(frame: pd.DataFrame) -> pd.DataFrame:
+    """The columns of a run's time series as written to timeseries.parquet:
+    TIMESERIES_COLUMNS, then ``continuation`` (vei.continuation.flags) where present."""
+    cols = list(TIMESERIES_COLUMNS)
+    if CONTINUATION_COLUMN in frame.columns:
+        cols.append(CONTINUATION_COLUMN)
+    return frame[cols]
+
+
+def continuation_sim(sim: SimConfig, cases: Sequence[CaseConfig], scenario: Scenario) -> SimConfig:
+    """``sim`` whose continuations reach far enough for the fastest of ``cases``: the
+    reach distance's speed (vei.config.ContinuationConfig.ego_speed_mps) is the largest
+    cruise speed of the cases ('median-moving' = the recorded ego's median moving speed),
+    unless ``sim.continuation.ego_speed_mps`` is set. Unchanged when every case cruises
+    at the median moving speed (the continuation's own default)."""
+    from dataclasses import replace
+
+    from vei.continuation import reach_speed_mps
+
+    given = [c.ego.cruise_speed_mps for c in cases if not isinstance(c.ego.cruise_speed_mps, str)]
+    if sim.continuation.ego_speed_mps is not None or not given:
+        return sim
+    speeds = [float(v) for v in given]
+    if len(given) < len(cases):  # some cruise at the median moving speed
+        speeds.append(reach_speed_mps(scenario, sim.continuation))
+    return replace(sim, continuation=replace(sim.continuation, ego_speed_mps=max(speeds)))
+
+
 def parse_time_shift(value: str | float | None) -> float | str:
-    """'auto' (or None) -> 'auto'; a number or numeric text -> float seconds (ConfigError otherwise)."""
-    if value is None:
-        return "auto"
-    if isinstance(value, str):
-        if value.strip().lower() == "auto":
-            return "auto"
-        try:
-            value = float(value)
-        except ValueError:
-            raise ConfigError(f"--time-shift must be 'auto' or seconds, got {value!r}") from None
-    shift = float(value)
-    if not np.isfinite(shift):
-        raise ConfigError(f"time shift must be finite, got {value!r}")
-    return shift
+    """'auto' (or None) -> 'auto'; a number or numeric text -> float seconds
+    (:func:`vei.experiments.timeshift.parse_time_shift`; InputError otherwise)."""
+    from vei.experiments.timeshift import parse_time_shift as parse
+
+    return "auto" if value is None else parse(value)
 
 
 # ------------------------------------------------------------------------------ backends
@@ -296,13 +315,18 @@ def run_casestudy(
     case_objs = resolve_cases(cases)
     sim = SimConfig() if sim is None else sim
     mcfg = MetricsConfig() if metrics_config is None else metrics_config
+    from vei.continuation import strip_continuations, with_continuations
+    from vei.continuation.flags import mark_frame
     from vei.experiments.critical_path import make_critical as _make_critical
     from vei.recon.threat import with_threat
 
-    scenario = with_threat(scenario, threat)
+    scenario = with_threat(strip_continuations(scenario), threat)
+    sim = continuation_sim(sim, case_objs, scenario)
     scenario, shift_s, shift_info, criticality = _make_critical(
         scenario, time_shift=parse_time_shift(time_shift), mode=make_critical, sim=sim
     )
+    # every road user arrives and leaves (issue 22): the same continuations as the engine's
+    scenario = with_continuations(scenario, sim.continuation)
     runner = get_backend(backend) if isinstance(backend, str) else backend
     backend_name = backend if isinstance(backend, str) else getattr(backend, "__name__", "custom")
     frame = runner(scenario, case_objs, shift_s, sim)
@@ -311,6 +335,19 @@ def run_casestudy(
         raise BackendError(
             f"backend {backend_name!r} returned a time series without column(s) {', '.join(missing)}"
         )
+    sfm_ids: tuple[str, ...] = ()
+    if sim.sfm_riders != "primary":
+        from vei.experiments.multi_rider import sfm_rider_ids
+
+        sfm_ids = sfm_rider_ids(scenario, sim)
+    frame = mark_frame(
+        frame,
+        scenario,
+        rider_id=scenario.primary_threat,
+        time_shift_s=shift_s,
+        sfm_configs={c.name for c in case_objs if c.rider == "sfm"},
+        sfm_agents=sfm_ids,
+    )
     ego = scenario.agent(EGO_ID)
     other = scenario.agent(scenario.primary_threat)
     ego_dims = (sim.ego_length_m or ego.length_m, sim.ego_width_m or ego.width_m)
@@ -325,12 +362,10 @@ def run_casestudy(
     summary = add_verdicts(
         summarize(trace, mcfg, labels=names, params=run_params(case_objs)), case_objs, mcfg
     )
-    sfm_ids: tuple[str, ...] = ()
     rider_rows = None
     if sim.sfm_riders != "primary":
-        from vei.experiments.multi_rider import rider_table, sfm_rider_ids
+        from vei.experiments.multi_rider import rider_table
 
-        sfm_ids = sfm_rider_ids(scenario, sim)
         rider_rows = rider_table(frame, scenario, sfm_ids, shift_s)
     return CaseStudyResult(
         scenario=scenario,
@@ -411,9 +446,7 @@ def write_casestudy(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths: dict[str, Path] = {
-        "timeseries": write_parquet(
-            out / "timeseries.parquet", result.frame[list(TIMESERIES_COLUMNS)]
-        ),
+        "timeseries": write_parquet(out / "timeseries.parquet", timeseries_table(result.frame)),
         "summary_csv": write_text(out / "summary.csv", result.summary.to_csv(index=False)),
         "summary_json": write_json(out / "summary.json", summary_document(result)),
     }

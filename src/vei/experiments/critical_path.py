@@ -269,7 +269,7 @@ def find_path_perturbation(
     rider_id = f.rider_id
     ego_pts = _dense_path(f.fx_m, f.fy_m, 0.5 * cfg.tolerance_m)
     tree = cKDTree(ego_pts)
-    rx, ry = f.x_tab_m, f.y_tab_m
+    rx, ry = f.recorded_xy()  # the recorded route (its continuations are extrapolations)
     rpts = _dense_path(rx, ry, 0.5 * cfg.tolerance_m)
     d0, foot0 = _polyline_distance(tree, ego_pts, rpts)
     k0 = int(np.argmin(d0))

@@ -11,9 +11,11 @@ rider kept out of the scene), so that ``replay`` meets the rider; the other four
 configurations keep the same shift.
 
 Search: for every tau on a grid of the engine step over all shifts that bring the rider's
-recorded span into the simulated span, the miss distance
-``D(tau) = min_t |R(t - tau) - F(t)|`` (F = ego front centre, R = rider centre, t over the
-steps where the shifted rider is present) is computed in one array operation. The best
+span -- with its run-in and run-out (vei.continuation): the range grows with them -- into
+the simulated span, the miss distance ``D(tau) = min_t |R(t - tau) - F(t)|`` (F = ego
+front centre, R = rider centre, t over the steps where the shifted rider is on its
+*recorded* route: a continuation lets the rider arrive and leave, it never makes a
+recording critical) is computed in one array operation. The best
 grid tau is refined by nested grids down to ~1 microsecond, with the times near the meeting
 sampled at a twentieth of the step. Where
 several shifts are equally good (e.g. a rider riding along the ego's path), the smallest
@@ -139,9 +141,13 @@ class EgoFront:
 
     Attributes:
         t_s: [T] engine times [s]. fx_m, fy_m: [T] front-centre positions [m].
-        cruise_speed_mps: v_d used [m/s]. rider_t0_s, rider_t_end_s: the rider's span [s].
-        t_tab_s, x_tab_m, y_tab_m: the rider's recording (uniform table) [M].
+        cruise_speed_mps: v_d used [m/s]. rider_t0_s, rider_t_end_s: the rider's span [s]
+            (with its run-in and run-out: when it is in the scene).
+        t_tab_s, x_tab_m, y_tab_m: the rider's track (uniform table) [M].
         meet_tolerance_m: (ego width + rider width) / 2 [m]. rider_id: the rider.
+        rec_t0_s, rec_t_end_s: the span of its *recorded* samples [s]: the paths meet on
+            the recorded route only (a continuation is an extrapolation: it lets the rider
+            arrive and leave, it does not make a recording critical).
     """
 
     t_s: np.ndarray
@@ -156,17 +162,27 @@ class EgoFront:
     meet_tolerance_m: float
     rider_id: str
     dt_s: float
+    rec_t0_s: float = -np.inf
+    rec_t_end_s: float = np.inf
+
+    def recorded_xy(self) -> tuple[np.ndarray, np.ndarray]:
+        """([M'], [M']) the rider's positions on its recorded route [m] (no continuation)."""
+        keep = (self.t_tab_s >= self.rec_t0_s - 1e-9) & (self.t_tab_s <= self.rec_t_end_s + 1e-9)
+        return self.x_tab_m[keep], self.y_tab_m[keep]
 
     def miss(
         self, taus: np.ndarray, times: np.ndarray, fxs: np.ndarray, fys: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """[n_tau] miss distances (inf: rider never present) and the index of the closest time."""
+        """[n_tau] miss distances (inf: the rider's recorded route never in the run) and
+        the index of the closest time."""
         out = np.full(taus.shape, np.inf)
         arg = np.zeros(taus.shape, dtype=np.intp)
         chunk = max(1, int(1_000_000 // max(times.size, 1)))
+        lo = max(self.rider_t0_s, self.rec_t0_s)
+        hi = min(self.rider_t_end_s, self.rec_t_end_s)
         for i in range(0, taus.size, chunk):
             tt = times[None, :] - taus[i : i + chunk, None]
-            inside = (tt >= self.rider_t0_s - 1e-9) & (tt <= self.rider_t_end_s + 1e-9)
+            inside = (tt >= lo - 1e-9) & (tt <= hi + 1e-9)
             dx = np.interp(tt, self.t_tab_s, self.x_tab_m) - fxs[None, :]
             dy = np.interp(tt, self.t_tab_s, self.y_tab_m) - fys[None, :]
             d = np.where(inside, np.hypot(dx, dy), np.inf)
@@ -207,6 +223,8 @@ def ego_front(
         meet_tolerance_m=0.5 * (arrays.ego_width_m + arrays.rider_width_m),
         rider_id=arrays.rider_id,
         dt_s=arrays.dt_s,
+        rec_t0_s=float(arrays.rider_recorded_span_s[0]),
+        rec_t_end_s=float(arrays.rider_recorded_span_s[1]),
     )
 
 
@@ -231,7 +249,10 @@ def _result(
         search_max_s=float(hi),
         meet_tolerance_m=front.meet_tolerance_m,
         rider_id=front.rider_id,
-        rider_span_s=(front.rider_t0_s, front.rider_t_end_s),
+        rider_span_s=(
+            max(front.rec_t0_s, front.rider_t0_s),
+            min(front.rec_t_end_s, front.rider_t_end_s),
+        ),
     )
 
 
@@ -261,7 +282,14 @@ def evaluate_time_shift(
     if b < t[0] - 1e-9 or a > t[-1] + 1e-9:
         raise InputError(
             f"time shift {tau:+g} s keeps rider {f.rider_id} out of the run: its recording spans "
-            f"[{f.rider_t0_s:.2f}, {f.rider_t_end_s:.2f}] s, shifted [{a:.2f}, {b:.2f}] s, the "
+            f"[{max(f.rec_t0_s, f.rider_t0_s):.2f}, {min(f.rec_t_end_s, f.rider_t_end_s):.2f}] s"
+            + (
+                f" ([{f.rider_t0_s:.2f}, {f.rider_t_end_s:.2f}] s with its run-in and run-out)"
+                if (f.rider_t0_s, f.rider_t_end_s) != (f.rec_t0_s, f.rec_t_end_s)
+                and np.isfinite(f.rec_t0_s)
+                else ""
+            )
+            + f", shifted [{a:.2f}, {b:.2f}] s, the "
             f"simulated span is [{t[0]:.2f}, {t[-1]:.2f}] s; shifts in "
             f"[{t[0] - f.rider_t_end_s:.2f}, {t[-1] - f.rider_t0_s:.2f}] s keep it in",
             path=f"scenario {scenario.id}",
@@ -306,7 +334,17 @@ def find_time_shift(
     if not (np.isfinite(lo) and np.isfinite(hi)) or hi < lo:
         raise InputError(f"invalid time-shift search range ({lo}, {hi})", field="search_range_s")
     dt = f.dt_s
-    taus = lo + np.arange(int(np.floor((hi - lo) / dt + 1e-9)) + 1) * dt
+    # The grid is anchored where the shifts that bring the *recorded* route into the run
+    # begin, and runs on in whole steps to the range's ends: the same grid points with or
+    # without continuations (and whatever their length), so the same shift is found.
+    anchor, top = lo, hi
+    if search_range_s is None:  # (a recorded end within 1 us of the track's is the track's)
+        if f.rec_t_end_s < f.rider_t_end_s - 1e-6:
+            anchor = max(lo, float(t[0] - f.rec_t_end_s))
+        if f.rec_t0_s > f.rider_t0_s + 1e-6:
+            top = min(hi, float(t[-1] - f.rec_t0_s))
+    k0 = int(np.floor((anchor - lo) / dt + 1e-9))
+    taus = anchor + np.arange(-k0, int(np.floor((hi - anchor) / dt + 1e-9)) + 1) * dt
 
     d_grid, arg_grid = f.miss(taus, t, fx, fy)
     if not np.isfinite(d_grid).any():
@@ -325,7 +363,7 @@ def find_time_shift(
     ffy = np.interp(fine_t, t, fy)
     step_s, centre = dt / 4.0, tau0
     for _ in range(4):  # dt/4 -> dt/80 -> dt/1600 -> dt/32000 resolution
-        cand = np.clip(centre + np.arange(-20, 21) * step_s, lo, hi)
+        cand = np.clip(centre + np.arange(-20, 21) * step_s, anchor, top)
         d_fine, arg = f.miss(cand, fine_t, ffx, ffy)
         fbest = float(d_fine.min())
         fties = np.flatnonzero(d_fine <= fbest + 1e-9)

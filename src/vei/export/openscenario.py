@@ -243,7 +243,9 @@ def export_openscenario(
     Args:
         trajectories: long table, one row per agent per sample; columns t_s [s] (>= 0,
             simulation time), agent_id, category, x_m, y_m [m] (plane, box centre),
-            yaw_rad [rad, CCW from +x], optional speed_mps [m/s] (else from positions).
+            yaw_rad [rad, CCW from +x], optional speed_mps [m/s] (else from positions),
+            optional bool ``continuation`` (vei.continuation: run-in / run-out samples;
+            an entity that has some carries the property ``vei:recorded_span_s``).
             A run's time series (vei.types.TIMESERIES_COLUMNS) works once filtered to
             one config/variant and to ``active`` rows.
         agents: AgentInfo of every agent in ``trajectories`` (footprints, categories).
@@ -432,7 +434,8 @@ def timeseries_to_trajectories(
     Keeps the rows of ``config`` (the only config if None) and ``variant`` (the config's
     only variant if None; a batch of several configs numbers its variants 0, 1, ...)
     where the agent is ``active``; returns columns t_s, agent_id, category, x_m, y_m,
-    yaw_rad, speed_mps. InputError if the choice is ambiguous or empty.
+    yaw_rad, speed_mps (and ``continuation`` where the time series has it). InputError if
+    the choice is ambiguous or empty.
     """
     df = timeseries
     if "config" in df:
@@ -467,5 +470,5 @@ def timeseries_to_trajectories(
         df = df[df["variant"] == variant]
     if "active" in df:
         df = df[df["active"].astype(bool)]
-    cols = ["t_s", "agent_id", "category", "x_m", "y_m", "yaw_rad", "speed_mps"]
+    cols = ["t_s", "agent_id", "category", "x_m", "y_m", "yaw_rad", "speed_mps", "continuation"]
     return df[[c for c in cols if c in df]].reset_index(drop=True)

@@ -77,6 +77,10 @@ PROP_AGENT_ID = "vei:agent_id"
 PROP_CATEGORY = "vei:category"
 PROP_SOURCE_TRACK = "vei:source_track_id"
 PROP_SPAN = "vei:span_s"
+#: Property of an entity whose trajectory holds continuation samples (vei.continuation):
+#: "first last" time [s] of its recorded samples; before / after them it is on its run-in
+#: / run-out.
+PROP_RECORDED_SPAN = "vei:recorded_span_s"
 
 
 @dataclass(frozen=True)
@@ -175,7 +179,14 @@ def speeds(track: pd.DataFrame) -> np.ndarray:
     return np.hypot(*np.gradient(xy, t, axis=0).T)
 
 
-def _entity(xosc, agent: AgentInfo, minor: int, blueprint: str, span: tuple[float, float]):
+def _entity(
+    xosc,
+    agent: AgentInfo,
+    minor: int,
+    blueprint: str,
+    span: tuple[float, float],
+    recorded: tuple[float, float] | None = None,
+):
     m = ENTITY_MODELS[agent.category]
     bb = xosc.BoundingBox(agent.width_m, agent.length_m, m.height_m, 0.0, 0.0, m.height_m / 2)
     if m.kind == "pedestrian":
@@ -209,7 +220,18 @@ def _entity(xosc, agent: AgentInfo, minor: int, blueprint: str, span: tuple[floa
     ent.add_property(PROP_SPAN, f"{r(span[0], 4):g} {r(span[1], 4):g}")
     if agent.source_track_id is not None:
         ent.add_property(PROP_SOURCE_TRACK, str(agent.source_track_id))
+    if recorded is not None:
+        ent.add_property(PROP_RECORDED_SPAN, f"{r(recorded[0], 4):g} {r(recorded[1], 4):g}")
     return ent
+
+
+def _recorded_span(track) -> tuple[float, float] | None:
+    """(first, last) time of a track's recorded samples when it also has continuation
+    samples (column ``continuation``); None otherwise (or when none is recorded)."""
+    if "continuation" not in track or not track["continuation"].any():
+        return None
+    rec = track.loc[~track["continuation"].astype(bool), "t_s"].to_numpy(dtype=float)
+    return (float(rec[0]), float(rec[-1])) if rec.size else None
 
 
 def _time_trigger(xosc, name: str, at_s: float, *, stop: bool = False):
@@ -253,8 +275,12 @@ def build_scenario(
         t0, t1 = float(t[0]), float(t[-1])
         aid = agent.agent_id
         entities.add_scenario_object(
-            aid, _entity(xosc, agent, minor, opts.blueprints[agent.category], (t0, t1))
-        )
+            aid,
+            _entity(
+                xosc, agent, minor, opts.blueprints[agent.category], (t0, t1),
+                _recorded_span(track),
+            ),
+        )  # fmt: skip
         first = world_position(xosc, xy[0, 0], xy[0, 1], yaw[0])
         simulator_ego = agent.category == EGO_CATEGORY and opts.ego_controller == "simulator"
         events = []

@@ -38,6 +38,11 @@ DEFAULT_STEP_M = 1.0
 ROAD_FACE = "#b8b8b8"
 OTHER_FACE = "#dcdcdc"
 LINE_COLOR = "#ffffff"
+#: Lane types whose edge towards the carriageway is a kerb (drawn as a dark line).
+KERB_LANE_TYPES: frozenset[str] = frozenset({"sidewalk", "curb"})
+#: Kerb line colour, and the note drawn where a scenario has no map.
+KERB_COLOR = "#555555"
+NO_MAP_NOTE = "no road map (the scenario has no map.xodr)"
 
 
 @dataclass(frozen=True)
@@ -108,6 +113,18 @@ class RoadGeometry:
 
         polys = self.drivable_polygons
         return shapely.union_all(polys) if polys else Polygon()
+
+    @property
+    def kerbs(self) -> tuple[FloatArray, ...]:
+        """[N, 2] kerb lines [m]: the inner border (towards the road's reference line) of
+        every sidewalk / curb lane, i.e. its edge towards the carriageway."""
+        return tuple(lane.inner for lane in self.lanes if lane.lane_type in KERB_LANE_TYPES)
+
+    @property
+    def lane_borders(self) -> tuple[FloatArray, ...]:
+        """[N, 2] borders of the drivable lanes [m]: each one's outer and inner border (the
+        innermost lanes' inner borders are the centre line)."""
+        return tuple(b for lane in self.lanes if lane.drivable for b in (lane.outer, lane.inner))
 
     @property
     def bounds_xy(self) -> tuple[float, float, float, float]:
@@ -398,13 +415,16 @@ def draw_roads(
 ) -> list[Any]:
     """Draw the map under everything else on a matplotlib Axes (plane metres, equal aspect not forced).
 
-    Drivable lanes are filled grey, other lanes (sidewalks, bike lanes, ...) light grey, and
-    lane borders drawn as thin white lines; all at ``zorder`` (below the default 1-3 of lines
-    and markers) so trajectories stay on top. The axis limits are not changed
+    Drivable lanes are filled grey, other lanes (sidewalks, bike lanes, ...) light grey,
+    lane borders drawn as thin white lines and kerbs (:attr:`RoadGeometry.kerbs`, where the
+    map has sidewalks) as dark grey lines; all at ``zorder`` (below the default 1-3 of
+    lines and markers) so trajectories stay on top. The axis limits are not changed
     (``autolim=False``), so the figure keeps framing the trajectories.
 
     Returns:
-        The artists added: [PolyCollection drivable, PolyCollection other, LineCollection lines].
+        The artists added: [PolyCollection drivable (label 'drivable lanes'),
+        PolyCollection other, LineCollection lane lines, LineCollection kerbs ('_kerbs')]
+        (the last two when drawn).
     """
     from matplotlib.collections import LineCollection, PolyCollection
 
@@ -420,10 +440,26 @@ def draw_roads(
     ax.add_collection(pc_drive, autolim=False)
     artists += [pc_drive, pc_other]
     if lane_lines:
-        segs = [lane.outer for lane in roads.lanes if lane.drivable]
+        segs = list(roads.lane_borders)
         lc = LineCollection(
             segs, colors=LINE_COLOR, linewidths=0.5, zorder=zorder + 0.2, label="_lane lines"
         )
         ax.add_collection(lc, autolim=False)
         artists.append(lc)
+    kerbs = list(roads.kerbs)
+    if kerbs:
+        kc = LineCollection(
+            kerbs, colors=KERB_COLOR, linewidths=0.9, zorder=zorder + 0.3, label="_kerbs"
+        )
+        ax.add_collection(kc, autolim=False)
+        artists.append(kc)
     return artists
+
+
+def draw_no_map_note(ax, text: str = NO_MAP_NOTE) -> Any:
+    """Say on a bird's-eye Axes that no road network is drawn (the scenario has no map);
+    returns the Text artist (label '_no road map')."""
+    return ax.text(
+        0.01, 0.01, text, transform=ax.transAxes, fontsize=7, color="#666666", ha="left",
+        va="bottom", zorder=20, label="_no road map",
+    )  # fmt: skip

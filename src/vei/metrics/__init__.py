@@ -8,7 +8,7 @@ depends on a simulation backend. Use ``get_metric(name).compute(trace, cfg)`` or
 ``summarize(trace)``.
 """
 
-from vei.metrics._trace import run_params
+from vei.metrics._trace import run_params, sensor_params
 from vei.metrics.config import PAPER_METRICS, MetricsConfig
 from vei.metrics.registry import METRICS, SCALAR_METRICS, SERIES_METRICS, Metric, get_metric
 from vei.metrics.severity import VERDICTS, injury_risk_of_speed, verdict
@@ -29,6 +29,7 @@ from vei.metrics.ttc import (
 
 __all__ = [
     "run_params",
+    "sensor_params",
     "METRICS",
     "PAPER_METRICS",
     "SCALAR_METRICS",

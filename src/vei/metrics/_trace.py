@@ -155,6 +155,13 @@ class TraceArrays:
 
 
 RUN_PARAMS: tuple[str, ...] = ("rider_mass_kg", "ego_max_decel_mps2")
+#: Per-run sensor parameters (vei.metrics.seen: when the other was first seen), from the
+#: case's perception (vei.config.PerceptionConfig); absent = no sensor model (first seen
+#: = first present). Range inf and field of view 360 deg = no limit.
+SENSOR_PARAMS: tuple[str, ...] = (
+    "sensor_range_m", "sensor_fov_deg", "sensor_x_m", "sensor_y_m",
+    "sensor_min_visible_fraction",
+)  # fmt: skip
 
 
 def arrays(
@@ -171,8 +178,12 @@ def arrays(
     """
     a = trace if isinstance(trace, TraceArrays) else TraceArrays(trace)
     for key, value in (params or {}).items():
+        if key in SENSOR_PARAMS:
+            a.params[key] = _sensor_param(key, value, a.ego_speed.shape[0])
+            continue
         if key not in RUN_PARAMS:
-            raise InputError(f"unknown run parameter {key!r}; known: {', '.join(RUN_PARAMS)}")
+            known = ", ".join(RUN_PARAMS + SENSOR_PARAMS)
+            raise InputError(f"unknown run parameter {key!r}; known: {known}")
         v = np.broadcast_to(np.asarray(value, dtype=np.float64), a.ego_speed.shape[:1]).copy()
         if not (np.isfinite(v) & (v > 0)).all():
             raise InputError(f"run parameter {key} must be finite and > 0, got {v}", field=key)
@@ -183,11 +194,55 @@ def arrays(
 def run_params(cases: Sequence[Any]) -> dict[str, FloatArray]:
     """Per-run settings of B cases (``vei.config.CaseConfig``), for :func:`arrays`: the
     rider mass (``sfm.mass_kg``; also for a replayed rider, which has no SFM of its own)
-    and the car's full brake (``ego.max_decel_mps2``)."""
-    return {
+    and the car's full brake (``ego.max_decel_mps2``); the sensor's (:data:`SENSOR_PARAMS`)
+    when some case has an enabled perception (``case.perception``)."""
+    out = {
         "rider_mass_kg": np.array([float(c.sfm.mass_kg) for c in cases]),
         "ego_max_decel_mps2": np.array([float(c.ego.max_decel_mps2) for c in cases]),
     }
+    out.update(sensor_params([getattr(c, "perception", None) for c in cases]))
+    return out
+
+
+def sensor_params(perceptions: Sequence[Any]) -> dict[str, FloatArray]:
+    """:data:`SENSOR_PARAMS` of B runs from their PerceptionConfig (None or disabled =
+    no sensor: range inf, field of view 360 deg); {} when no run has one."""
+    on = [p is not None and bool(getattr(p, "enabled", False)) for p in perceptions]
+    if not any(on):
+        return {}
+    n = len(perceptions)
+    out = {
+        "sensor_range_m": np.full(n, np.inf),
+        "sensor_fov_deg": np.full(n, 360.0),
+        "sensor_x_m": np.zeros(n),
+        "sensor_y_m": np.zeros(n),
+        "sensor_min_visible_fraction": np.full(n, 0.2),
+    }
+    for i, (p, use) in enumerate(zip(perceptions, on, strict=True)):
+        if use:
+            out["sensor_range_m"][i] = p.range_m
+            out["sensor_fov_deg"][i] = p.fov_deg
+            out["sensor_x_m"][i] = p.sensor_x_m
+            out["sensor_y_m"][i] = p.sensor_y_m
+            out["sensor_min_visible_fraction"][i] = p.min_visible_fraction
+    return out
+
+
+def _sensor_param(key: str, value: Any, n: int) -> FloatArray:
+    """[n] a checked sensor parameter (InputError naming it otherwise)."""
+    v = np.broadcast_to(np.asarray(value, dtype=np.float64), (n,)).copy()
+    ok = ~np.isnan(v)
+    if key == "sensor_range_m":
+        ok &= v > 0
+    elif key == "sensor_fov_deg":
+        ok &= (v > 0) & (v <= 360.0)
+    elif key == "sensor_min_visible_fraction":
+        ok &= (v > 0) & (v <= 1.0)
+    else:
+        ok &= np.isfinite(v)
+    if not ok.all():
+        raise InputError(f"run parameter {key} out of range, got {v}", field=key)
+    return v
 
 
 def param_of(a: TraceArrays, key: str, override: float | None) -> FloatArray:

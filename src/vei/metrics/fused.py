@@ -70,6 +70,8 @@ from vei.metrics.fused_layout import (
     M_DRAC,
     M_DVC,
     M_DVR,
+    M_FSG,
+    M_FST,
     M_GAP,
     M_IMPACT,
     M_INJ,
@@ -79,7 +81,9 @@ from vei.metrics.fused_layout import (
     M_SAFE,
     M_SI,
     M_SIDE,
+    M_SIR,
     M_STD,
+    M_STL,
     M_STRIKE,
     M_TCOLL,
     M_TTC,
@@ -92,12 +96,14 @@ from vei.metrics.fused_layout import (
     metrics_frame,
 )  # fmt: skip
 from vei.metrics.fused_ops import (
+    _corners,
     box_gap_cs,
     maximum,
     minimum,
     nan_to_num,
     on_course,
     pairwise_sum,
+    time_to_contact,
 )
 from vei.types import Trace
 
@@ -151,6 +157,8 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
     last_oyaw, last_co, last_so = np.nan, np.nan, np.nan
     peak = 0.0
     v_min = 0.0
+    k_seen = -1  # first present step (first seen: vei.metrics.seen, no sensor model)
+    n_rel_ok = 0  # present steps before contact with a relative TTC > alert
     for k in range(n):
         ex, ey, eyaw, v = ch[CH_EX, k], ch[CH_EY, k], ch[CH_EYAW, k], ch[CH_EV, k]
         act = ch[CH_RACT, k] != 0.0
@@ -163,6 +171,8 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
         if not act:
             continue  # zone inactive; gap, TTC and DRAC are NaN / no candidate
         n_all += 1
+        if k_seen < 0:
+            k_seen = k
         present = present or not latched
         ryaw, rsp = ch[CH_RYAW, k], ch[CH_RSP, k]
         oyaw = ryaw if np.isfinite(ryaw) else 0.0
@@ -219,6 +229,14 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
             n_att += 1
         else:
             n_alert += 1
+        if not latched:  # the relative TTC's zone (safety_index_rel)
+            if not _same(oyaw, last_oyaw):
+                last_oyaw = oyaw
+                last_co, last_so = np.cos(oyaw), np.sin(oyaw)
+            co, so = last_co, last_so
+            if _rel_ttc_above(ex, ey, eyaw, ce, se, v, bx, by, oyaw, co, so, osp, lb,
+                              alert, Le, We, Lr, Wr, A, Bc):  # fmt: skip
+                n_rel_ok += 1
         # DRAC candidates: ahead, closing, apart, before contact; the largest eligible
         # one on a collision course
         if not ahead or latched:
@@ -276,6 +294,70 @@ def run_metrics(t, dt, ch, Le, We, Lr, Wr, cfg, mass_kg, brake_mps2, out):  # ty
     out[M_MEAN] = mean
     out[M_STD] = np.sqrt(pairwise_sum(sq, 0, n) / float(n))
     _severity(ch, hit, first, Le, We, cfg, mass_kg, out)
+    if hit:
+        out[M_SIR] = 0.0
+    elif n_all > 0:
+        out[M_SIR] = float(n_rel_ok) / float(n_all)
+    _first_seen(t, ch, k_seen, hit, first, Le, We, Lr, Wr, react, ceiling, A, Bc, out)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _rel_ttc_above(ex, ey, eyaw, ce, se, v, bx, by, oyaw, co, so, osp, lb, limit, Le, We, Lr, Wr, A, Bc):  # type: ignore[no-untyped-def]  # fmt: skip
+    """The relative-velocity TTC of one step (vei.metrics.ttc.relative_ttc) exceeds
+    ``limit`` [s]. Decided without the box sweep where the gap's lower bound lb exceeds
+    what the relative speed closes in ``limit`` (with a margin far above the sweep's
+    rounding); else the exact time to contact of the same corners and velocity."""
+    rv0 = osp * co - v * ce
+    rv1 = osp * so - v * se
+    return _rel_ttc(ex, ey, eyaw, bx, by, oyaw, rv0, rv1, lb, limit, Le, We, Lr, Wr, A, Bc) > limit
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _rel_ttc(ex, ey, eyaw, bx, by, oyaw, rv0, rv1, lb, limit, Le, We, Lr, Wr, A, Bc):  # type: ignore[no-untyped-def]
+    """The relative-velocity TTC of one step as NumPy computes it [s]; +inf without the
+    box sweep where lb (a lower bound of the gap, NaN = none) rules out contact within
+    ``limit`` (0 = always sweep). An ego pose with a NaN has NaN corners, which NumPy's
+    overlap test never separates: 0."""
+    if not (np.isfinite(ex) and np.isfinite(ey) and np.isfinite(eyaw)):
+        return 0.0
+    rs = math.sqrt(rv0 * rv0 + rv1 * rv1)
+    if limit > 0.0 and math.isfinite(lb) and lb > rs * limit * (1.0 + 1e-6) + 1e-6:
+        return np.inf
+    _corners(ex, ey, eyaw, Le, We, A)
+    _corners(bx, by, oyaw, Lr, Wr, Bc)
+    return time_to_contact(A, Bc, rv0, rv1)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _first_seen(t, ch, k, hit, first, Le, We, Lr, Wr, react, brake, A, Bc, out):  # type: ignore[no-untyped-def]
+    """first_seen_gap_m, first_seen_ttc_s, seen_too_late (vei.metrics.seen; first seen =
+    the first present step k, -1 = never) into out."""
+    if k < 0:
+        out[M_FSG] = np.nan
+        out[M_FST] = np.nan
+        out[M_STL] = 1.0 if hit else 0.0
+        return
+    ex, ey, eyaw, v = ch[CH_EX, k], ch[CH_EY, k], ch[CH_EYAW, k], ch[CH_EV, k]
+    ryaw, rsp = ch[CH_RYAW, k], ch[CH_RSP, k]
+    oyaw = ryaw if np.isfinite(ryaw) else 0.0
+    osp = rsp if np.isfinite(rsp) else 0.0
+    ox, oy = ch[CH_RX, k], ch[CH_RY, k]
+    ok = np.isfinite(ox) and np.isfinite(oy)
+    bx, by = (ox, oy) if ok else (1e9, 1e9)
+    ce, se = np.cos(eyaw), np.sin(eyaw)
+    co, so = np.cos(oyaw), np.sin(oyaw)
+    g = box_gap_cs(ex, ey, ce, se, Le, We, bx, by, co, so, Lr, Wr)
+    if hit and first <= k:
+        ttc = 0.0
+    else:
+        rv0, rv1 = osp * co - v * ce, osp * so - v * se
+        ttc = _rel_ttc(ex, ey, eyaw, bx, by, oyaw, rv0, rv1, np.nan, 0.0, Le, We, Lr, Wr, A, Bc)
+    out[M_FSG] = g
+    out[M_FST] = ttc
+    stop = v * react + v * v / (2.0 * brake)
+    late = hit and (t[first] - t[k] <= react + 1e-9)
+    close = np.isfinite(ttc) and g < stop
+    out[M_STL] = 1.0 if (late or close) else 0.0
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

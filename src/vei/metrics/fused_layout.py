@@ -27,14 +27,17 @@ FUSED_METRICS: tuple[str, ...] = (
     "max_drac_mps2", "drac_unavoidable", "impact_speed_mps", "delta_v_rider_mps",
     "delta_v_car_mps", "impact_side", "striking", "injury_risk", "peak_decel_mps2",
     "ego_speed_std_mps", "ego_speed_mean_mps", "ego_speed_min_mps",
+    # issue 22 / 28.7 (vei.metrics.seen)
+    "first_seen_gap_m", "first_seen_ttc_s", "seen_too_late", "safety_index_rel",
 )  # fmt: skip
 N_FUSED = len(FUSED_METRICS)
 (
     M_COLL, M_COLL_T, M_SI, M_SAFE, M_ATT, M_ALERT, M_TCOLL, M_ALL, M_GAP, M_TTC, M_DRAC,
     M_UNAV, M_IMPACT, M_DVR, M_DVC, M_SIDE, M_STRIKE, M_INJ, M_PEAK, M_STD, M_MEAN, M_MIN,
+    M_FSG, M_FST, M_STL, M_SIR,
 ) = range(N_FUSED)  # fmt: skip
 #: Columns holding a bool (0/1) and a label (index of SIDES / STRIKING, -1 = '').
-_BOOL_COLUMNS = ("collision", "drac_unavoidable")
+_BOOL_COLUMNS = ("collision", "drac_unavoidable", "seen_too_late")
 _LABEL_COLUMNS = {"impact_side": SIDES, "striking": STRIKING}
 
 #: Rows of the channel matrix ch [N_CH, T].

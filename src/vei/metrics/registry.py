@@ -17,6 +17,7 @@ import numpy.typing as npt
 import vei.metrics.conflict as conflict
 import vei.metrics.ego_dynamics as ego_dynamics
 import vei.metrics.kinematics as kinematics
+import vei.metrics.seen as seen
 import vei.metrics.severity as severity
 import vei.metrics.ttc as ttc
 from vei.errors import ConfigError
@@ -246,6 +247,39 @@ _ALL: tuple[Metric, ...] = (
         "m/s^2",
         "largest ego lateral acceleration (yaw rate x speed)",
         lambda a, c: ego_dynamics.max_lateral_accel(a, c),
+    ),
+    # ---- issue 22 / 28.7: could the car have known; the safety index on the relative TTC
+    Metric(
+        "first_seen_gap_m",
+        "scalar",
+        "m",
+        "box gap when the road user was first seen (entered the sensor's range and view, "
+        "or the scene without a sensor model; NaN if never)",
+        lambda a, c: seen.first_seen_gap(a, c),
+    ),
+    Metric(
+        "first_seen_ttc_s",
+        "scalar",
+        "s",
+        "TTC with relative velocity when the road user was first seen (inf: not on a "
+        "collision course then; NaN if never seen)",
+        lambda a, c: seen.first_seen_ttc(a, c),
+    ),
+    Metric(
+        "seen_too_late",
+        "scalar",
+        "bool",
+        "no planner could have reacted: contact within reaction_time_s of first seen, or "
+        "first seen on a collision course closer than the car's stopping distance",
+        lambda a, c: seen.seen_too_late(a, c),
+    ),
+    Metric(
+        "safety_index_rel",
+        "scalar",
+        "1",
+        "the paper's safety index on the zones of the relative-velocity TTC "
+        "(min_ttc_rel_s's series), 0 on collision",
+        lambda a, c: seen.safety_index_rel(a, c),
     ),
     Metric("ttc_s", "series", "s", "paper TTC per step", lambda a, c: ttc.paper_ttc(a, c)),
     Metric(

@@ -135,6 +135,10 @@ def relative_ttc(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -
         the boxes never meet on their current courses.
     """
     a = arrays(trace)
+    if "relative_ttc" in a.memo:  # (one series, whatever the thresholds)
+        return a.memo["relative_ttc"].copy()
     ttc = time_to_contact(a.ego_corners, a.other_corners, a.other_vel - a.ego_vel)
     ttc = np.where(a.collided, 0.0, ttc)
-    return np.where(a.active, ttc, np.nan)
+    out = np.where(a.active, ttc, np.nan)
+    a.memo["relative_ttc"] = out
+    return out.copy()

@@ -71,7 +71,13 @@ class PolicyAction:
                     f"{where}: action.{name} has shape {arr.shape}, expected ({batch_size},)"
                 )
             if name != "fsm_state" and not np.all(np.isfinite(arr)):
-                raise ConfigError(f"{where}: action.{name} has NaN or infinite values")
+                bad = np.flatnonzero(~np.isfinite(arr))
+                shown = ", ".join(f"{j} ({arr[j]})" for j in bad[:5])
+                more = f" and {bad.size - 5} more" if bad.size > 5 else ""
+                raise ConfigError(
+                    f"{where}: action.{name} has NaN or infinite values in variant(s) "
+                    f"{shown}{more} of the block's {batch_size}"
+                )
             out[name] = arr
         return PolicyAction(**out)
 

@@ -48,7 +48,8 @@ def plot_birdseye(
         title: axes title (default: the scenario id).
         roads: optional callable roads(ax) drawing the map underneath. When None and the
             scenario was read from a folder whose scenario.json names an OpenDRIVE map, that
-            map's roads are drawn.
+            map's roads are drawn (lanes, lane borders, kerbs); without one the axes say
+            'no road map'.
         time_dots: time-code the ego's and the primary threat's paths (a dot every whole
             second coloured by time, colour bar 'time [s]').
     Returns:
@@ -65,6 +66,8 @@ def plot_birdseye(
         roads = scenario_roads(scenario)
     if roads is not None:
         roads(ax)
+    else:
+        _no_map(ax)
     traj = scenario.trajectories
     primary = scenario.primary_threat
     keyframes = scenario.keyframes
@@ -172,6 +175,13 @@ def _time_dots(ax, traj: pd.DataFrame, agents: list[str]) -> None:
                               edgecolors="black", linewidths=0.3, label=f"_{agent_id} seconds")  # fmt: skip
     if scat is not None:
         ax.figure.colorbar(scat, ax=ax, shrink=0.6, pad=0.02, label="time [s] (dots every 1 s)")
+
+
+def _no_map(ax) -> None:
+    """Say on the Axes that the scenario has no map (nothing drawn under the tracks)."""
+    from vei.maps.roads import draw_no_map_note
+
+    draw_no_map_note(ax)
 
 
 def scenario_roads(scenario: Scenario) -> Callable | None:

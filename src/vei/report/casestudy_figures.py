@@ -135,11 +135,20 @@ def identical_groups(curves: dict[str, np.ndarray], tol: float = 1e-6) -> list[l
 
 
 def _overlap_note(ax, curves: dict[str, np.ndarray]) -> None:
+    """Name the identical curves in a note inside the axes, wrapped to the axes' width (a
+    one-line note ran into the next panel)."""
+    import textwrap
+
     groups = identical_groups(curves)
     if groups:
-        text = "; ".join(" = ".join(g) for g in groups)
-        ax.text(0.01, 0.02, f"identical curves (drawn with different dashes): {text}",
-                transform=ax.transAxes, fontsize=7, va="bottom", ha="left", color="0.25",
+        text = "identical curves (drawn with different dashes): " + "; ".join(
+            " = ".join(g) for g in groups
+        )
+        fontsize = 7.0
+        width_pt = ax.get_position().width * ax.figure.get_figwidth() * 72.0
+        chars = max(20, int(0.92 * width_pt / (0.55 * fontsize)))  # ~0.55 em per character
+        ax.text(0.01, 0.02, textwrap.fill(text, chars, break_on_hyphens=False), transform=ax.transAxes,
+                fontsize=fontsize, va="bottom", ha="left", color="0.25",
                 bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "0.7", "alpha": 0.85})  # fmt: skip
 
 
@@ -229,10 +238,13 @@ def plot_speed_profiles(
         ax_cap.set_ylim(-0.6, len(cap_names) - 0.4)
         ax_cap.set_xlabel("time [s]")
         ax_cap.set_title("CAP state", fontsize=8, loc="left", pad=2)
-        handles = {h.get_label(): h for h in ax_cap.containers}
-        ax_cap.legend([handles[k] for k in CAP_STATE_COLOURS if k in handles],
-                      [k for k in CAP_STATE_COLOURS if k in handles], fontsize=7, ncol=3,
-                      loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)  # fmt: skip
+        from matplotlib.patches import Patch
+
+        # every state, present or not, so that the band's colours can always be read
+        ax_cap.legend([Patch(facecolor=c) for c in CAP_STATE_COLOURS.values()],
+                      list(CAP_STATE_COLOURS), fontsize=7, ncol=3, title="CAP state",
+                      title_fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                      frameon=False)  # fmt: skip
         ax_ego.tick_params(labelbottom=False)
     else:
         ax_ego.set_xlabel("time [s]")
@@ -371,7 +383,8 @@ def plot_birdseye_configs(
         frame: long time series of the runs (the first variant of each configuration is drawn).
         other_id: the road user (primary threat).
         keyframes: the scenario's keyframes (t_s, agent_id, x_m, y_m), or None.
-        roads: optional callable roads(ax) drawing the map underneath.
+        roads: optional callable roads(ax) drawing the map underneath (None: each panel
+            says 'no road map').
     """
     from matplotlib.figure import Figure
 
@@ -403,6 +416,8 @@ def plot_birdseye_configs(
     for ax, name in zip(axes, names, strict=True):
         if roads is not None:
             roads(ax)
+        else:
+            _no_map(ax)
         run = sub[sub["config"] == name]
         ego = run[run["agent_id"] == ego_id].sort_values("t_s")
         rider = run[(run["agent_id"] == other_id) & run["active"].astype(bool)].sort_values("t_s")
@@ -436,6 +451,19 @@ def plot_birdseye_configs(
             label=f"{other_id} (sim)",
             zorder=5,
         )
+        if "continuation" in rider and rider["continuation"].astype(bool).any():
+            # its run-in and run-out (vei.continuation): not recorded, marked
+            cont = rider["continuation"].to_numpy(bool)
+            ax.plot(
+                np.where(cont, rider["x_m"].to_numpy(), np.nan),
+                np.where(cont, rider["y_m"].to_numpy(), np.nan),
+                "-",
+                color="tab:green",
+                lw=6.0,
+                alpha=0.25,
+                label="run-in / run-out",
+                zorder=4,
+            ).__getitem__(0).set_gid("continuation")
         hit = rider[rider["collided"].astype(bool)]
         if len(hit):
             t_hit = float(hit["t_s"].iloc[0])
@@ -468,8 +496,8 @@ def plot_birdseye_configs(
     if axes:
         axes[0].legend(fontsize=7, loc="best")
     fig.suptitle(
-        f"Bird's-eye view: ego (red), original keyframes (dashed black), simulated {other_id} (dashed green); "
-        "dots every 1 s coloured by time",
+        f"Bird's-eye view: ego (red), original keyframes (dashed black), simulated {other_id} (dashed green; "
+        "shaded: its run-in / run-out); dots every 1 s coloured by time",
         fontsize=10,
     )
     fig.tight_layout(rect=(0.0, 0.0, 0.92, 0.97))
@@ -565,3 +593,10 @@ def write_casestudy_figures(
         key: save_figure(fig, out / FIGURE_FILES[key], also=tuple(formats))
         for key, fig in figs.items()
     }
+
+
+def _no_map(ax) -> None:
+    """Say on a panel that no road network is drawn (the scenario has no map)."""
+    from vei.maps.roads import draw_no_map_note
+
+    draw_no_map_note(ax)

@@ -11,8 +11,10 @@
   animated bird's-eye replay of each configuration (play / pause / time slider; ego and
   rider boxes, the other riders, the ego box coloured by the TTC zone, the CAP's state),
   ego and rider speed, the paper's TTC over time with its zones (time axes zoomed to the
-  interaction), the case-study summary table and the sweep's risk map (mean safety index
-  over time-shift offset x cruise speed).
+  interaction), the case-study summary table, the risk map (with a risk estimate:
+  P(collision | cell) where its 95 % interval is within +-0.1, the rest marked not known;
+  else the sweep's mean safety index) and the risk estimate's figures with their 95 %
+  intervals, failure kinds and regions (issue 23).
 
 Why Plotly: a maintained library (MIT) whose full JavaScript bundle ships inside the Python
 wheel, so the report embeds it and needs no network; it draws interactive maps, time
@@ -84,6 +86,19 @@ def _fmt(v: Any, f: str) -> str:
     return format(float(v), f)
 
 
+def _ranking_note(data: dict[str, Any]) -> str:
+    if data.get("ranked_by") == "expected harm":
+        return (
+            "Ranked by expected harm (probability &times; injury risk: the rider's expected injury "
+            "risk under the variation, vei risk), then P(collision); encounters with only an upper "
+            "bound (no collision seen) after those with an estimate. Intervals are 95 %."
+        )
+    return (
+        "Criticality: share of simulated configurations that collide, then the lowest mean "
+        "safety index, then the smallest gap."
+    )
+
+
 def render(data: dict[str, Any]) -> str:
     """The report's HTML text for the data of :func:`collect`."""
     css = (ASSETS / "report.css").read_text(encoding="utf-8")
@@ -124,9 +139,8 @@ def render(data: dict[str, Any]) -> str:
 <header><h1>vei risk catalogue</h1>
 <p>dataset <code>{html.escape(str(data["dataset"]))}</code> &middot; {len(data["encounters"])} encounters &middot;
 {data["n_rows"]} rows (encounter &times; configuration) &middot; status {html.escape(str(data["status"]))}</p></header>
-<section id="overview-section"><h2>Encounters ranked by criticality</h2>
-<p class="note">Click a column header to sort; click a row to open the encounter. Criticality: share of
-simulated configurations that collide, then the lowest mean safety index, then the smallest gap.</p>
+<section id="overview-section"><h2>Encounters ranked by {html.escape(data.get("ranked_by", "criticality"))}</h2>
+<p class="note">Click a column header to sort; click a row to open the encounter. {_ranking_note(data)}</p>
 <table id="overview"><thead><tr>{head}</tr></thead><tbody>{"".join(body)}</tbody></table>
 <h3>Recordings</h3>
 <table id="recordings"><thead><tr><th>recording</th><th>status</th><th>encounters</th><th>reason</th></tr></thead>
@@ -146,7 +160,8 @@ simulated configurations that collide, then the lowest mean safety index, then t
 <div class="panel"><h3>Ego and rider speed</h3><div id="speed-plot" class="plot"></div></div>
 <div class="panel"><h3>TTC over time (paper: D / v<sub>ego</sub>)</h3><div id="ttc-plot" class="plot"></div></div>
 <div class="panel"><h3>Case study summary</h3><div id="summary-table"></div></div>
-<div class="panel"><h3>Risk map of the sweep</h3><div id="risk-plot" class="plot"></div></div>
+<div class="panel"><h3>Risk map</h3><div id="risk-plot" class="plot"></div></div>
+<div class="panel"><h3>Risk: probabilities with 95 % confidence intervals, failure modes</h3><div id="prob-table"></div></div>
 </div></section>
 <script id="vei-data" type="application/json">{_script_json(data)}</script>
 <script>{js}</script>

@@ -27,6 +27,8 @@ def risk_map_figure(
     vmin: float = 0.0,
     vmax: float = 1.0,
     cmap: str = "RdYlGn",
+    flagged_x: np.ndarray | None = None,
+    flagged_y: np.ndarray | None = None,
 ):
     """Build the risk-map figure.
 
@@ -40,6 +42,9 @@ def risk_map_figure(
         x_label, y_label, value_label, title: texts.
         vmin, vmax: colour scale of ``value``; cmap: its matplotlib colormap (default
             red-yellow-green, high = green; 'RdYlGn_r' where high is bad).
+        flagged_x, flagged_y: optional [M] runs flagged ``seen_too_late`` (no planner
+            could have reacted, vei.metrics.seen): left out of ``value`` by the caller and
+            drawn here as grey plus signs (gid 'flagged').
 
     Returns:
         the matplotlib Figure (Agg canvas).
@@ -72,6 +77,12 @@ def risk_map_figure(
             sx[~col], sy[~col], marker=".", s=6, c="white", edgecolors="none", label="no collision"
         )
         b.set_gid("safe")
+    if flagged_x is not None and flagged_y is not None and len(flagged_x):
+        f = ax.scatter(
+            np.asarray(flagged_x, float), np.asarray(flagged_y, float), marker="+", s=14,
+            c="dimgrey", linewidths=0.6, label="seen too late (not coloured)",
+        )  # fmt: skip
+        f.set_gid("flagged")
     seg = np.asarray(segments, float).reshape(-1, 2, 2)
     lc = LineCollection(seg, colors="black", linewidths=2.0, label="collision boundary")
     lc.set_gid("boundary")
@@ -107,3 +118,52 @@ def _edges(centres: np.ndarray) -> np.ndarray:
         return np.array([c[0] - 0.5, c[0] + 0.5])
     mid = 0.5 * (c[:-1] + c[1:])
     return np.concatenate([[c[0] - (mid[0] - c[0])], mid, [c[-1] + (c[-1] - mid[-1])]])
+
+
+def write_probability_map(
+    path: str | Path, *, grid: dict, x_label: str, y_label: str, title: str = ""
+) -> Path:
+    """A probability map (PNG, atomically): P(collision | cell) where it is known (its 95 %
+    interval within the grid's limit), the other cells hatched grey and labelled 'not
+    known' (gid 'unknown'), each known cell annotated with its interval.
+
+    Args:
+        grid: :func:`vei.sweep.riskmap.probability_grid`'s result.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+
+    from vei.io.atomic import atomic_path
+
+    xc, yc = np.asarray(grid["x_centres"], float), np.asarray(grid["y_centres"], float)
+    p, known = np.asarray(grid["p"], float), np.asarray(grid["known"], bool)
+    fig = Figure(figsize=(7.0, 5.2), dpi=110)
+    ax = fig.add_subplot(1, 1, 1)
+    xe, ye = _edges(xc), _edges(yc)
+    mesh = ax.pcolormesh(xe, ye, np.ma.masked_where(~known, p), cmap="Reds", vmin=0.0,
+                         vmax=1.0, shading="flat")  # fmt: skip
+    mesh.set_gid("probability")
+    fig.colorbar(mesh, ax=ax, label="P(collision | cell)")
+    unknown = np.where(known, np.nan, 1.0)
+    hatch = ax.pcolor(xe, ye, np.ma.masked_invalid(unknown), cmap="Greys", vmin=0, vmax=4,
+                      hatch="///", edgecolors="none", alpha=0.6)  # fmt: skip
+    hatch.set_gid("unknown")
+    if known.size <= 150:
+        for j, i in zip(*np.nonzero(known), strict=True):
+            ax.text(xc[i], yc[j], f"{p[j, i]:.2f}\n[{grid['lo'][j, i]:.2f}, {grid['hi'][j, i]:.2f}]",
+                    ha="center", va="center", fontsize=5)  # fmt: skip
+    ax.set_xlim(xe[0], xe[-1])
+    ax.set_ylim(ye[0], ye[-1])
+    ax.set_xlabel(x_label)
+    ax.set_ylabel(y_label)
+    ax.legend(handles=[Patch(facecolor="lightgrey", hatch="///",
+                             label="not known (95 % CI wider than +-0.1)")],
+              loc="upper right", fontsize=7, framealpha=0.8)  # fmt: skip
+    ax.set_title(title or "P(collision | cell)", fontsize=9)
+    fig.tight_layout()
+    FigureCanvasAgg(fig)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format=path.suffix.lstrip(".") or "png")
+    return path

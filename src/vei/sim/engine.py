@@ -341,7 +341,7 @@ def simulate_metrics(
     import pandas as pd
 
     from vei.config.metrics import MetricsConfig
-    from vei.metrics import as_timeseries_trace, summarize
+    from vei.metrics import as_timeseries_trace, sensor_params, summarize
     from vei.sim import kernel as compiled
 
     if kernel not in ("numpy", "numba", "auto"):
@@ -376,7 +376,11 @@ def simulate_metrics(
         sel = rest[start : start + full_batch]
         sub = params.take(sel)
         result = simulate(arrays, sub, record="full", kernel=kernel)
-        run_params = {"rider_mass_kg": sub.mass_kg, "ego_max_decel_mps2": sub.max_decel_mps2_ego}
+        run_params = {
+            "rider_mass_kg": sub.mass_kg,
+            "ego_max_decel_mps2": sub.max_decel_mps2_ego,
+            **sensor_params(list(sub.perception)),
+        }
         trace = as_timeseries_trace(result.to_trace())
         parts.append((sel, summarize(trace, cfg, names=names, params=run_params)))
     if len(parts) == 1:

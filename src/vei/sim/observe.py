@@ -346,26 +346,25 @@ class PolicyDriver:
             obs = build_observation(st, self.arrays, blk, seen, valid, age, self.table, source, std)
             if blk.v2x is not None and not blk.v2x.policies_use_v2x and _builtin(blk.policy):
                 obs = obs.sensor_view()
+            when = f"step {st.k} (t = {st.k * self.arrays.dt_s:.3f} s)"
             out = _guarded(
-                self.policies[i],
-                "act",
-                self.policies[i].act,
-                obs,
-                self.states[i],
-                when=f"step {st.k} (t = {st.k * self.arrays.dt_s:.3f} s)",
+                self.policies[i], "act", self.policies[i].act, obs, self.states[i], when=when
             )
+            # every complaint about what act() returned names the policy (its file), the step
+            where = f"policy {policy_label(self.policies[i])}: act() at {when}"
             if not (isinstance(out, tuple) and len(out) == 2):
-                raise ConfigError(
-                    f"policy {policy_label(self.policies[i])}: act must return "
-                    f"(PolicyAction, state), got {type(out).__name__}"
+                raise PolicyError(
+                    f"{where} must return (PolicyAction, state), got {type(out).__name__}"
                 )
             action, self.states[i] = out
             if not isinstance(action, PolicyAction):
-                raise ConfigError(
-                    f"policy {type(self.policies[i]).__name__}.act must return (PolicyAction, state), "
-                    f"got {type(action).__name__}"
+                raise PolicyError(
+                    f"{where} must return (PolicyAction, state), got {type(action).__name__}"
                 )
-            action = action.checked(b, f"policy {type(self.policies[i]).__name__}")
+            try:
+                action = action.checked(b, where)
+            except ConfigError as exc:
+                raise PolicyError(str(exc)) from None
             if action.command is not None:
                 cmd[sl] = action.command
             else:

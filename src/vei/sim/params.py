@@ -14,7 +14,7 @@ import numpy.typing as npt
 from vei.config import AUTO, MAX_RUN_UP_M, MEDIAN_MOVING, CaseConfig
 from vei.config.settings import BY_FIELD, SETTINGS, config_value
 from vei.errors import ConfigError, InputError
-from vei.sim.tables import TimeTable
+from vei.sim.tables import TimeTable, recorded_column
 
 
 class SceneDefaults(Protocol):
@@ -251,7 +251,13 @@ class VariantParams:
 
             tr = arrays.rider_track
             v0, vmax = speed_from_recording(
-                tr.data[:, tr.col("speed_mps")], sfm.lookahead_m, sfm.sigma_m, v0, vmax
+                recorded_column(
+                    tr, "speed_mps", getattr(arrays, "rider_recorded_span_s", (-math.inf, math.inf))
+                ),
+                sfm.lookahead_m,
+                sfm.sigma_m,
+                v0,
+                vmax,
             )
         # Every declared setting read from the configuration (vei.config.settings), then
         # those derived from the scenario, the run or the policy.

@@ -23,11 +23,12 @@ import numpy as np
 import numpy.typing as npt
 
 from vei.boxes import boxes_overlap
+from vei.continuation import recorded_span_s
 from vei.errors import InputError
 from vei.models import sfm as sfm_model
 from vei.models.drivable_path import decimate_standstill, recorded_arc_length
 from vei.models.ego import PathTable, build_path
-from vei.sim.tables import TimeTable, _uniform_track
+from vei.sim.tables import TimeTable, _uniform_track, recorded_column
 from vei.types import EGO_ID, RIDER_CATEGORIES, Scenario
 
 FloatArray = npt.NDArray[np.float64]
@@ -112,6 +113,9 @@ class ExtraRiders:
             (> 0.5 m/s) and 99th percentile of the speed (NaN if it never moves).
         ped_idx: indices (into the replayed others) of recorded pedestrians, the
             repulsion's fixed-path obstacles (empty unless enabled). ped_radius_m: theirs.
+        sfm_entry_s: [R] recording time [s] from which the social force drives each rider
+            in SFM variants (:func:`sfm_entry_s`); before it a present rider is replayed
+            (a standing run-in).
     """
 
     enabled: bool = False
@@ -127,6 +131,7 @@ class ExtraRiders:
     p99_speed_mps: FloatArray = field(default_factory=lambda: np.zeros(0))
     ped_idx: npt.NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     ped_radius_m: FloatArray = field(default_factory=lambda: np.zeros(0))
+    sfm_entry_s: FloatArray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def n(self) -> int:
@@ -192,12 +197,13 @@ def prepare_extra_riders(
     if not enabled:
         return ExtraRiders()
     info = {a.agent_id: a for a in scenario.agents}
-    tracks, paths, med, p99 = [], [], [], []
+    tracks, paths, med, p99, entry = [], [], [], [], []
     for rid in extra_ids:
         tr, path = rider_track(scenario, rid, where, RIDER_PATH_STEP_M)
         tracks.append(tr)
         paths.append(path)
-        sp = tr.data[:, tr.col("speed_mps")]
+        sp = recorded_column(tr, "speed_mps", recorded_span_s(scenario, rid))
+        entry.append(sfm_entry_s(scenario, rid, tr))
         moving = sp[np.isfinite(sp) & (sp > 0.5)]
         if moving.size:
             med.append(float(np.median(moving)))
@@ -223,15 +229,31 @@ def prepare_extra_riders(
         p99_speed_mps=np.array(p99, dtype=np.float64),
         ped_idx=ped,
         ped_radius_m=ped_r.astype(np.float64),
+        sfm_entry_s=np.array(entry, dtype=np.float64),
     )
+
+
+def sfm_entry_s(scenario: Scenario, agent_id: str, track: TimeTable) -> float:
+    """Recording time [s] from which a social-force rider is driven by its forces: its
+    first *recorded* sample. Before it the rider rides (or stands on) its run-in replayed
+    (vei.continuation): present and seen, on the time line of its recording, so that the
+    social force takes over where and when it did without a run-in (a rider faster than
+    its recording would otherwise gain on it over the whole run-in, and the time shift,
+    found under replay, would no longer bring it to the car). The run-in keeps beyond the
+    car's reach, where the vehicle force (A exp(-b d), 4e-6 N at 5 m) is nil anyway."""
+    first = recorded_span_s(scenario, agent_id)[0]
+    return float(first) if np.isfinite(first) else float(track.t0_s)
 
 
 # --------------------------------------------------------------------------------------
 # NumPy step
 # --------------------------------------------------------------------------------------
-def initial_extra_state(ex: ExtraRiders, b: int) -> dict[str, np.ndarray]:
+def initial_extra_state(
+    ex: ExtraRiders, b: int, sfm: npt.NDArray[np.bool_] | None = None
+) -> dict[str, np.ndarray]:
     """The extra riders' SimState fields at k = 0 ([B, R]): each at its recorded first
-    pose, active (with its recorded velocity) if its recording starts at t <= 0."""
+    pose, active (with its recorded velocity) if its recording starts at t <= 0; started
+    unless the variant is SFM (``sfm`` [B]) and t = 0 lies before the rider's SFM entry."""
     r = ex.n
     out: dict[str, np.ndarray] = {f: np.zeros((b, r)) for f in EXTRA_FLOAT_FIELDS}
     for f in EXTRA_BOOL_FIELDS:
@@ -249,7 +271,8 @@ def initial_extra_state(ex: ExtraRiders, b: int) -> dict[str, np.ndarray]:
             out["extra_vy_mps"][:, j] = vy
             out["extra_speed_mps"][:, j] = sp
             out["extra_active"][:, j] = True
-            out["extra_started"][:, j] = True
+            waiting = ex.sfm_entry_s.size and 0.0 < ex.sfm_entry_s[j] - _SPAN_EPS
+            out["extra_started"][:, j] = True if (sfm is None or not waiting) else ~sfm
     return out
 
 
@@ -354,10 +377,11 @@ def step_extras(
             out["extra_done"][:, j] |= st.extra_started[:, j] & (not in_span)
             out["extra_started"][:, j] |= in_span
         else:
-            moving = np.flatnonzero(act0[:, j])
+            moving = np.flatnonzero(act0[:, j] & st.extra_started[:, j])
             if moving.size:
                 _sfm_extra(st, arrays, p, j, moving, t_new, dt, peds, out)
             if in_span:
+                # enter (or, before the SFM entry, stand replayed on a standing run-in)
                 entering = np.flatnonzero(~st.extra_started[:, j])
                 if entering.size:
                     i, w = tr.index(np.array([t_new]))
@@ -369,7 +393,8 @@ def step_extras(
                     for name, val in zip(names, vals, strict=True):
                         out[name][entering, j] = val
                     out["extra_active"][entering, j] = True
-                    out["extra_started"][entering, j] = True
+                    entry = ex.sfm_entry_s[j] if ex.sfm_entry_s.size else -np.inf
+                    out["extra_started"][entering, j] = t_new >= entry - _SPAN_EPS
         del rp
         act_new = out["extra_active"][:, j]
         out["extra_a_mps2"][:, j] = np.where(

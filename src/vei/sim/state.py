@@ -18,6 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from vei.config import SimConfig
+from vei.continuation import recorded_rows, recorded_span_s, with_continuations
 from vei.errors import InputError
 from vei.models.drivable_path import (
     PATH_SPEED_MARGIN,
@@ -40,6 +41,7 @@ from vei.sim.riders import (
     prepare_extra_riders,
     rider_track,
     select_extra_riders,
+    sfm_entry_s,
 )
 from vei.sim.tables import TimeTable, _uniform_track
 from vei.types import EGO_ID, Scenario
@@ -83,6 +85,13 @@ class ScenarioArrays:
         ego_path_info: how ego_path was built (curvature bound, deviation, headings).
         riders: the extra social-force riders (vei.sim.riders; none unless
             ``sim.sfm_riders`` is not 'primary'); they are not among the replayed others.
+        rider_recorded_span_s: (first, last) recording time of the rider's *recorded*
+            samples [s]: rider_track also holds its run-in before and its run-out after
+            (vei.continuation); (-inf, inf) = all of it is recorded.
+        rider_sfm_entry_s: recording time [s] from which a social-force rider is driven
+            by its forces (vei.sim.riders.sfm_entry_s: the track's start, or its first
+            recorded sample after a standing run-in, where it waits replayed); -inf =
+            whenever it enters.
     """
 
     scenario_id: str
@@ -112,6 +121,8 @@ class ScenarioArrays:
     other_active: BoolArray
     ego_path_info: EgoPathInfo | None = None
     riders: ExtraRiders = field(default_factory=ExtraRiders)
+    rider_recorded_span_s: tuple[float, float] = (-math.inf, math.inf)
+    rider_sfm_entry_s: float = -math.inf
 
     @property
     def n_steps(self) -> int:
@@ -130,7 +141,11 @@ def prepare_scenario(
 
     The ego is agent 'ego'; the simulated rider is ``rider_id`` or the scenario's
     primary threat; every other agent is replayed kinematically (recording time, no
-    shift). The simulated span is [0, sim.duration_s] or [0, last trajectory time].
+    shift). The simulated span is [0, sim.duration_s] or [0, last recorded time].
+    Every road user but the ego arrives and leaves along its continuation
+    (:func:`vei.continuation.with_continuations` with ``sim.continuation``, unless the
+    scenario is continued already with those settings): the rider's track and path and
+    the replayed others include their run-ins and run-outs.
 
     Args:
         scenario: the reconstructed scenario (trajectories at any uniform rate).
@@ -142,6 +157,7 @@ def prepare_scenario(
     """
     sim = sim or SimConfig()
     where = f"scenario {scenario.id}"
+    scenario = with_continuations(scenario, sim.continuation)
     traj = scenario.trajectories
     rid = rider_id or scenario.primary_threat
     if rid is None:
@@ -156,12 +172,12 @@ def prepare_scenario(
     if rid not in ids:
         raise InputError(f"rider {rid!r} has no trajectory", path=where, field="agent_id")
 
-    t_last = float(traj["t_s"].max())
+    t_last = float(recorded_rows(traj)["t_s"].max())
     duration = sim.duration_s if sim.duration_s is not None else t_last
     n = int(math.floor(duration / sim.dt_s + 1e-9)) + 1
     t_s = np.arange(n) * sim.dt_s
 
-    # Ego.
+    # Ego (never continued: it has its own run-up).
     ego = scenario.track(EGO_ID)
     ex = ego["x_m"].to_numpy(dtype=np.float64)
     ey = ego["y_m"].to_numpy(dtype=np.float64)
@@ -193,8 +209,10 @@ def prepare_scenario(
     # Rider.
     rinfo = scenario.agent(rid)
     rider = scenario.track(rid)
-    rx = rider["x_m"].to_numpy(dtype=np.float64)
-    ry = rider["y_m"].to_numpy(dtype=np.float64)
+    rec_span = recorded_span_s(scenario, rid)
+    rider_rec = recorded_rows(rider)  # the conflict point is the recorded encounter's
+    rx = rider_rec["x_m"].to_numpy(dtype=np.float64)
+    ry = rider_rec["y_m"].to_numpy(dtype=np.float64)
     several = sim.sfm_riders != "primary"
     r_track, rider_path = rider_track(scenario, rid, where, RIDER_PATH_STEP_M if several else None)
     extra_ids = select_extra_riders(scenario, rid, sim.sfm_riders, where)
@@ -256,6 +274,8 @@ def prepare_scenario(
             others=others,
             where=where,
         ),
+        rider_recorded_span_s=rec_span,
+        rider_sfm_entry_s=sfm_entry_s(scenario, rid, r_track),
     )
 
 

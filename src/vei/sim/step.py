@@ -128,6 +128,8 @@ def initial_state(
         arrays.rider_width_m,
     )
     moving = inside & ~collided
+    # an SFM rider on a standing run-in is present but replayed until its SFM entry
+    started = inside & (~params.rider_sfm | (t_rec >= arrays.rider_sfm_entry_s - _SPAN_EPS))
     hist = np.zeros((4, fl.hist_len, b))
     hist[:, 0, :] = np.stack([rx, ry, ryaw, inside.astype(np.float64)])
     no = len(arrays.other_ids)
@@ -154,12 +156,12 @@ def initial_state(
         rider_a_mps2=z.copy(),
         rider_prog_m=rarc,
         rider_active=inside,
-        rider_started=inside.copy(),
+        rider_started=started,
         rider_done=np.zeros(b, dtype=bool),
         collided=collided,
         hit_other=hit,
         hist=hist,
-        **initial_extra_state(arrays.riders, b),
+        **initial_extra_state(arrays.riders, b, params.rider_sfm),
     )
 
 
@@ -356,7 +358,9 @@ def _step_block(
         rx, ry, ryaw = st.rider_x_m.copy(), st.rider_y_m.copy(), st.rider_yaw_rad.copy()
         rvx, rvy, rsp = st.rider_vx_mps.copy(), st.rider_vy_mps.copy(), st.rider_speed_mps.copy()
         r_prog, r_active = st.rider_prog_m.copy(), st.rider_active.copy()
-        moving = st.rider_active & ~collided if any_coll else st.rider_active
+        moving = st.rider_active & st.rider_started
+        if any_coll:
+            moving = moving & ~collided
         idx = np.flatnonzero(moving)
         if idx.size:
             sel = None if idx.size == b else idx
@@ -375,8 +379,10 @@ def _step_block(
                 for arr, val in zip((rx, ry, ryaw, rsp, rvx, rvy, r_prog), vals, strict=True):
                     arr[entering] = val
                 r_active[entering] = True
+                # before its SFM entry (a standing run-in) the rider stands replayed
+                go = t_rec[entering] >= arrays.rider_sfm_entry_s - _SPAN_EPS
                 r_started = r_started.copy()
-                r_started[entering] = True
+                r_started[entering] = go
     if any_coll:  # frozen after a collision (both stop; the rider stays in the scene)
         rx = np.where(collided, st.rider_x_m, rx)
         ry = np.where(collided, st.rider_y_m, ry)

@@ -79,6 +79,14 @@ class TimeTable:
         return np.stack(self.values_at(i, w, *self.columns), axis=-1)
 
 
+def recorded_column(table: TimeTable, name: str, span_s: tuple[float, float]) -> FloatArray:
+    """[M'] a column of a track's table over the samples inside ``span_s`` (recording
+    time [s]): the recorded ones of a continued track (vei.continuation)."""
+    col = table.data[:, table.col(name)]
+    t = table.t0_s + np.arange(col.size) * table.dt_s
+    return col[(t >= span_s[0] - 1e-6) & (t <= span_s[1] + 1e-6)]
+
+
 def _uniform_track(df: Any, cols: Sequence[str], where: str) -> tuple[float, float, FloatArray]:
     t = df["t_s"].to_numpy(dtype=np.float64)
     if t.size == 0:

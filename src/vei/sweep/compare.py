@@ -68,7 +68,8 @@ def policy_verdicts(
 
 def policy_summary(with_verdicts: pd.DataFrame) -> pd.DataFrame:
     """One row per policy: variants, collisions, mean / max impact speed over the
-    collisions with an approach [m/s], mean injury risk, and the count of each verdict."""
+    collisions with an approach [m/s], mean injury risk, the count of each verdict, and
+    (where the results have the flag) the runs and collisions seen too late."""
     rows = []
     for pol, g in with_verdicts.groupby("ego.policy", sort=True):
         hit = g["collision"].to_numpy(bool)
@@ -86,5 +87,9 @@ def policy_summary(with_verdicts: pd.DataFrame) -> pd.DataFrame:
         }
         for name in (*VERDICTS, "reference"):
             row[name] = int((g["verdict"] == name).sum())
+        if "seen_too_late" in g:  # counted apart: no planner could have reacted
+            flag = g["seen_too_late"].fillna(False).to_numpy(bool)
+            row["seen_too_late"] = int(flag.sum())
+            row["collisions_seen_too_late"] = int((flag & hit).sum())
         rows.append(row)
     return pd.DataFrame(rows)

@@ -107,7 +107,34 @@ def record_variants(
     frame = pd.concat(frames, ignore_index=True).sort_values("variant", kind="stable")
     summary = pd.concat(summaries, ignore_index=True).set_index("variant_id")
     summary = summary.loc[rows["variant_id"].to_numpy()].reset_index()
-    return frame[list(TIMESERIES_COLUMNS)].reset_index(drop=True), summary
+    frame = _mark_continuation(frame[list(TIMESERIES_COLUMNS)], evaluator, prepared, rows)
+    return frame.reset_index(drop=True), summary
+
+
+def _mark_continuation(
+    frame: pd.DataFrame, evaluator: EngineEvaluator, prepared: PreparedScenario, rows: pd.DataFrame
+) -> pd.DataFrame:
+    """``frame`` with the bool column ``continuation`` (vei.continuation.flags): which
+    samples of each variant are on a road user's run-in or run-out."""
+    from vei.continuation import with_continuations
+    from vei.continuation.flags import mark_frame
+    from vei.io.scenario import read_scenario
+
+    scen = with_continuations(read_scenario(prepared.path), evaluator.sim.continuation)
+    params = evaluator.params(prepared, prepared.arrays, rows)
+    parts = []
+    for k, grp in frame.groupby("variant", sort=False):
+        sfm = {str(c) for c in grp["config"].unique()} if params.rider_sfm[int(k)] else set()
+        parts.append(
+            mark_frame(
+                grp,
+                scen,
+                rider_id=prepared.arrays.rider_id,
+                time_shift_s=float(params.time_shift_s[int(k)]),
+                sfm_configs=sfm,
+            )
+        )
+    return pd.concat(parts).sort_index(kind="stable") if parts else frame
 
 
 def _same(a: Any, b: Any) -> bool:

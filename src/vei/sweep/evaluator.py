@@ -58,6 +58,12 @@ DEFAULT_METRICS: tuple[str, ...] = (
     "impact_side",
     "striking",
     "injury_risk",
+    # issue 22 / 28.7: could the car have known (flagged runs count apart), and the safety
+    # index on the relative-velocity TTC
+    "first_seen_gap_m",
+    "first_seen_ttc_s",
+    "seen_too_late",
+    "safety_index_rel",
 )
 
 
@@ -269,15 +275,24 @@ class EngineEvaluator:
         """This evaluator's metrics [B rows] of a full recording ``result`` (SimResult),
         scored as a run's time series is (vei run, vei casestudy) with each variant's rider
         mass [kg] and full brake [m/s^2] from ``params``."""
-        from vei.metrics import summarize
+        from vei.metrics import sensor_params, summarize
         from vei.metrics.timeseries import as_timeseries_trace
 
         trace = as_timeseries_trace(result.to_trace())
         run_params = {
             "rider_mass_kg": params.mass_kg,
             "ego_max_decel_mps2": params.max_decel_mps2_ego,
+            **sensor_params(list(params.perception)),
         }
         return summarize(trace, names=self.metrics, params=run_params)
+
+    @property
+    def uses_kernel(self) -> bool:
+        """Whether this evaluator runs the compiled kernel (numba installed, kernel not
+        'numpy'): a sweep with workers then compiles it once before it starts them."""
+        from vei.sim import kernel
+
+        return self.sim.kernel != "numpy" and kernel.available()
 
     def warm_up(self, load_kernel: bool = False) -> None:
         """Import the modules :meth:`evaluate` and a part file's writer need (a sweep's

@@ -208,11 +208,16 @@ def assemble_results(out_dir: str | Path, table: pd.DataFrame | None = None) -> 
 def most_critical(results: pd.DataFrame, k: int = 20) -> pd.DataFrame:
     """The ``k`` most critical variants: collisions first, then the lowest safety index,
     then the smallest minimum gap (columns that exist are used; NaN last; ties keep table
-    order). Ranks numeric keys with one stable ``numpy.lexsort`` (no sorted copy of a
-    10^6-row table)."""
+    order). Runs flagged ``seen_too_late`` (no planner could have reacted: the rider was
+    first seen too late, vei.metrics.seen) never rank before an unflagged one: they come
+    last, so they are listed only when fewer than ``k`` runs are unflagged. Ranks numeric
+    keys with one stable ``numpy.lexsort`` (no sorted copy of a 10^6-row table)."""
     if results.empty:
         return results
     keys, asc = [], []
+    if "seen_too_late" in results:
+        keys.append("seen_too_late")
+        asc.append(True)
     if "collision" in results:
         keys.append("collision")
         asc.append(False)
@@ -286,6 +291,7 @@ def write_variant_configs(
     variants: pd.DataFrame,
     spec: SweepSpec,
     auto_shift_s: float | None,
+    reach_speed_mps: float | None = None,
 ) -> list[Path]:
     """One run-configuration YAML per variant row: ``folder/<variant_id>.yaml``.
 
@@ -307,7 +313,13 @@ def write_variant_configs(
         params = {n: row[n] for n in (*spec.names, *RIDER_PARAM_COLUMNS) if n in row}
         # Named by the variant id, the sweep's label of the variant: the perception's
         # random numbers are keyed by it (vei.policy.perception_random.label_keys).
-        cfg = variant_config(params, spec, auto_shift_s=auto_shift_s, name=str(row["variant_id"]))
+        cfg = variant_config(
+            params,
+            spec,
+            auto_shift_s=auto_shift_s,
+            name=str(row["variant_id"]),
+            reach_speed_mps=reach_speed_mps,
+        )
         doc = config_to_dict(cfg)
         header = (
             f"# vei run configuration of sweep variant {row['variant_id']} "

@@ -273,6 +273,46 @@ def parse_v2x(raw: Any, where: str) -> V2XConfig | None:
         raise ConfigError(f"{where}: v2x: {str(exc).removeprefix('config: ')}") from None
 
 
+def parse_variation_section(raw: Any, where: str) -> tuple[tuple[str, Any], ...]:
+    """A sweep spec's ``variation: {parameter: {dist: ...}}`` -> ((name,
+    vei.config.distributions.Distribution), ...) in PARAMETERS order (float parameters
+    whose distribution stays within their bounds; () when absent).
+
+    Raises:
+        ConfigError: not a mapping, an unknown or non-float parameter, an impossible
+            distribution, one that leaves the parameter's bounds (naming ``where``).
+    """
+    from vei.config.distributions import parse_distribution
+
+    if raw is None:
+        return ()
+    if not isinstance(raw, Mapping) or not raw:
+        raise ConfigError(f"{where}: 'variation' must be a non-empty mapping of parameters")
+    out = {}
+    for key, val in raw.items():
+        name = str(key)
+        check_name(name, where)
+        if name not in PARAMETERS or PARAMETERS[name].kind != "float":
+            floats = [n for n, p in PARAMETERS.items() if p.kind == "float"]
+            raise ConfigError(
+                f"{where}: variation.{name}: expected a float parameter ({', '.join(floats)})"
+            )
+        dist = parse_distribution(val, f"{where}: variation.{name}")
+        pdef = PARAMETERS[name]
+        for v in (dist.low, dist.high) if not dist.is_fixed else (dist.value,):
+            if np.isfinite(v):
+                pdef.check(v, f"{where}: variation.{name}")
+        for bound, v in ((pdef.lower, dist.low), (pdef.upper, dist.high)):
+            if bound is not None and not np.isfinite(v) and not dist.is_fixed:
+                raise ConfigError(
+                    f"{where}: variation.{name} must stay within [{pdef.lower}, {pdef.upper}] "
+                    f"[{pdef.unit}]: give the distribution min / max"
+                )
+        out[name] = dist
+    order = list(PARAMETERS)
+    return tuple(sorted(out.items(), key=lambda kv: order.index(kv[0])))
+
+
 def resolve_policy(value: Any, where: str, base_dir: Path | None) -> Any:
     """A sweep's ``ego.policy`` value with a relative file path made absolute.
 
@@ -316,12 +356,40 @@ def check_name(name: str, where: str) -> None:
         raise ConfigError(f"{where}: sweep parameter '{name}' was replaced by {REPLACED[name]}")
 
 
+#: The sweep parameter whose largest value sets the continuations' reach (issue 22).
+CRUISE_PARAM = "ego.cruise_speed_mps"
+
+
+def reach_speed_of(spec: SpecLike) -> float | None:
+    """The largest cruise speed a sweep runs [m/s] (the range's max, the largest choice or
+    the fixed value of ``ego.cruise_speed_mps``), None when the spec does not name it (the
+    base configuration's 'median-moving'). Every road user's run-in and run-out reach
+    beyond the car's reach at this speed (vei.config.ContinuationConfig.ego_speed_mps), in
+    the sweep and in each variant's run configuration alike."""
+    if CRUISE_PARAM not in spec.names:
+        return None
+    p = spec.param(CRUISE_PARAM)
+    vals = [p.max] if p.is_range else (list(p.choices) if p.choices is not None else [p.value])
+    nums = [float(v) for v in vals if isinstance(v, int | float) and not isinstance(v, bool)]
+    return max(nums) if nums else None
+
+
+def reach_sim(speed_mps: float | None) -> Any:
+    """A SimConfig whose continuations reach for ``speed_mps`` (SimConfig() for None)."""
+    from vei.config import ContinuationConfig, SimConfig
+
+    if speed_mps is None:
+        return SimConfig()
+    return SimConfig(continuation=ContinuationConfig(ego_speed_mps=float(speed_mps)))
+
+
 def variant_config(
     params: Mapping[str, Any],
     spec: SpecLike,
     *,
     auto_shift_s: float | None = None,
     name: str = "variant",
+    reach_speed_mps: float | None = None,
 ) -> RunConfig:
     """The full run configuration of one variant (what ``vei run --config`` reads back).
 
@@ -342,6 +410,8 @@ def variant_config(
         spec: the sweep spec (base and time-shift reference).
         auto_shift_s: the scenario's automatic shift [s] (required for reference 'auto').
         name: configuration name written into the result.
+        reach_speed_mps: the speed its continuations reach for (the run configuration's
+            ``sim.continuation.ego_speed_mps``); None = :func:`reach_speed_of` the spec.
 
     Raises:
         ConfigError: an invalid combination (e.g. a CAP braking beyond the car's brake).
@@ -395,7 +465,8 @@ def variant_config(
         shift = float(auto_shift_s) + offset
     else:
         shift = offset
-    return RunConfig(case=case, time_shift=shift)
+    speed = reach_speed_mps if reach_speed_mps is not None else reach_speed_of(spec)
+    return RunConfig(case=case, time_shift=shift, sim=reach_sim(speed))
 
 
 def check_aeb_rows(variants: Any, base: str = "normal-cap") -> None:

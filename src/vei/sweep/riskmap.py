@@ -19,6 +19,7 @@ def plane_axes(
     cruise speed when both are ranges, else the first two ranges in PARAMETERS order;
     None when the spec has fewer than two range parameters or results lack x or y."""
     ranges = [p.name for p in spec.parameters if p.is_range and p.min != p.max]
+    ranges += [n for n, d in getattr(spec, "variation", ()) if not d.is_fixed]  # issue 23
     if x is None or y is None:
         if len(ranges) < 2:
             return None
@@ -32,15 +33,23 @@ def plane_axes(
     return x, y
 
 
+def default_bins(n_rows: int) -> int:
+    """Equal bins per axis for ``n_rows`` variants: about 10 variants per bin, 4 to 25."""
+    return int(np.clip(np.sqrt(n_rows / 10.0), 4, 25))
+
+
 def _binned(
     results: pd.DataFrame, spec: SweepSpec, x: str, y: str, value: str, bins: int | None
 ) -> dict[str, np.ndarray]:
     from vei.experiments.boundary import binned_risk
 
     if bins is None:
-        bins = int(np.clip(np.sqrt(len(results) / 10.0), 4, 25))
+        bins = default_bins(len(results))
 
     def edges(name: str) -> np.ndarray:
+        if name not in {p.name for p in spec.parameters}:  # a variation's: the data's span
+            v = results[name].to_numpy(float)
+            return np.linspace(v.min(), v.max(), bins + 1)
         p = spec.param(name)
         if p.num is not None and p.num >= 2:
             return _centre_edges(np.linspace(p.min, p.max, p.num))
@@ -85,6 +94,7 @@ def sweep_risk_map(
     if axes is None or not {"safety_index", "collision"} <= set(results.columns):
         return None
     x, y = axes
+    results, flagged = _unflagged(results, x, y)
     binned = _binned(results, spec, x, y, "safety_index", bins)
     segments, crossings = share_boundary(binned)
     n_sc = results["scenario_id"].nunique() if "scenario_id" in results else 1
@@ -97,7 +107,8 @@ def sweep_risk_map(
         x_label=x,
         y_label=y,
         title=f"mean safety index of {len(results)} variants ({n_sc} scenario(s)); "
-        "boundary: collision share 0.5",
+        "boundary: collision share 0.5" + _flag_note(flagged),
+        **flagged,
     )
     return {"x": x, "y": y, "binned": binned, "segments": segments, "crossings": crossings}
 
@@ -133,7 +144,11 @@ def sweep_severity_map(
     if axes is None or not {value, "collision"} <= set(results.columns):
         return None
     x, y = axes
-    binned = _binned(results, spec, x, y, "collision", bins)  # the boundary: every variant
+    results, flagged = _unflagged(results, x, y)
+    # One binning for the boundary (every unflagged variant) and the value (the rows that
+    # have one): the bin count follows the sweep, never the rows left after dropping NaNs.
+    bins = default_bins(len(results)) if bins is None else bins
+    binned = _binned(results, spec, x, y, "collision", bins)
     v = results[value].to_numpy(float)
     keep = np.isfinite(v)
     if value != "injury_risk":  # a mean over the collisions only
@@ -162,9 +177,31 @@ def sweep_severity_map(
         vmax=vmax,
         cmap="RdYlGn_r",
         title=f"{label} of {len(results)} variants ({n_sc} scenario(s)); "
-        "boundary: collision share 0.5",
+        "boundary: collision share 0.5" + _flag_note(flagged),
+        **flagged,
     )
     return {"x": x, "y": y, "value": value, "binned": binned, "segments": segments}
+
+
+def _unflagged(results: pd.DataFrame, x: str, y: str) -> tuple[pd.DataFrame, dict[str, np.ndarray]]:
+    """(the rows not flagged ``seen_too_late``, {'flagged_x', 'flagged_y'}: where the
+    flagged ones lie). A map never colours by a run no planner could have reacted to
+    (vei.metrics.seen): it marks them instead."""
+    from vei.metrics.seen import flagged_mask
+
+    flag = flagged_mask(results)
+    if not flag.any():
+        return results, {}
+    pts = {
+        "flagged_x": results[x].to_numpy(float)[flag],
+        "flagged_y": results[y].to_numpy(float)[flag],
+    }
+    return results[~flag], pts
+
+
+def _flag_note(flagged: dict[str, np.ndarray]) -> str:
+    n = len(flagged.get("flagged_x", ()))
+    return f"\n{n} run(s) seen too late: marked +, not coloured" if n else ""
 
 
 def _centre_edges(c: np.ndarray) -> np.ndarray:
@@ -195,3 +232,135 @@ def sweep_severity_maps(
     if sweep_severity_map(results, spec, out / "severity_map.png") is not None:
         written[""] = out / "severity_map.png"
     return written
+
+
+#: A cell's probability is shown when its 95 % interval is at most this wide on each side.
+MAX_HALF_WIDTH = 0.1
+
+
+def wilson_interval(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """Wilson score interval (95 % with the default z) of k successes in n trials (Wilson
+    1927); (0, 1) for n < 1. vei.risk.estimators uses this one."""
+    import math
+
+    if n < 1:
+        return 0.0, 1.0
+    p = k / n
+    den = 1.0 + z * z / n
+    centre = (p + z * z / (2 * n)) / den
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def probability_grid(
+    x: np.ndarray,
+    y: np.ndarray,
+    failure: np.ndarray,
+    x_edges: np.ndarray,
+    y_edges: np.ndarray,
+    *,
+    weights: np.ndarray | None = None,
+    max_half_width: float = MAX_HALF_WIDTH,
+) -> dict[str, np.ndarray]:
+    """P(collision | cell) over a plane, with its 95 % Wilson interval, and which cells it
+    is known in.
+
+    Args:
+        x, y: [N] sample coordinates. failure: [N] bool. x_edges [Kx + 1], y_edges
+            [Ky + 1]: the cells. weights: [N] importance weights (None: 1); a cell's
+            estimate is then sum(w f) / sum(w), its interval Wilson's on the effective
+            sample size (sum w)^2 / sum w^2.
+        max_half_width: a cell is *known* when its interval's half-width is at most this.
+    Returns:
+        {'x_centres' [Kx], 'y_centres' [Ky], 'p', 'lo', 'hi', 'n' (effective samples),
+        'known' (bool)}: arrays [Ky, Kx]; p is NaN in empty cells.
+    """
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    f = np.asarray(failure, bool).astype(float)
+    w = np.ones_like(x) if weights is None else np.asarray(weights, float)
+    bins = [np.asarray(x_edges, float), np.asarray(y_edges, float)]
+    sw, _, _ = np.histogram2d(x, y, bins=bins, weights=w)
+    sw2, _, _ = np.histogram2d(x, y, bins=bins, weights=w * w)
+    swf, _, _ = np.histogram2d(x, y, bins=bins, weights=w * f)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        p = np.where(sw > 0, swf / sw, np.nan).T
+        n = np.where(sw2 > 0, sw * sw / sw2, 0.0).T
+    lo = np.full_like(p, np.nan)
+    hi = np.full_like(p, np.nan)
+    for idx in zip(*np.nonzero(n > 0), strict=True):
+        k = max(1, int(round(n[idx])))
+        lo[idx], hi[idx] = wilson_interval(int(round(p[idx] * k)), k)
+    known = np.isfinite(p) & ((hi - lo) / 2 <= max_half_width)
+    xe, ye = bins
+    return {
+        "x_centres": 0.5 * (xe[:-1] + xe[1:]),
+        "y_centres": 0.5 * (ye[:-1] + ye[1:]),
+        "p": p,
+        "lo": lo,
+        "hi": hi,
+        "n": n,
+        "known": known,
+    }
+
+
+def sweep_probability_map(
+    results: pd.DataFrame,
+    spec: SweepSpec,
+    path: str | Path,
+    *,
+    x: str | None = None,
+    y: str | None = None,
+    bins: int | None = None,
+) -> dict[str, Any] | None:
+    """probability_map.png of a finished sweep: P(collision | cell) over the plane of
+    :func:`plane_axes`, drawn only in cells whose 95 % interval is within +-MAX_HALF_WIDTH;
+    the others are hatched as not known. The cells are those of :func:`sweep_risk_map`.
+
+    Note the sweep's design, not a variation model, decides how often each cell is
+    sampled: the map reads "P(collision | the parameters in this cell, the others as the
+    sweep draws them)". ``vei risk`` draws the same map from the variation.
+
+    Returns None when there is no plane; else the grid after writing the PNG.
+    """
+    from vei.report.riskmap import write_probability_map
+
+    axes = plane_axes(results, spec, x, y)
+    if axes is None or "collision" not in results.columns:
+        return None
+    x, y = axes
+    binned = _binned(results, spec, x, y, "collision", bins)
+    xe, ye = _centre_edges(binned["x_centres"]), _centre_edges(binned["y_centres"])
+    grid = probability_grid(
+        results[x].to_numpy(float), results[y].to_numpy(float),
+        results["collision"].to_numpy(bool), xe, ye,
+    )  # fmt: skip
+    write_probability_map(path, grid=grid, x_label=x, y_label=y,
+                          title=f"P(collision | cell) of {len(results)} sweep variants")  # fmt: skip
+    return {"x": x, "y": y, "grid": grid}
+
+
+def write_sample_probability_map(
+    path: str | Path,
+    x: np.ndarray,
+    y: np.ndarray,
+    failure: np.ndarray,
+    *,
+    weights: np.ndarray | None = None,
+    x_label: str = "x",
+    y_label: str = "y",
+    title: str = "",
+) -> dict[str, np.ndarray] | None:
+    """probability_map.png of samples [N] (e.g. ``vei risk``'s, importance-weighted): cells
+    over the samples' span with about 100 samples each (3 to 12 per axis), P(collision |
+    cell) where known (:func:`probability_grid`). None (nothing written) under 50 samples."""
+    from vei.report.riskmap import write_probability_map
+
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    if len(x) < 50:
+        return None
+    nb = int(np.clip(np.sqrt(len(x) / 100.0), 3, 12))
+    xe = np.linspace(x.min(), x.max(), nb + 1)
+    ye = np.linspace(y.min(), y.max(), nb + 1)
+    grid = probability_grid(x, y, failure, xe, ye, weights=weights)
+    write_probability_map(path, grid=grid, x_label=x_label, y_label=y_label, title=title)
+    return grid

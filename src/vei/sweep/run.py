@@ -9,6 +9,8 @@ Output folder layout (``out_dir``)::
     configs/<variant_id>.yaml   each critical variant as a run configuration (vei run --config)
     riskmap.png           mean safety index over the first two range parameters + boundary
     severity_map.png      mean injury risk of the rider over the same plane + boundary
+    probability_map.png   P(collision | cell) where its 95 % CI is within +-0.1, the rest
+                          hatched as not known (vei.sweep.riskmap.sweep_probability_map)
                           (severity_map_<policy>.png, one per policy, when it is swept)
     policy_comparison.csv when the policy is swept with 'none': per policy, collisions,
                           impact speeds, injury risk and the verdicts against 'none' at the
@@ -38,7 +40,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -186,30 +187,13 @@ def _chunks(frame: pd.DataFrame, size: int, tail: int = 0) -> Iterator[pd.DataFr
 
 
 @contextlib.contextmanager
-def _progress(total: int, done: int, enabled: bool) -> Iterator[Callable[[int], None]]:
-    if not enabled:
-        yield lambda n: None
-        return
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
+def _progress(total: int, done: int, enabled: bool | None) -> Iterator[Callable[[int], None]]:
+    """advance(n): a bar on a terminal, a line at least every 10 s otherwise (None), or
+    nothing (False)."""
+    from vei.io.progress import progress
 
-    with Progress(
-        TextColumn("sweep"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("variants"),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-        transient=False,
-    ) as prog:
-        task = prog.add_task("sweep", total=total, completed=done)
-        yield lambda n: prog.advance(task, n)
+    with progress("sweep", total, unit="variants", done=done, enabled=enabled) as rep:
+        yield rep.advance
 
 
 def run_sweep(
@@ -240,7 +224,8 @@ def run_sweep(
         chunk_size: variants per engine batch (bounds memory: one chunk's traces at a time
             per worker), >= 1; None: :func:`auto_chunk_size` of the variants to run.
         evaluator: how a chunk is evaluated; default :class:`EngineEvaluator`.
-        progress: show a rich progress bar; default: when stderr is a terminal.
+        progress: None (default): a progress bar when stderr is a terminal, else a line
+            at least every 10 s (vei.io.progress); True: the same; False: silent.
         max_chunks: stop after this many chunks (for tests and partial runs); the sweep
             stays resumable and results.parquet is only assembled once every variant is done.
         k_critical: how many most-critical variants go to critical.csv/json and configs/.
@@ -266,6 +251,8 @@ def run_sweep(
     ):
         raise ConfigError(f"chunk_size must be an integer >= 1, got {chunk_size!r}")
     if evaluator is None:
+        from vei.sweep.params import reach_sim, reach_speed_of
+
         evaluator = EngineEvaluator(
             time_shift_reference=spec.time_shift_reference,
             base=spec.base,
@@ -273,9 +260,9 @@ def run_sweep(
             sample_seed=spec.seed,
             perception=spec.perception,
             v2x=spec.v2x,
+            # continuations reach beyond the car at the sweep's largest cruise speed
+            sim=reach_sim(reach_speed_of(spec)),
         )
-    if progress is None:
-        progress = sys.stderr.isatty()
     dirs = (
         find_scenarios(scenarios)
         if isinstance(scenarios, str | Path)
@@ -286,12 +273,16 @@ def run_sweep(
     parts_dir.mkdir(parents=True, exist_ok=True)
     _clean_temporaries(parts_dir)
 
+    if (workers > 1 or engine == "ray") and getattr(evaluator, "uses_kernel", False):
+        from vei.sim.warmup import ensure_compiled
+
+        ensure_compiled()  # once here (announced), not in every worker at once
     timings: dict[str, float] = {}
     t_start = time.perf_counter()
     with _runner(engine, workers, evaluator) as runner:
         n_skipped, n_run, table, scen_meta, prepared = _run_jobs(
-            runner, dirs, spec, out, evaluator, chunk_size, workers, max_chunks, bool(progress),
-            timings,
+            runner, dirs, spec, out, evaluator, chunk_size, workers, max_chunks,
+            None if progress is None else bool(progress), timings,
         )  # fmt: skip
     # evaluate: from the end of prepare to the last worker gone
     timings["evaluate"] = time.perf_counter() - t_start - timings["prepare"]
@@ -332,6 +323,9 @@ def run_sweep(
         from vei.sweep.riskmap import sweep_risk_map, sweep_severity_maps
 
         risk = sweep_risk_map(results, spec, out / "riskmap.png")
+        from vei.sweep.riskmap import sweep_probability_map
+
+        sweep_probability_map(results, spec, out / "probability_map.png")  # issue 23
         sweep_severity_maps(results, spec, out)
         if "ego.policy" in spec.names and (results["ego.policy"].astype(str) == "none").any():
             from vei.calibrate.population import RIDER_COLUMN
@@ -353,6 +347,10 @@ def run_sweep(
                     per_point, risk["x"], risk["y"], out / "reconstruction_share.png"
                 )
         timings["post"] = time.perf_counter() - t_post
+        from vei.metrics.seen import flag_counts
+
+        # runs no planner could have reacted to (vei.metrics.seen), counted apart
+        manifest["seen_too_late"] = flag_counts(results)
         manifest["status"] = "complete"
         manifest["updated_utc"] = datetime.now(UTC).isoformat(timespec="seconds")
         manifest["timings_s"] = {k: round(v, 3) for k, v in timings.items()}
@@ -377,6 +375,8 @@ _POST_COLUMNS = (
     "safety_index",
     "min_gap_m",
     "injury_risk",
+    "impact_speed_mps",
+    "seen_too_late",
 )
 
 
@@ -424,7 +424,7 @@ def _run_jobs(
     chunk_size: int | None,
     workers: int,
     max_chunks: int | None,
-    progress: bool,
+    progress: bool | None,
     timings: dict[str, float],
 ) -> tuple[int, int, pd.DataFrame, list[dict[str, Any]], dict[str, Any]]:
     """Prepare the scenarios, check / write the manifest, run the chunks not yet done and

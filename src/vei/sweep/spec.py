@@ -32,6 +32,8 @@ A sweep spec is a YAML (or JSON) mapping loaded into frozen dataclasses at the e
     v2x: {enabled: true, technology: its-g5}
                                      # optional: V2X for every variant (the run config's
                                      # case.v2x keys; v2x.* parameters need it enabled)
+    variation: {cap.t_safe_s: {dist: normal, mean: 2.0, std: 0.3, min: 0.5}}
+                                     # optional (random / lhs): drawn as u -> F^-1(u)
 
 A parameter's name is the path of its field in the run configuration (``cap.t_safe_s``,
 ``sfm.k_des_nspm``, ``ego.policy_params.ttc_full_s``; :mod:`vei.sweep.params`);
@@ -69,6 +71,7 @@ from vei.calibrate.population import (
     with_population,
 )
 from vei.config import CASE_PRESETS, RiderPopulationConfig
+from vei.config.distributions import Distribution
 from vei.config.perception import PerceptionConfig
 from vei.config.v2x import V2XConfig
 from vei.errors import ConfigError, InputError
@@ -94,6 +97,7 @@ from vei.sweep.params import (  # noqa: F401 - part of this module's API
     check_name,
     parse_perception,
     parse_v2x,
+    parse_variation_section,
     resolve_policy,
     variant_config,
 )
@@ -166,6 +170,8 @@ class SweepSpec:
             ``case.perception``); None: the base configuration's.
         v2x: V2X for every variant (the run config's ``case.v2x``); None: the base
             configuration's (off). Swept ``v2x.*`` parameters need it enabled.
+        variation: (parameter, Distribution): random / lhs designs draw it as F^-1(u) of
+            its design coordinate u in [0, 1) (vei.config.distributions; issue 23).
         source: file it was loaded from, if any (for messages).
     """
 
@@ -180,6 +186,7 @@ class SweepSpec:
     perception: PerceptionConfig | None = None
     v2x: V2XConfig | None = None
     source: str | None = field(default=None, compare=False)
+    variation: tuple[tuple[str, Distribution], ...] = ()
 
     def _check_policy_params(self, where: str) -> None:
         """A swept ``ego.policy_params.<f>`` needs its policy among the ``ego.policy`` values
@@ -246,6 +253,10 @@ class SweepSpec:
         names = [p.name for p in self.parameters]
         if len(set(names)) != len(names):
             raise ConfigError(f"{where}: a parameter is given twice: {names}")
+        both = sorted(set(names) & {n for n, _ in self.variation})
+        if self.variation and (self.design == "grid" or both):
+            why = f"{', '.join(both)} in parameters too" if both else "needs random or lhs"
+            raise ConfigError(f"{where}: variation (distributions): {why}")
         if self.perception is not None and not isinstance(self.perception, PerceptionConfig):
             raise ConfigError(f"{where}: perception must be a PerceptionConfig or None")
         if self.v2x is not None and not isinstance(self.v2x, V2XConfig):
@@ -268,8 +279,8 @@ class SweepSpec:
 
     @property
     def names(self) -> tuple[str, ...]:
-        """Parameter names, in table column order."""
-        return tuple(p.name for p in self.parameters)
+        """Parameter names, in table column order (the variation's after the others)."""
+        return tuple(p.name for p in self.parameters) + tuple(n for n, _ in self.variation)
 
     def param(self, name: str) -> ParamSpec:
         """The ParamSpec of ``name`` (KeyError if the spec does not name it)."""
@@ -311,6 +322,8 @@ class SweepSpec:
             out["perception"] = dataclasses.asdict(self.perception)
         if self.v2x is not None:
             out["v2x"] = dataclasses.asdict(self.v2x)
+        if self.variation:
+            out["variation"] = {n: d.to_dict() for n, d in self.variation}
         return out
 
     def digest(self) -> str:
@@ -339,6 +352,7 @@ _SPEC_KEYS = {
     "rider",
     "perception",
     "v2x",
+    "variation",
 }
 #: Variants-table column of the reconstruction sample a variant runs on.
 SAMPLE_COLUMN = "reconstruction_sample"
@@ -452,6 +466,7 @@ def spec_from_dict(raw: Any, *, source: str | None = None) -> SweepSpec:
         perception=parse_perception(raw.get("perception"), where),
         v2x=parse_v2x(raw.get("v2x"), where),
         source=source,
+        variation=parse_variation_section(raw.get("variation"), where),
     )
 
 
@@ -516,17 +531,14 @@ def design_points(spec: SweepSpec) -> pd.DataFrame:
         return pd.DataFrame(rows, columns=names)
     n = int(spec.n_samples or 0)
     varied = [p for p in spec.parameters if not p.is_fixed]
+    n_dims = len(varied) + len(spec.variation)
     if spec.design == "random":
         rng = np.random.default_rng(spec.seed)
-        u = rng.random((n, len(varied)))
+        u = rng.random((n, n_dims))
     else:
         from scipy.stats import qmc
 
-        u = (
-            qmc.LatinHypercube(d=len(varied), rng=spec.seed).random(n)
-            if varied
-            else np.zeros((n, 0))
-        )
+        u = qmc.LatinHypercube(d=n_dims, rng=spec.seed).random(n) if n_dims else np.zeros((n, 0))
     cols: dict[str, Any] = {}
     j = 0
     for p in spec.parameters:
@@ -541,6 +553,9 @@ def design_points(spec: SweepSpec) -> pd.DataFrame:
         else:
             assert p.min is not None and p.max is not None
             cols[p.name] = (p.min + col * (p.max - p.min)).astype(np.float64)
+    for name, dist in spec.variation:  # issue 23: the design's u through the distribution
+        cols[name] = dist.ppf(np.clip(u[:, j], 1e-12, 1.0 - 1e-12))
+        j += 1
     return pd.DataFrame(cols, columns=names)
 
 
@@ -578,7 +593,7 @@ def variants_table(spec: SweepSpec, scenario_id: str, *, named: bool = True) -> 
         {"scenario_id": scenario_id, "variant_index": np.arange(len(pts), dtype=np.int64)}
     )
     df = pd.concat([df, pts.reset_index(drop=True)], axis=1)
-    for p in spec.parameters:
+    for p in (*spec.parameters, *(ParamSpec(n) for n, _ in spec.variation)):
         kind = PARAMETERS[p.name].kind
         if kind == "float":
             df[p.name] = df[p.name].astype(np.float64)

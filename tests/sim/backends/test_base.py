@@ -52,12 +52,14 @@ def test_measured_rider_replaces_the_state_while_active_and_not_after_a_collisio
     meas = EgoMeasurement(float(st.ego_x_m[0]), float(st.ego_y_m[0]), 0.0, 5.6, 0.0)
     rider = RiderMeasurement(99.0, 99.0, 0.0, 1.0, 0.0, 1.0)
     loop.observe(Measurement(meas, rider=rider))  # rider not in the scene yet: ignored
-    assert float(loop.state.rider_x_m[0]) == 40.0
+    first = loop.arrays.rider_track.data[0]  # waits at its run-in's first pose (issue 22)
+    assert float(loop.state.rider_x_m[0]) == first[0]
+    assert float(loop.state.rider_x_m[0]) == pytest.approx(40.0)
     while cmd is None or not cmd.rider_active:
         cmd = loop.command()
         if not cmd.rider_active:
             loop.observe(_ideal(cmd))
-    # the rider entered at (40, -12): a measurement 0.2 m east replaces the engine's pose
+    # the rider entered near (40, -12 - its run-in): a measurement replaces the engine's pose
     loop.observe(Measurement(_ideal(cmd), rider=RiderMeasurement(40.2, -12.0, 1.5, 0.0, 4.0, 4.0)))
     assert float(loop.state.rider_x_m[0]) == 40.2
     assert float(loop.state.rider_speed_mps[0]) == 4.0

@@ -137,7 +137,8 @@ def test_closed_loop_around_an_ideal_plant_equals_the_engine(name):
 
 def test_contact_reported_by_the_simulator_latches_the_collision():
     """A simulator's contact latches the collision while the rider is in the scene; before
-    it enters (recording from t = 2 s, shifted by 2.5 s) a contact is a phantom and ignored."""
+    it enters (its run-in before its recording from t = 2 s, shifted by 2.5 s) a contact
+    is a phantom and ignored."""
     scenario = crossing_scenario()
     loop = ClosedLoop(scenario, case_preset("normal-cap"), time_shift_s=MEETING_SHIFT_S)
     st = loop.state
@@ -147,10 +148,11 @@ def test_contact_reported_by_the_simulator_latches_the_collision():
     )
     cmd = loop.command()
     assert not cmd.hold and not bool(loop.state.collided[0])
-    while not cmd.rider_active:  # the ideal plant until the rider enters (t = 4.5 s)
+    while not cmd.rider_active:  # the ideal plant until the rider enters (its run-in's start)
         loop.observe(EgoMeasurement(cmd.ego_x_m, cmd.ego_y_m, cmd.ego_yaw_rad, cmd.ego_v_mps, 0.0))
         cmd = loop.command()
-    assert loop.state.k == round(4.5 / loop.dt_s)
+    enters = loop.arrays.rider_track.t0_s + MEETING_SHIFT_S  # before 4.5 s: its run-in
+    assert enters < 4.5 and loop.state.k == round(enters / loop.dt_s)
     loop.observe(
         EgoMeasurement(cmd.ego_x_m, cmd.ego_y_m, cmd.ego_yaw_rad, cmd.ego_v_mps, 0.0), contact=True
     )

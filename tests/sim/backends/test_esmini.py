@@ -107,9 +107,15 @@ def test_run_trajectories_hold_the_engine_samples():
     ego = traj[traj["agent_id"] == "ego"]
     assert ego["t_s"].tolist() == [0.0, pytest.approx((loop.n_steps - 1) * loop.dt_s)]
     rider = traj[traj["agent_id"] == "s7"]
-    # recorded from t = 2 s to 7 s, shifted by 2.5 s: t = 4.5 ... 9.5 s in the run
-    assert rider["t_s"].min() == pytest.approx(4.5) and rider["t_s"].max() == pytest.approx(9.5)
-    first = rider.iloc[0]
+    # recorded from t = 2 s to 7 s, shifted by 2.5 s: t = 4.5 ... 9.5 s in the run, with its
+    # run-in before and its run-out after (issue 22; within the run's span)
+    tr = loop.arrays.rider_track
+    assert loop.arrays.rider_recorded_span_s == pytest.approx((2.0, 7.0))
+    t_end = (loop.n_steps - 1) * loop.dt_s
+    assert rider["t_s"].min() == pytest.approx(max(0.0, tr.t0_s + 2.5), abs=0.051)
+    assert rider["t_s"].max() == pytest.approx(min(t_end, tr.t_end_s + 2.5), abs=0.051)
+    assert tr.t0_s < 2.0 and tr.t_end_s > 7.0
+    first = rider.iloc[int(np.argmin(np.abs(rider["t_s"].to_numpy() - 4.5)))]
     assert (first["x_m"], first["y_m"]) == pytest.approx((40.0, -12.0))
 
 

@@ -9,6 +9,21 @@ e-scooters) for the paper's five configurations (7 time shifts each) and a mixed
 configuration) set of arrays is below. A refactoring of the kernel must keep them: any
 change of a result, even in the last bit, changes the digest.
 
+Issue 22 (riders arrive and leave) changed the results on purpose: every road user now
+enters along its run-in and leaves along its run-out (vei.continuation), so a scene's
+rider is present longer and a social-force rider keeps riding past its last recorded
+sample. The digests above are therefore checked on the scenes *without* continuations
+(``SimConfig(continuation=ContinuationConfig(enabled=False))``): the kernel itself must
+still give the recorded outputs bit for bit there. The scenes with continuations (the
+default) have their own digests, :data:`DIGESTS_CONTINUED`, recorded with issue 22's
+kernel by the procedure below.
+
+Re-recording (only for a deliberate model change; say why in the commit): run
+``NPY_DISABLE_CPU_FEATURES="<the AVX-512 features>" OPENBLAS_CORETYPE=Haswell python -m
+tests.sim.kernel.test_kernel_regression`` (the environment :func:`_avx2_env` builds: the
+test prints it on failure) with the recorded numba on x86-64, and paste the printed
+digests into the dict(s) whose results changed.
+
 Floating-point results of compiled code depend on the compiler and the maths library, so
 the digests are checked where they were recorded (numba 0.68.1 on x86-64); elsewhere the
 kernel-vs-NumPy tests (test_kernel.py) still bound the results. The kernel's inputs are
@@ -32,7 +47,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vei.config import PAPER_CASES, SimConfig, case_preset
+from vei.config import PAPER_CASES, ContinuationConfig, SimConfig, case_preset
 from vei.sim.engine import _RECORDED, simulate
 from vei.sim.state import VariantParams, prepare_scenario
 from vei.sim.testing import TrackSpec, crossing_scenario, four_rider_scenario
@@ -63,6 +78,28 @@ DIGESTS = {
     "riders/replay": "ed5e69ab1f6c603efcb1cee20051eede",
 }
 
+#: The same with continuations (the default since issue 22), recorded with its kernel.
+DIGESTS_CONTINUED: dict[str, str] = {
+    "cross/aggressive": "64790a931655852e8cad0c97db7fd9ec",
+    "cross/aggressive-cap": "ea355d8f95189e6fed653763b9ac3ca5",
+    "cross/mixed": "fad8f0463dd1f639c3ed8e479b79ae44",
+    "cross/normal": "01e03bf8d0e8ab7da02df2c6b44abea3",
+    "cross/normal-cap": "658105f5c349f247130a959d0bf73341",
+    "cross/replay": "d80a96483786a6c015c4f38b44a080df",
+    "demo/aggressive": "118ec1daa0ab09b03ed8e308b6da6a39",
+    "demo/aggressive-cap": "97f9e19d27bb56cb8232dad01a83bcd8",
+    "demo/mixed": "5298c4b49a622b6fd1f574ace4fcee0a",
+    "demo/normal": "22fc70296082475f454734f5763a73c9",
+    "demo/normal-cap": "dacd25591e16f44abb10932bcb37a308",
+    "demo/replay": "51af4dc4ea75f76088a388bf1fb747ce",
+    "riders/aggressive": "09516f7bbf084255d6c0b0f69f24bb07",
+    "riders/aggressive-cap": "2583d4b3f875ed0b5a5c071d7de9bcb5",
+    "riders/mixed": "3f7ddfa0df5df01569f311e4e9ac6238",
+    "riders/normal": "1b3eff6e444d1db2955fef51aa23b3c2",
+    "riders/normal-cap": "e54fc1fd43b804bdd54daf25fbac0c35",
+    "riders/replay": "07e6b13d0d00dedc48fbdca32b36ca73",
+}
+
 _EXTRA = (
     "extra_x_m", "extra_y_m", "extra_yaw_rad", "extra_speed_mps", "extra_accel_mps2",
     "extra_active", "extra_hit",
@@ -90,20 +127,23 @@ def _mixed(arrays, base: float) -> VariantParams:
     )
 
 
-def _scenes():
+def _scenes(continued: bool):
     from vei.experiments.demo_data import demo_interaction
     from vei.experiments.timeshift import find_time_shift
     from vei.recon.pipeline import reconstruct
 
+    cont = ContinuationConfig(enabled=continued)
+    sim = SimConfig(continuation=cont)
     demo = reconstruct(demo_interaction())
     t = np.arange(0, 501) / 20.0
     cyclist = TrackSpec("cyclist", t, np.full_like(t, 20.0), np.zeros_like(t),
                         np.full_like(t, np.pi / 2), np.zeros_like(t))  # fmt: skip
     shift = (60.0 - 2.35) / 5.6 - (2.0 + 15.0 / 4.4)
+    riders = SimConfig(sfm_riders="all", continuation=cont)
     return (
-        ("demo", prepare_scenario(demo, SimConfig()), float(find_time_shift(demo))),
-        ("cross", prepare_scenario(crossing_scenario(others=[("c2", cyclist)])), shift),
-        ("riders", prepare_scenario(four_rider_scenario(), SimConfig(sfm_riders="all")), 4.9),
+        ("demo", prepare_scenario(demo, sim), float(find_time_shift(demo, sim=sim))),
+        ("cross", prepare_scenario(crossing_scenario(others=[("c2", cyclist)]), sim), shift),
+        ("riders", prepare_scenario(four_rider_scenario(), riders), 4.9),
     )
 
 
@@ -124,10 +164,10 @@ def _digest(result) -> str:
     return h.hexdigest()[:32]
 
 
-def _digests() -> dict[str, str]:
+def _digests(continued: bool = False) -> dict[str, str]:
     """The digest of every (scene, configuration), computed in this process."""
     got = {}
-    for scene, arrays, base in _scenes():
+    for scene, arrays, base in _scenes(continued):
         sets = {
             c: VariantParams.from_case(
                 case_preset(c), arrays, 7, time_shift_s=base + np.linspace(-2.0, 2.0, 7)
@@ -172,9 +212,14 @@ def test_kernel_outputs_bit_identical_to_the_recorded_digests() -> None:
     )  # fmt: skip
     assert run.returncode == 0, run.stderr[-3000:]
     got = json.loads(run.stdout.strip().splitlines()[-1])
-    changed = sorted(k for k in DIGESTS if got[k] != DIGESTS[k])
-    assert not changed, f"kernel outputs changed for {changed}"
+    changed = sorted(k for k in DIGESTS if got["off"][k] != DIGESTS[k])
+    assert not changed, f"kernel outputs without continuations changed for {changed}"
+    changed = sorted(k for k in got["on"] if got["on"][k] != DIGESTS_CONTINUED.get(k))
+    assert not changed, (
+        f"kernel outputs with continuations changed for {changed}; env "
+        f"{ {k: env[k] for k in ('NPY_DISABLE_CPU_FEATURES', 'OPENBLAS_CORETYPE')} }; got {got['on']}"
+    )
 
 
 if __name__ == "__main__":  # the child process of the test above
-    print(json.dumps(_digests()))
+    print(json.dumps({"off": _digests(False), "on": _digests(True)}))

@@ -10,12 +10,22 @@ bounds the difference.
 
 :func:`available` tells whether numba can be imported; :func:`run` is called by
 :func:`vei.sim.engine.simulate` with ``kernel='numba'`` (or 'auto' when available).
+
+Compilation is paid once per machine and installation: numba caches the machine code beside
+this package, or in a user cache directory when the package's folder is not writable
+(``$NUMBA_CACHE_DIR``, else the platform's user cache, e.g. ``~/.cache/numba``). The
+first call that has to compile says so (:data:`COMPILE_MESSAGE`, with a line every 10 s
+when the output is not a terminal: :func:`vei.io.progress.activity`); :func:`is_cold`
+tells beforehand, so that a command with workers compiles once in its own process before
+it starts them (:func:`vei.sim.warmup.ensure_compiled`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
+import platform
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +36,8 @@ from vei.sim.kernel.layout import BOOL_FIELDS, FLOAT_FIELDS, N_OUT, P_DELAY, PAR
 from vei.sim.riders import EXTRA_BOOL_FIELDS, EXTRA_FLOAT_FIELDS, RIDER_COLUMNS
 
 _KERNEL: Any = None
+_KEY: str | None = None  # _compile_key(), computed once per process
+_WARM = False  # this process has run the kernel (its machine code is loaded)
 #: Variants per chunk handed to a thread of the compiled kernel's parallel loop (each
 #: variant is ~50-100 us of work: a chunk is ~1 ms, far above the scheduling cost).
 _CHUNK = 16
@@ -38,6 +50,14 @@ def available() -> bool:
     except ImportError:
         return False
     return True
+
+
+#: What the first call on a machine (and installation) prints while numba compiles.
+COMPILE_MESSAGE = (
+    "compiling vei's engine kernel for this machine (once per installation; 1-3 minutes, "
+    "later runs load it in about a second)"
+)
+_STAMP = "loop.compiled"
 
 
 def _build() -> Any:
@@ -77,8 +97,7 @@ def _drop_stale_cache(kernel: Any) -> None:
     cache_dir = getattr(cache, "cache_path", None)
     if not cache_dir:
         return
-    here = Path(__file__).resolve().parent
-    digest = hashlib.sha256(b"".join((here / n).read_bytes() for n in _KERNEL_SOURCES)).hexdigest()
+    digest = _sources_digest()
     stamp = Path(cache_dir) / "loop.sources.sha256"
     try:
         if stamp.is_file() and stamp.read_text().strip() == digest:
@@ -89,6 +108,61 @@ def _drop_stale_cache(kernel: Any) -> None:
         tmp.write_text(digest + "\n")
         os.replace(tmp, stamp)
     except OSError:  # read-only install: nothing cached by us can be stale
+        return
+
+
+def _compile_key() -> str:
+    """What the cached machine code depends on (sources, numba, CPU), kept in the stamp."""
+    global _KEY
+    if _KEY is None:
+        import llvmlite.binding as llvm
+        import numba
+
+        cpu = llvm.get_host_cpu_name()
+        _KEY = f"{_sources_digest()} numba {numba.__version__} {platform.machine()} {cpu}"
+    return _KEY
+
+
+def _sources_digest() -> str:
+    here = Path(__file__).resolve().parent
+    return hashlib.sha256(b"".join((here / n).read_bytes() for n in _KERNEL_SOURCES)).hexdigest()
+
+
+def _compiled_stamp(kernel: Any) -> Path | None:
+    cache_dir = getattr(getattr(kernel, "_cache", None), "cache_path", None)
+    return Path(cache_dir) / _STAMP if cache_dir else None
+
+
+def is_cold() -> bool:
+    """True when the compiled kernel has no machine code cached for this machine and
+    installation yet (its first call compiles: 1-3 minutes); False when it loads from the
+    cache, or when numba is not installed."""
+    if _WARM or not available():
+        return False
+    stamp = _compiled_stamp(_build())
+    try:
+        return stamp is None or stamp.read_text().strip() != _compile_key()
+    except OSError:
+        return True
+
+
+def _loaded(kernel: Any, compiled: bool) -> None:
+    """After a call: the process has the machine code; after a compile, say so on disk."""
+    global _WARM
+    _WARM = True
+    if compiled:
+        _mark_compiled(kernel)
+
+
+def _mark_compiled(kernel: Any) -> None:
+    stamp = _compiled_stamp(kernel)
+    if stamp is None:
+        return
+    try:
+        tmp = stamp.with_name(f"{stamp.name}.{os.getpid()}.tmp")
+        tmp.write_text(_compile_key() + "\n")
+        os.replace(tmp, stamp)
+    except OSError:  # a cache we cannot write: numba compiles again next time anyway
         return
 
 
@@ -124,6 +198,7 @@ def _extra_args(arrays: Any) -> tuple[Any, ...]:
         np.array([t.t0_s for t in xr.tracks], f), np.array([t.dt_s for t in xr.tracks], f),
         np.array([t.t_end_s for t in xr.tracks], f),
         np.array([t.data.shape[0] for t in xr.tracks], np.int64),
+        np.array(xr.sfm_entry_s if xr.sfm_entry_s.size == n_x else [-np.inf] * n_x, f),
         xpath,
         np.array([p.s_start_m for p in xr.paths], f), np.array([p.ds_m for p in xr.paths], f),
         np.array([p.x_m.shape[0] for p in xr.paths], np.int64),
@@ -162,6 +237,7 @@ def run(
     from vei.metrics.fused_layout import N_CFG, N_FUSED
 
     kernel = _build()
+    cold = is_cold()
     t_n = arrays.n_steps
     b = params.batch_size
     no = len(arrays.other_ids)
@@ -229,26 +305,31 @@ def run(
     # idle for ~20 % of the run of a batch sorted by time shift); results do not change.
     import numba
 
+    from vei.io.progress import activity
+
     prev_chunk = numba.set_parallel_chunksize(_CHUNK)
+    announce = activity(COMPILE_MESSAGE) if cold else contextlib.nullcontext()
     try:
-        kernel(
-            t_n, float(arrays.dt_s), int(hist_len), bool(record),
-            _path_rows(arrays.ego_path), float(arrays.ego_path.s_start_m), float(arrays.ego_path.ds_m),
-            _table_rows(et, ("s_m", "speed_mps")), float(et.t0_s), float(et.dt_s),
-            _table_rows(tr, ("x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps", "arc_m")),
-            float(tr.t0_s), float(tr.dt_s), float(tr.t_end_s),
-            _path_rows(rp), float(rp.s_start_m), float(rp.ds_m), float(rp.length_m), float(rp.end_x_m), float(rp.end_y_m),
-            float(arrays.ego_length_m), float(arrays.ego_width_m), float(arrays.rider_length_m), float(arrays.rider_width_m),
-            np.ascontiguousarray(arrays.other_x_m), np.ascontiguousarray(arrays.other_y_m),
-            np.ascontiguousarray(arrays.other_yaw_rad), np.ascontiguousarray(arrays.other_active),
-            np.ascontiguousarray(arrays.other_length_m, dtype=np.float64),
-            np.ascontiguousarray(arrays.other_width_m, dtype=np.float64),
-            p_mat, s0, b0, out, outb, outh, h0, fs, fb, fh, coll_t, min_d,
-            *xa, xs0, xb0, outx, outxb, xfs, xfb,
-            scored, t_m, dt_m, mcfg, m_out,
-        )  # fmt: skip
+        with announce:
+            kernel(
+                t_n, float(arrays.dt_s), int(hist_len), bool(record),
+                _path_rows(arrays.ego_path), float(arrays.ego_path.s_start_m), float(arrays.ego_path.ds_m),
+                _table_rows(et, ("s_m", "speed_mps")), float(et.t0_s), float(et.dt_s),
+                _table_rows(tr, ("x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps", "arc_m")),
+                float(tr.t0_s), float(tr.dt_s), float(tr.t_end_s), float(arrays.rider_sfm_entry_s),
+                _path_rows(rp), float(rp.s_start_m), float(rp.ds_m), float(rp.length_m), float(rp.end_x_m), float(rp.end_y_m),
+                float(arrays.ego_length_m), float(arrays.ego_width_m), float(arrays.rider_length_m), float(arrays.rider_width_m),
+                np.ascontiguousarray(arrays.other_x_m), np.ascontiguousarray(arrays.other_y_m),
+                np.ascontiguousarray(arrays.other_yaw_rad), np.ascontiguousarray(arrays.other_active),
+                np.ascontiguousarray(arrays.other_length_m, dtype=np.float64),
+                np.ascontiguousarray(arrays.other_width_m, dtype=np.float64),
+                p_mat, s0, b0, out, outb, outh, h0, fs, fb, fh, coll_t, min_d,
+                *xa, xs0, xb0, outx, outxb, xfs, xfb,
+                scored, t_m, dt_m, mcfg, m_out,
+            )  # fmt: skip
     finally:
         numba.set_parallel_chunksize(prev_chunk)
+    _loaded(kernel, cold)
     final = {f: fs[j].copy() for j, f in enumerate(FLOAT_FIELDS)}
     final["cap_state"] = fs[FLOAT_FIELDS.index("cap_state")].astype(np.int8)
     for j, f in enumerate(BOOL_FIELDS):

@@ -90,6 +90,7 @@ def kernel(  # type: ignore[no-untyped-def]
     path, p_s0, p_ds,  # ego path [10, N]: x y yaw cos sin, then their slopes
     etab, e_t0, e_dt,  # ego track [4, M]: s, speed, slopes
     rtab, r_t0, r_dt, r_tend,  # rider track [14, M]: x y yaw sp vx vy arc, slopes
+    r_sfm0,  # recording time from which an SFM rider is driven (vei.sim.riders.sfm_entry_s)
     rpath, rp_s0, rp_ds, rp_len, rp_ex, rp_ey,  # rider path [10, N]
     Le, We, Lr, Wr,
     oX, oY, oYAW, oACT, oL, oW,  # others [T, no], [no]
@@ -105,6 +106,7 @@ def kernel(  # type: ignore[no-untyped-def]
     FH,  # final hist [4, hist_len, B]
     coll_t, min_d,  # [B]
     R, xtab, xt0, xdt, xtend, xnr,  # extra riders: tracks [R, 14, M], [R] (vei.sim.riders)
+    xsfm0,  # [R] their SFM entry times
     xpath, xps0, xpds, xpn, xplen, xpex, xpey,  # their paths [R, 10, N], [R]
     xL, xW, xrad, xmed, xp99, prad, rep_on,  # footprints, radii, recorded speeds, mode
     ped_idx, ped_rad,  # pedestrian obstacles: indices into the others, radii
@@ -198,7 +200,7 @@ def kernel(  # type: ignore[no-untyped-def]
         hist = (hx, hy, hyaw, hact)
         egeo = (path, p_s0, p_ds, n_p, etab, e_t0, e_dt, n_e, Le, Lr, Wr)
         xst = (xs, xb, nxs, nxb, xv0, xvmax)
-        xtrk = (xtab, xt0, xdt, xtend, xnr)
+        xtrk = (xtab, xt0, xdt, xtend, xnr, xsfm0)
         xpth = (xpath, xps0, xpds, xpn, xplen, xpex, xpey)
         xgeo = (xL, xW, xrad)
         peds = (ped_idx, ped_rad, oX, oY, oACT)
@@ -259,7 +261,7 @@ def kernel(  # type: ignore[no-untyped-def]
                     prog,
                     r_act,
                 )
-                if r_act and not collided:
+                if r_act and r_started and not collided:
                     fx, fy, pr = drive_force(
                         rx, ry, rvx, rvy, prog, rpath, rp_s0, rp_ds, n_rp, rp_len,
                         p_look, p_sigma, p_paperv, p_v0, p_kdes,
@@ -310,7 +312,8 @@ def kernel(  # type: ignore[no-untyped-def]
                     nrvy = rtab[5, i] + w * rtab[12, i]
                     nprog = rtab[6, i] + w * rtab[13, i]
                     n_act = True
-                    r_started = True
+                    # before its SFM entry (a standing run-in) it stands replayed
+                    r_started = t_rec >= r_sfm0 - 1e-9
             if collided:
                 nrx, nry, nryaw = prev_x, prev_y, prev_yaw
                 nrvx = nrvy = nrsp = 0.0

@@ -60,8 +60,8 @@ def extra_riders_step(  # type: ignore[no-untyped-def]
     Args: xst = (xs, xb, nxs, nxb, xv0, xvmax): xs [8, R] floats (x, y, yaw, vx, vy,
     speed, accel, progress) and xb [4, R] bools (active, started, done, hit) of step k,
     updated to k + 1 (nxs, nxb scratch of the same shapes), xv0, xvmax [R] desired and
-    maximum speeds [m/s]; xtrk = (xtab, xt0, xdt, xtend, xnr) their recorded tables
-    [R, 14, M] with start, step and end times [s] and lengths; xpth = (xpath, xps0, xpds,
+    maximum speeds [m/s]; xtrk = (xtab, xt0, xdt, xtend, xnr, xsfm0) their recorded tables
+    [R, 14, M] with start, step and end times [s], lengths and SFM entry times [s]; xpth = (xpath, xps0, xpds,
     xpn, xplen, xpex, xpey) their paths [R, 10, N] (arc grid, length, end point [m]);
     xgeo = (xL, xW, xrad) footprints and radii [R] [m]; the primary rider's position, active
     flag and radius prad [m] at step k; peds = (ped_idx, ped_rad, oX, oY, oACT) the
@@ -69,7 +69,7 @@ def extra_riders_step(  # type: ignore[no-untyped-def]
     k + 1 (ex_n, ey_n, eyaw_n: contact), Le x We [m].
     """
     xs, xb, nxs, nxb, xv0, xvmax = xst
-    xtab, xt0, xdt, xtend, xnr = xtrk
+    xtab, xt0, xdt, xtend, xnr, xsfm0 = xtrk
     xpath, xps0, xpds, xpn, xplen, xpex, xpey = xpth
     xL, xW, xrad = xgeo
     ped_idx, ped_rad, oX, oY, oACT = peds
@@ -98,7 +98,7 @@ def extra_riders_step(  # type: ignore[no-untyped-def]
                 nxb[2, j] = True
             nxb[1, j] = xb[1, j] or in_span
         else:
-            if xb[0, j]:
+            if xb[0, j] and xb[1, j]:
                 x0, y0, vx0, vy0, prog0 = xs[0, j], xs[1, j], xs[3, j], xs[4, j], xs[7, j]
                 fx, fy, pr = drive_force(
                     x0, y0, vx0, vy0, prog0, xpath[j], xps0[j], xpds[j], xpn[j], xplen[j],
@@ -153,7 +153,7 @@ def extra_riders_step(  # type: ignore[no-untyped-def]
                 i, w = idx(xt0[j], xdt[j], n_j, t_new)
                 track_pose(nxs, j, xtab, i, w, True)
                 nxb[0, j] = True
-                nxb[1, j] = True
+                nxb[1, j] = t_new >= xsfm0[j] - 1e-9
         if nxb[0, j] and xb[0, j]:
             nxs[6, j] = (nxs[5, j] - xs[5, j]) / dt
         else:

@@ -54,7 +54,9 @@
   function clean(a) { return (a || []).map(function (v) { return v === null ? NaN : v; }); }
 
   /* ---------------- per-encounter plots ---------------- */
-  var LAYOUT = { margin: { l: 50, r: 10, t: 10, b: 40 }, legend: { font: { size: 10 } } };
+  /* t: 40 px above the plotting area hold plotly's toolbar (modebar), which would
+     otherwise cover the legend's first entry at the plot's top right */
+  var LAYOUT = { margin: { l: 50, r: 10, t: 40, b: 40 }, legend: { font: { size: 10 } } };
   function lay(extra) { return Object.assign({}, LAYOUT, extra); }
   var CONF = { responsive: true, displaylogo: false };
 
@@ -63,8 +65,33 @@
              fillcolor: "rgba(150,150,150,0.25)", line: { color: "rgba(120,120,120,0.6)", width: 0.5 }, hoverinfo: "skip" };
   }
 
+  /* The map's other layers (issue 26): sidewalks and bike lanes, lane borders, kerbs;
+     drawn under the tracks (first in the trace list) or after the replay's moving traces. */
+  function roadLayerTraces(e) {
+    var L = e.road_layers || {}, out = [];
+    if (L.sidewalks) {
+      out.push({ x: L.sidewalks.x, y: L.sidewalks.y, mode: "lines", fill: "toself", name: "sidewalks, bike lanes (map)",
+                 fillcolor: "rgba(200,200,200,0.35)", line: { color: "rgba(180,180,180,0.5)", width: 0.5 }, hoverinfo: "skip" });
+    }
+    if (L.lines) {
+      out.push({ x: L.lines.x, y: L.lines.y, mode: "lines", name: "lane borders (map)",
+                 line: { color: "rgba(255,255,255,0.9)", width: 1 }, hoverinfo: "skip" });
+    }
+    if (L.kerbs) {
+      out.push({ x: L.kerbs.x, y: L.kerbs.y, mode: "lines", name: "kerbs (map)",
+                 line: { color: "#555", width: 1.5 }, hoverinfo: "skip" });
+    }
+    return out;
+  }
+  function roadTraces(e) { return roadLayerTraces(e).concat(e.roads ? [roadTrace(e)] : []); }
+  function noMapNote(e) {
+    var note = e.road_layers && e.road_layers.note;
+    return note ? [{ text: note, xref: "paper", yref: "paper", x: 0.01, y: 0.01, showarrow: false,
+                     font: { size: 10, color: "#666" }, xanchor: "left", yanchor: "bottom" }] : [];
+  }
+
   function drawMap(e) {
-    var traces = e.roads ? [roadTrace(e)] : [];
+    var traces = roadTraces(e);
     Object.keys(e.tracks).forEach(function (aid, i) {
       var tr = e.tracks[aid], ego = aid === "ego", main = aid === e.rider_id;
       traces.push({ x: tr.x, y: tr.y, mode: "lines", name: aid + (main ? " (encounter)" : ""),
@@ -78,7 +105,15 @@
     var pad = 15, rx = [Math.min.apply(null, xs) - pad, Math.max.apply(null, xs) + pad];
     var ry = [Math.min.apply(null, ys) - pad, Math.max.apply(null, ys) + pad];
     Plotly.newPlot("map-plot", traces, lay({ xaxis: { title: { text: "x east [m]" }, range: rx, scaleanchor: "y" },
-      yaxis: { title: { text: "y north [m]" }, range: ry } }), CONF);
+      yaxis: { title: { text: "y north [m]" }, range: ry }, annotations: noMapNote(e) }), CONF);
+  }
+
+  /* legend entries of colours that no trace names: the TTC zones (bands, ego fill) */
+  function zoneKeys(fills, withCollision) {
+    return ZONE_NAME.slice(0, withCollision ? 4 : 3).map(function (name, z) {
+      return { x: [null], y: [null], mode: "markers", name: name, hoverinfo: "skip",
+               marker: { symbol: "square", size: 12, color: fills[z], line: { color: "#999", width: 1 } } };
+    });
   }
 
   function replayTraces(e, c, k) {
@@ -103,9 +138,11 @@
       { x: c.ego.x, y: c.ego.y, mode: "lines", name: "ego path", line: { color: "#000", width: 1, dash: "dot" }, hoverinfo: "skip" },
       { x: c.rider.x, y: c.rider.y, mode: "lines", name: "rider path", line: { color: "#d62728", width: 1, dash: "dot" }, hoverinfo: "skip" }
     ];
-    if (e.roads) { traces.push(roadTrace(e)); }  /* after the moving traces: indices 0-2 stay theirs */
+    var roads = roadTraces(e);
+    state.moving0 = roads.length;  /* the road layers first (under the boxes): moving traces after them */
+    traces = roads.concat(traces).concat(zoneKeys(ZONE_FILL, true));  /* + what the ego's fill colour means */
     Plotly.newPlot("replay-plot", traces, lay({ xaxis: { title: { text: "x east [m]" }, range: rx, scaleanchor: "y" },
-      yaxis: { title: { text: "y north [m]" }, range: ry }, showlegend: true }), CONF);
+      yaxis: { title: { text: "y north [m]" }, range: ry }, showlegend: true, annotations: noMapNote(e) }), CONF);
     updateLabels();
   }
 
@@ -113,8 +150,9 @@
     var e = state.enc, c = e.replay.configs[state.cfg];
     state.k = Math.max(0, Math.min(k, e.replay.t.length - 1));
     var p = replayTraces(e, c, state.k);
-    Plotly.restyle("replay-plot", { x: [p.eb[0], p.rb[0], p.ox], y: [p.eb[1], p.rb[1], p.oy] }, [0, 1, 2]);
-    Plotly.restyle("replay-plot", { fillcolor: ZONE_FILL[p.zone] }, [0]);
+    var m = state.moving0 || 0;
+    Plotly.restyle("replay-plot", { x: [p.eb[0], p.rb[0], p.ox], y: [p.eb[1], p.rb[1], p.oy] }, [m, m + 1, m + 2]);
+    Plotly.restyle("replay-plot", { fillcolor: ZONE_FILL[p.zone] }, [m]);
     var t = e.replay.t[state.k], cursor = [{ type: "line", xref: "x", yref: "paper", x0: t, x1: t, y0: 0, y1: 1, line: { color: "#000", width: 1 } }];
     Plotly.relayout("speed-plot", { shapes: cursor });
     Plotly.relayout("ttc-plot", { shapes: ttcShapes(e).concat(cursor) });
@@ -142,27 +180,35 @@
     Plotly.newPlot("speed-plot", traces, lay({ xaxis: { title: { text: "t [s]" }, range: e.replay.window }, yaxis: { title: { text: "speed [m/s]" }, rangemode: "tozero" } }), CONF);
   }
 
+  var TTC_BAND_FILL = ["rgba(46,125,50,0.10)", "rgba(251,192,45,0.18)", "rgba(239,108,0,0.18)"];
   function ttcShapes(e) {
     var w = e.replay.window, band = function (y0, y1, col) {
       return { type: "rect", xref: "x", yref: "y", x0: w[0], x1: w[1], y0: y0, y1: y1, fillcolor: col, line: { width: 0 }, layer: "below" };
     };
-    return [band(0, 1, "rgba(239,108,0,0.18)"), band(1, 2, "rgba(251,192,45,0.18)"), band(2, 10, "rgba(46,125,50,0.10)")];
+    return [band(0, 1, TTC_BAND_FILL[2]), band(1, 2, TTC_BAND_FILL[1]), band(2, 10, TTC_BAND_FILL[0])];
   }
   function drawTTC(e) {
     var traces = e.replay.configs.map(function (c, i) {
       return { x: c.ttc_t, y: c.ttc_full, mode: "lines", name: c.name, line: { color: colour(c.name, i) } };
     });
+    traces = traces.concat(zoneKeys(TTC_BAND_FILL, false));  /* the bands' meaning */
     Plotly.newPlot("ttc-plot", traces, lay({ shapes: ttcShapes(e), xaxis: { title: { text: "t [s]" }, range: e.replay.window },
       yaxis: { title: { text: "TTC [s] (clipped at 10)" }, range: [0, 10] } }), CONF);
   }
 
   function drawSummary(e) {
     var cols = ["name", "collision", "collision_time_s", "safety_index", "min_gap_m", "min_ttc_s", "peak_decel_mps2", "ego_speed_std_mps"];
-    var h = "<table><thead><tr>" + cols.map(function (c) { return "<th>" + c + "</th>"; }).join("") + "</tr></thead><tbody>";
+    // issue 22 / 28.7: the relative-TTC safety index and whether the rider was seen too late
+    cols = cols.concat(["safety_index_rel", "first_seen_gap_m", "seen_too_late"]);
+    /* short headers that wrap at their spaces: the table fits its panel (it was cut off) */
+    var heads = { name: "config", collision: "collision", collision_time_s: "t collision [s]", safety_index: "safety index",
+                  min_gap_m: "min gap [m]", min_ttc_s: "min TTC [s]", peak_decel_mps2: "peak decel [m/s\u00b2]", ego_speed_std_mps: "speed std [m/s]",
+                  safety_index_rel: "SI rel", first_seen_gap_m: "first seen gap [m]", seen_too_late: "seen too late" };
+    var h = "<table><thead><tr>" + cols.map(function (c) { return "<th title=\"" + c + "\">" + (heads[c] || c) + "</th>"; }).join("") + "</tr></thead><tbody>";
     e.summary.forEach(function (r) {
       h += "<tr>" + cols.map(function (c) {
         var v = r[c];
-        if (typeof v === "number") { v = v.toFixed(3); }
+        if (typeof v === "number") { v = v.toFixed(c === "safety_index" ? 3 : 2); }
         if (v === null || v === undefined) { v = "-"; }
         var span = document.createElement("span"); span.textContent = String(v);
         return "<td>" + span.innerHTML + "</td>";
@@ -172,8 +218,38 @@
     document.getElementById("summary-table").innerHTML = h;
   }
 
+  function esc(v) { var span = document.createElement("span"); span.textContent = String(v); return span.innerHTML; }
+  function drawProbabilities(e) {
+    var el = document.getElementById("prob-table"), r = e.risk;
+    if (!r) { el.textContent = "no risk estimate (catalogue setting risk: null)"; return; }
+    var h = "<p class=\"note\">variation: " + r.variation.map(esc).join("; ") + "</p>";
+    r.planners.forEach(function (p) {
+      h += "<h4>" + esc(p.policy) + " (" + esc(p.method) + ", " + esc(p.n_simulations) + " simulations" + (p.reliable ? "" : ", unreliable") + ")</h4><table><tbody>";
+      Object.keys(p.figures).forEach(function (k) { h += "<tr><th>" + esc(k) + "</th><td>" + esc(p.figures[k]) + "</td></tr>"; });
+      h += "</tbody></table>";
+      if (p.kinds.length) { h += "<p>failure kinds: " + p.kinds.map(esc).join("; ") + "</p>"; }
+      if (p.regions.length) { h += "<p>failure regions:</p><ul>" + p.regions.map(function (x) { return "<li>" + esc(x) + "</li>"; }).join("") + "</ul>"; }
+      p.notes.forEach(function (n) { h += "<p class=\"note\">" + esc(n) + "</p>"; });
+    });
+    r.comparisons.forEach(function (c) { h += "<p>" + esc(c) + "</p>"; });
+    el.innerHTML = h;
+  }
+  function drawProbMap(e, el) {
+    var m = e.probmap;
+    el.textContent = "";
+    var traces = [
+      { type: "heatmap", x: m.x, y: m.y, z: m.z, zmin: 0, zmax: 1, colorscale: "Reds", colorbar: { title: { text: "P(collision | cell)" } },
+        text: m.text, hovertemplate: "%{x:.2f}, %{y:.2f}<br>%{text}<extra></extra>" },
+      { type: "heatmap", x: m.x, y: m.y, z: m.unknown, zmin: 0, zmax: 1, showscale: false, opacity: 0.45,
+        colorscale: [[0, "#9e9e9e"], [1, "#9e9e9e"]], text: m.text, hovertemplate: "%{text}<extra>not known</extra>", name: "not known" }
+    ];
+    Plotly.newPlot(el, traces, lay({ xaxis: { title: { text: m.x_label } }, yaxis: { title: { text: m.y_label } },
+      annotations: [{ text: "grey: not known (95 % CI wider than +-0.1); " + m.n + " samples of " + m.policy, xref: "paper", yref: "paper", x: 0, y: 1.08, showarrow: false, font: { size: 10 } }] }), CONF);
+  }
+
   function drawRisk(e) {
     var m = e.riskmap, el = document.getElementById("risk-plot");
+    if (e.probmap) { drawProbMap(e, el); return; }
     if (!m) { Plotly.purge(el); el.textContent = "no sweep over time shift and cruise speed"; return; }
     el.textContent = "";
     var coll = m.points.collision;
@@ -183,6 +259,11 @@
       { x: m.points.x.filter(function (_, i) { return coll[i]; }), y: m.points.y.filter(function (_, i) { return coll[i]; }),
         mode: "markers", name: "collision", marker: { symbol: "x", color: "#000", size: 5 } }
     ];
+    var flag = m.points.flagged;  // runs seen too late: never coloured, marked
+    if (flag && m.n_flagged) {
+      traces.push({ x: m.points.x.filter(function (_, i) { return flag[i]; }), y: m.points.y.filter(function (_, i) { return flag[i]; }),
+        mode: "markers", name: "seen too late (not coloured)", marker: { symbol: "cross-thin-open", color: "#666", size: 7 } });
+    }
     Plotly.newPlot(el, traces, lay({ xaxis: { title: { text: m.x_label } }, yaxis: { title: { text: m.y_label } }, showlegend: true,
       legend: { x: 0, y: 1.12, orientation: "h" } }), CONF);
   }
@@ -217,7 +298,7 @@
     state.cfg = 0;
     var slider = document.getElementById("time-slider");
     slider.max = String(e.replay.t.length - 1); slider.value = "0";
-    drawMap(e); drawSpeed(e); drawTTC(e); drawSummary(e); drawRisk(e); drawReplay();
+    drawMap(e); drawSpeed(e); drawTTC(e); drawSummary(e); drawRisk(e); drawProbabilities(e); drawReplay();
   }
 
   document.getElementById("encounter-select").addEventListener("change", function (ev) { showEncounter(ev.target.value); });

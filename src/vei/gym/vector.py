@@ -1,0 +1,442 @@
+"""The batched Gymnasium vector environment: B environments stepped by one call.
+
+``gymnasium.make_vec("vei/Crossing-v0", num_envs=B)`` gives a :class:`VeiVectorEnv`: the
+engine's state of B environments as arrays ``[B]`` (each at its own step: autoreset puts
+them out of step), one compiled call per step (:mod:`vei.gym.kernel`, backend 'numba') or
+the engine's NumPy step per group of environments at the same step and scenario (backend
+'numpy', the reference). Spaces, reward and termination are the single env's
+(:class:`vei.gym.env.VeiEnv`); environment i after ``reset(seed=s)`` draws its episodes
+like a single env reset with seed s + i, and so equals it step for step.
+
+Autoreset (``metadata['autoreset_mode']`` = Gymnasium's NEXT_STEP): the step after an
+environment's episode ended (terminated or truncated) resets it, ignores its action and
+returns its first observation with reward 0 and both flags False.
+
+The vector env observes the ground truth directly: a configuration with a perception
+delay or an enabled sensor model runs in the single env (or ``gymnasium.make_vec(...,
+vectorization_mode='sync')``); the vector env refuses it, naming that way out.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import numpy.typing as npt
+from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import batch_space
+
+from vei.errors import ConfigError, InputError
+from vei.gym.config import EnvConfig
+from vei.gym.env import action_limits, check_actions, injury_risk
+from vei.gym.features import feature_names, observation_bounds, vectorize
+from vei.gym.kernel import N_FS
+from vei.gym.world import AgentSeat, World, load_world
+from vei.policy.observation import category_code
+from vei.sim.state import SimState
+
+#: SimState fields of the packed float rows (vei.gym.kernel F_* order) and bool rows.
+_FLOAT_STATE = (
+    "ego_s_m", "ego_x_m", "ego_y_m", "ego_yaw_rad", "ego_v_mps", "ego_a_mps2", "ego_act_mps2",
+    "rider_x_m", "rider_y_m", "rider_yaw_rad", "rider_vx_mps", "rider_vy_mps",
+    "rider_speed_mps", "rider_a_mps2", "rider_prog_m",
+)  # fmt: skip
+_BOOL_STATE = ("rider_active", "rider_started", "rider_done", "collided")
+assert len(_FLOAT_STATE) == N_FS
+
+
+def _pad(arrs: list[np.ndarray], axis: int) -> np.ndarray:
+    """Stack arrays along a new first axis, padding ``axis`` with the last value."""
+    n = max(a.shape[axis] for a in arrs)
+    out = []
+    for a in arrs:
+        pad = [(0, 0)] * a.ndim
+        pad[axis] = (0, n - a.shape[axis])
+        out.append(np.pad(a, pad, mode="edge") if a.shape[axis] else np.zeros_like(a, shape=[
+            n if d == axis else s for d, s in enumerate(a.shape)]))  # fmt: skip
+    return np.ascontiguousarray(np.stack(out))
+
+
+class Packed:
+    """The world's scenario tables as padded arrays for the compiled step (vei.gym.kernel)."""
+
+    def __init__(self, world: World) -> None:
+        from vei.models import ego_core
+        from vei.sim.kernel import _path_rows, _table_rows
+        from vei.sim.kernel.layout import PARAM_FIELDS
+
+        f = np.float64
+        ws = world.scenarios
+        arrs = [w.arrays for w in ws]
+        self.dt = float(arrs[0].dt_s)
+        if any(abs(a.dt_s - self.dt) > 0 for a in arrs):
+            raise ConfigError("the scenarios of an environment must share the engine step")
+        self.P = np.ascontiguousarray(
+            np.stack(
+                [
+                    np.array([float(np.asarray(getattr(w.params, p))[0]) for w in ws])
+                    for p in PARAM_FIELDS
+                ]
+            )
+        )
+        self.ALPHA = np.array(
+            [
+                float(ego_core.lag_factor(np.float64(w.params.actuator_lag_s[0]), self.dt))
+                for w in ws
+            ]
+        )
+        self.DIM = np.array(
+            [[a.ego_length_m, a.ego_width_m, a.rider_length_m, a.rider_width_m] for a in arrs], f
+        )
+        self.EP = _pad([_path_rows(a.ego_path) for a in arrs], 1)
+        self.ep_s0 = np.array([a.ego_path.s_start_m for a in arrs], f)
+        self.ep_ds = np.array([a.ego_path.ds_m for a in arrs], f)
+        self.ep_n = np.array([a.ego_path.x_m.shape[0] for a in arrs], np.int64)
+        cols = ("x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps", "arc_m")
+        self.RT = _pad([_table_rows(a.rider_track, cols) for a in arrs], 1)
+        self.rt_t0 = np.array([a.rider_track.t0_s for a in arrs], f)
+        self.rt_dt = np.array([a.rider_track.dt_s for a in arrs], f)
+        self.rt_tend = np.array([a.rider_track.t_end_s for a in arrs], f)
+        self.rt_n = np.array([a.rider_track.data.shape[0] for a in arrs], np.int64)
+        self.RP = _pad([_path_rows(a.rider_path) for a in arrs], 1)
+        rp = [a.rider_path for a in arrs]
+        self.rp_s0 = np.array([p.s_start_m for p in rp], f)
+        self.rp_ds = np.array([p.ds_m for p in rp], f)
+        self.rp_n = np.array([p.x_m.shape[0] for p in rp], np.int64)
+        self.rp_len = np.array([p.length_m for p in rp], f)
+        self.rp_ex = np.array([p.end_x_m for p in rp], f)
+        self.rp_ey = np.array([p.end_y_m for p in rp], f)
+        self.T_n = np.array([a.n_steps for a in arrs], np.int64)
+        self.path_end = np.array(
+            [float(a.ego_track.data[-1, a.ego_track.col("s_m")]) for a in arrs], f
+        )
+        self.cat_r = np.array([category_code(a.rider_category) for a in arrs], f)
+        no = max(1, world.max_others)
+        tmax = int(self.T_n.max())
+
+        def others(name: str, dtype: Any) -> np.ndarray:
+            out = np.zeros((len(arrs), tmax, no), dtype=dtype)
+            for s, a in enumerate(arrs):
+                v = getattr(a, name)
+                out[s, : v.shape[0], : v.shape[1]] = v
+            return out
+
+        self.OX, self.OY = others("other_x_m", f), others("other_y_m", f)
+        self.OYAW, self.OSP = others("other_yaw_rad", f), others("other_speed_mps", f)
+        self.OACT = others("other_active", np.bool_)
+        self.OL = np.zeros((len(arrs), no))
+        self.OW = np.zeros((len(arrs), no))
+        self.OCAT = np.zeros((len(arrs), no))
+        for s, a in enumerate(arrs):
+            n = len(a.other_ids)
+            self.OL[s, :n], self.OW[s, :n] = a.other_length_m, a.other_width_m
+            self.OCAT[s, :n] = [category_code(c) for c in a.other_categories]
+        self.n_o = np.array([len(a.other_ids) for a in arrs], np.int64)
+        roads = [w.road for w in ws]
+        self.road_on = all(r is not None for r in roads)
+        if self.road_on:
+            self.ROAD = _pad([r.on for r in roads], 0) if len(roads) == 1 else self._roads(roads)
+            self.rd_x0 = np.array([r.x0_m for r in roads], f)
+            self.rd_y0 = np.array([r.y0_m for r in roads], f)
+            self.rd_cell = np.array([r.cell_m for r in roads], f)
+            self.rd_nx = np.array([r.on.shape[1] for r in roads], np.int64)
+            self.rd_ny = np.array([r.on.shape[0] for r in roads], np.int64)
+        else:
+            self.ROAD = np.zeros((len(arrs), 1, 1), np.uint8)
+            self.rd_x0 = self.rd_y0 = np.zeros(len(arrs))
+            self.rd_cell = np.ones(len(arrs))
+            self.rd_nx = self.rd_ny = np.zeros(len(arrs), np.int64)
+
+    @staticmethod
+    def _roads(roads: list[Any]) -> np.ndarray:
+        ny = max(r.on.shape[0] for r in roads)
+        nx = max(r.on.shape[1] for r in roads)
+        out = np.zeros((len(roads), ny, nx), np.uint8)
+        for s, r in enumerate(roads):
+            out[s, : r.on.shape[0], : r.on.shape[1]] = r.on
+        return out
+
+
+class VeiVectorEnv(gym.vector.VectorEnv):
+    """B environments of :class:`vei.gym.env.VeiEnv` in one batched state (module docstring).
+
+    Args:
+        num_envs: B (>= 1).
+        config: an EnvConfig or a mapping of its fields; or its fields as keywords.
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+
+    def __init__(self, num_envs: int = 1, config: Any = None, **settings: Any) -> None:
+        if settings:
+            if config is not None:
+                raise InputError("give either config or its fields as keywords, not both")
+            config = settings
+        if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
+            raise ConfigError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        self.config = EnvConfig.from_mapping(config)
+        if self.config.sim.sfm_riders != "primary":
+            raise ConfigError(
+                "the vector env drives the primary rider only (sim.sfm_riders 'primary'); "
+                "use gymnasium.make_vec(..., vectorization_mode='sync') for extra SFM riders"
+            )
+        self.seat = AgentSeat()
+        self.world = load_world(self.config, self.seat)
+        p0 = self.world.scenarios[0].params
+        if float(p0.perception_delay_s[0]) > 0 or p0.perception[0] is not None:
+            raise ConfigError(
+                "the vector env observes the ground truth: a perception delay or sensor model "
+                "(case.perception, cap.perception_delay_s) needs the single env "
+                "(gymnasium.make_vec(..., vectorization_mode='sync'))"
+            )
+        from vei.sim import kernel as compiled
+
+        backend = self.config.backend
+        self.backend = (
+            "numba"
+            if backend == "numba" or (backend == "auto" and compiled.available())
+            else "numpy"
+        )
+        self.num_envs = num_envs
+        low, high = action_limits(self.world)
+        self.action_low, self.action_high = low, high
+        self.single_action_space = gym.spaces.Box(
+            np.float32(low), np.float32(high), (1,), np.float32
+        )
+        road = self.config.road_features
+        lo, hi = observation_bounds(self.config.max_objects, road, self.config.gap_cap_m)
+        self.single_observation_space = gym.spaces.Box(lo, hi, dtype=np.float32)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.feature_names = feature_names(self.config.max_objects, road)
+        self.pk = Packed(self.world)
+        b, no = num_envs, max(1, self.world.max_others)
+        self.FS = np.zeros((N_FS, b))
+        self.BS = np.zeros((4, b), np.uint8)
+        self.HIT = np.zeros((b, no), np.uint8)
+        self.K = np.zeros(b, np.int64)
+        self.SC = np.zeros(b, np.int64)
+        self.SHIFT = np.zeros(b)
+        self.steps = np.zeros(b, np.int64)
+        self.TERMS = np.zeros((b, 4))
+        self.OBS = np.zeros((b, lo.shape[0]), np.float32)
+        self._needs_reset = np.ones(b, dtype=bool)
+        self._rngs: list[np.random.Generator] = []
+        self.weights = np.array(
+            [self.config.reward.collision, self.config.reward.progress, self.config.reward.comfort]
+        )
+
+    # ------------------------------------------------------------------ episodes
+    def _draw(self, envs: np.ndarray) -> None:
+        """New scenario and time shift for ``envs`` (their own generators), initial state."""
+        from vei.sim.step import initial_state
+
+        spread = self.config.time_shift_spread_s
+        n = self.world.n
+        for e in envs:
+            rng = self._rngs[e]
+            i = int(rng.integers(n))
+            j = rng.uniform(-1.0, 1.0)
+            self.SC[e] = i
+            self.SHIFT[e] = self.world.scenarios[i].base_shift_s + spread * j
+        for i in np.unique(self.SC[envs]):
+            sel = envs[self.SC[envs] == i]
+            ws = self.world.scenarios[i]
+            params = ws.params.take(np.zeros(sel.size, np.intp)).with_values(
+                time_shift_s=self.SHIFT[sel]
+            )
+            st = initial_state(ws.arrays, params)
+            self._write(sel, st)
+        self.K[envs] = 0
+        self.steps[envs] = 0
+
+    def _write(self, envs: np.ndarray, st: SimState) -> None:
+        for r, name in enumerate(_FLOAT_STATE):
+            self.FS[r, envs] = getattr(st, name)
+        for r, name in enumerate(_BOOL_STATE):
+            self.BS[r, envs] = getattr(st, name)
+        self.HIT[envs] = 0
+        self.HIT[envs, : st.hit_other.shape[1]] = st.hit_other
+
+    def state_of(self, envs: npt.ArrayLike) -> SimState:
+        """The engine's SimState of environments ``envs`` (all at the same step and scenario)."""
+        envs = np.asarray(envs)
+        ks, scs = np.unique(self.K[envs]), np.unique(self.SC[envs])
+        if ks.size != 1 or scs.size != 1:
+            raise InputError("state_of needs environments at the same step of the same scenario")
+        arrays = self.world.scenarios[int(scs[0])].arrays
+        n, no = envs.size, len(arrays.other_ids)
+        z = np.zeros(n)
+        fields: dict[str, Any] = {
+            name: self.FS[r, envs].copy() for r, name in enumerate(_FLOAT_STATE)
+        }
+        fields.update({name: self.BS[r, envs] > 0 for r, name in enumerate(_BOOL_STATE)})
+        fields.update(
+            k=int(ks[0]), ego_cmd=z.copy(), pid_integral_m=z.copy(), pid_prev_error_mps=z.copy(),
+            cap_state=np.zeros(n, np.int8), hit_other=self.HIT[envs, :no] > 0,
+            hist=np.zeros((4, 1, n)),
+        )  # fmt: skip
+        for name in ("extra_x_m", "extra_y_m", "extra_yaw_rad", "extra_vx_mps", "extra_vy_mps",
+                     "extra_speed_mps", "extra_a_mps2", "extra_prog_m"):  # fmt: skip
+            fields[name] = np.zeros((n, 0))
+        for name in ("extra_active", "extra_started", "extra_done", "extra_hit"):
+            fields[name] = np.zeros((n, 0), bool)
+        return SimState(**fields)
+
+    def reset(
+        self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
+        """Reset every environment; environment i draws with the generator of seed + i
+        (a list gives each its seed; None: fresh entropy)."""
+        from gymnasium.utils import seeding
+
+        if options:
+            raise InputError("the vector env takes no reset options")
+        b = self.num_envs
+        if seed is None:
+            seeds: list[int | None] = [None] * b
+        elif isinstance(seed, int):
+            seeds = [seed + i for i in range(b)]
+        else:
+            if len(seed) != b:
+                raise InputError(f"reset got {len(seed)} seeds for {b} environments")
+            seeds = list(seed)
+        self._rngs = [seeding.np_random(s)[0] for s in seeds]
+        self.HIT[:] = 0
+        self._draw(np.arange(b))
+        self._needs_reset[:] = False
+        return self._observe(), {
+            "time_shift_s": self.SHIFT.copy(),
+            "scenario_index": self.SC.copy(),
+        }
+
+    # ------------------------------------------------------------------ stepping
+    def _step_numba(self, run: np.ndarray, a: np.ndarray) -> None:
+        from vei.gym.kernel import step_envs
+
+        pk = self.pk
+        step_envs(
+            run, a, pk.dt, self.FS, self.BS, self.HIT, self.K, self.SC, self.SHIFT,
+            pk.P, pk.ALPHA, pk.DIM, pk.EP, pk.ep_s0, pk.ep_ds, pk.ep_n,
+            pk.RT, pk.rt_t0, pk.rt_dt, pk.rt_tend, pk.rt_n,
+            pk.RP, pk.rp_s0, pk.rp_ds, pk.rp_n, pk.rp_len, pk.rp_ex, pk.rp_ey,
+            pk.OX, pk.OY, pk.OYAW, pk.OACT, pk.OL, pk.OW, pk.n_o, self.TERMS,
+        )  # fmt: skip
+
+    def _groups(self, envs: np.ndarray) -> list[np.ndarray]:
+        key = self.SC[envs] * (1 << 32) + self.K[envs]
+        return [envs[key == u] for u in np.unique(key)]
+
+    def _step_numpy(self, run: np.ndarray, a: np.ndarray) -> None:
+        from vei.sim.observe import Demand
+        from vei.sim.step import step
+
+        for sel in self._groups(np.flatnonzero(run)):
+            ws = self.world.scenarios[int(self.SC[sel[0]])]
+            params = ws.params.take(np.zeros(sel.size, np.intp)).with_values(
+                time_shift_s=self.SHIFT[sel]
+            )
+            st = self.state_of(sel)
+            n = sel.size
+            new = step(
+                st,
+                params,
+                ws.arrays,
+                None,
+                Demand(a[sel], np.full(n, np.nan), np.zeros(n, np.int8)),
+            )
+            v, yaw = st.ego_v_mps, st.ego_yaw_rad
+            contact = new.collided & ~st.collided
+            impact = np.hypot(v * np.cos(yaw) - st.rider_vx_mps, v * np.sin(yaw) - st.rider_vy_mps)
+            self.TERMS[sel, 0] = contact + np.count_nonzero(new.hit_other & ~st.hit_other, axis=1)
+            self.TERMS[sel, 1] = np.where(contact & st.rider_active, impact, np.nan)
+            self.TERMS[sel, 2] = np.minimum(
+                new.ego_s_m - st.ego_s_m, params.cruise_speed_mps * ws.arrays.dt_s
+            )
+            self.TERMS[sel, 3] = new.ego_a_mps2**2 * ws.arrays.dt_s
+            for r, name in enumerate(_FLOAT_STATE):
+                self.FS[r, sel] = getattr(new, name)
+            for r, name in enumerate(_BOOL_STATE):
+                self.BS[r, sel] = getattr(new, name)
+            self.HIT[sel, : new.hit_other.shape[1]] = new.hit_other
+            self.K[sel] = new.k
+
+    def _observe(self) -> npt.NDArray[np.float32]:
+        cfg = self.config
+        if self.backend == "numba":
+            from vei.gym.kernel import observe_envs
+
+            pk = self.pk
+            observe_envs(
+                pk.dt, self.FS, self.BS, self.K, self.SC, pk.P, pk.DIM, pk.T_n, pk.path_end,
+                pk.cat_r, pk.EP, pk.ep_s0, pk.ep_ds, pk.ep_n, pk.OX, pk.OY, pk.OYAW, pk.OSP,
+                pk.OACT, pk.OL, pk.OW, pk.OCAT, pk.n_o, pk.ROAD, pk.rd_x0, pk.rd_y0, pk.rd_cell,
+                pk.rd_nx, pk.rd_ny, pk.road_on, cfg.max_objects, cfg.gap_cap_m, self.OBS,
+            )  # fmt: skip
+            return self.OBS.copy()
+        from vei.sim.batch import batch_flags
+        from vei.sim.observe import build_observation, ground_truth, object_table
+
+        for sel in self._groups(np.arange(self.num_envs)):
+            ws = self.world.scenarios[int(self.SC[sel[0]])]
+            params = ws.params.take(np.zeros(sel.size, np.intp)).with_values(
+                time_shift_s=self.SHIFT[sel]
+            )
+            st = self.state_of(sel)
+            blk = batch_flags(params, ws.arrays.dt_s).blocks[0]
+            truth = ground_truth(st, ws.arrays, slice(None))
+            valid = truth[5] > 0.5
+            age = np.zeros(valid.shape)
+            obs = build_observation(st, ws.arrays, blk, truth, valid, age, object_table(ws.arrays))
+            t_left = (ws.arrays.n_steps - 1 - st.k) * ws.arrays.dt_s
+            on = None
+            if ws.road is not None:
+                on = ws.road.lookup(st.rider_x_m, st.rider_y_m) * valid[:, 0]
+            self.OBS[sel] = vectorize(
+                obs, max_objects=cfg.max_objects, cap_m=cfg.gap_cap_m,
+                time_remaining_s=np.full(sel.size, t_left), rider_on_road=on,
+            )  # fmt: skip
+        return self.OBS.copy()
+
+    def step(
+        self, actions: Any
+    ) -> tuple[npt.NDArray[np.float32], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """One step of every environment (NEXT_STEP autoreset; see the module docstring)."""
+        if not self._rngs:
+            raise InputError("call reset() before step()")
+        b = self.num_envs
+        a = check_actions(actions, self.action_low, self.action_high, b)
+        resetting = self._needs_reset
+        run = ~resetting
+        self.TERMS[:] = 0.0
+        if run.any():
+            if self.backend == "numba":
+                self._step_numba(run, a)
+            else:
+                self._step_numpy(run, a)
+        self.steps[run] += 1
+        if resetting.any():
+            self._draw(np.flatnonzero(resetting))
+        w = self.config.reward
+        rewards = (
+            w.collision * self.TERMS[:, 0]
+            + w.injury_risk * injury_risk(self.TERMS[:, 1])
+            + w.progress * self.TERMS[:, 2]
+            + w.comfort * self.TERMS[:, 3]
+        )
+        terminated = run & (self.TERMS[:, 0] > 0)
+        limit = self.config.max_episode_steps
+        truncated = run & (self.K >= self.pk.T_n[self.SC] - 1)
+        if limit is not None:
+            truncated |= run & (self.steps >= limit)
+        self._needs_reset = terminated | truncated
+        rewards = np.where(run, rewards, 0.0)
+        return self._observe(), rewards, terminated, truncated, {}
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Nothing to release (no subprocesses)."""
+        return None
+
+
+__all__ = ["VeiVectorEnv"]

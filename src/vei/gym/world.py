@@ -1,0 +1,248 @@
+"""The scenarios an environment draws its episodes from, prepared once.
+
+:func:`load_world` reads the configured source (the built-in demo, a scenario folder or a
+folder of them, a ``vei catalogue``) into a :class:`World`: per scenario the engine's
+:class:`vei.sim.state.ScenarioArrays`, the one-variant :class:`VariantParams` of the
+configuration with the agent in the ego's seat, the automatic time shift, and the
+``rider_on_road`` raster of its own OpenDRIVE map.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from vei.config import CaseConfig
+from vei.errors import ConfigError, InputError
+from vei.gym.config import EnvConfig
+from vei.sim.params import EGO_POLICY, VariantParams
+from vei.sim.state import ScenarioArrays, prepare_scenario
+from vei.types import Scenario
+
+FloatArray = npt.NDArray[np.float64]
+#: Cell of the drivable-area raster behind ``rider_on_road`` [m].
+ROAD_CELL_M = 0.25
+#: Margin of the raster around every trajectory of the scenario [m].
+ROAD_MARGIN_M = 20.0
+
+
+@dataclass(frozen=True)
+class RoadRaster:
+    """Drivable area of a map on a grid: ``on[i, j]`` for the cell of (x0 + j cell, y0 + i cell).
+
+    Attributes:
+        x0_m, y0_m: the grid's lower-left corner [m] (scenario plane). cell_m: cell size [m].
+        on: [ny, nx] uint8, 1 where the cell centre lies on a drivable lane.
+    """
+
+    x0_m: float
+    y0_m: float
+    cell_m: float
+    on: npt.NDArray[np.uint8]
+
+    def lookup(self, x_m: npt.ArrayLike, y_m: npt.ArrayLike) -> npt.NDArray[np.uint8]:
+        """1 where (x, y) [m] lies in a drivable cell, 0 elsewhere (outside the grid too)."""
+        x = np.asarray(x_m, dtype=np.float64)
+        y = np.asarray(y_m, dtype=np.float64)
+        j = np.floor((x - self.x0_m) / self.cell_m)
+        i = np.floor((y - self.y0_m) / self.cell_m)
+        ny, nx = self.on.shape
+        ok = (i >= 0) & (i < ny) & (j >= 0) & (j < nx)
+        out = np.zeros(x.shape, dtype=np.uint8)
+        out[ok] = self.on[i[ok].astype(np.intp), j[ok].astype(np.intp)]
+        return out
+
+
+def road_raster(scenario: Scenario, xodr: Path) -> RoadRaster:
+    """The drivable-area raster of ``xodr`` over the scenario's trajectories (+ margin)."""
+    import shapely
+
+    from vei.maps import load_roads
+
+    area = load_roads(xodr).drivable_area
+    traj = scenario.trajectories
+    x0 = float(traj["x_m"].min()) - ROAD_MARGIN_M
+    y0 = float(traj["y_m"].min()) - ROAD_MARGIN_M
+    nx = int(np.ceil((float(traj["x_m"].max()) + ROAD_MARGIN_M - x0) / ROAD_CELL_M))
+    ny = int(np.ceil((float(traj["y_m"].max()) + ROAD_MARGIN_M - y0) / ROAD_CELL_M))
+    xs = x0 + (np.arange(nx) + 0.5) * ROAD_CELL_M
+    ys = y0 + (np.arange(ny) + 0.5) * ROAD_CELL_M
+    gx, gy = np.meshgrid(xs, ys)
+    shapely.prepare(area)
+    on = shapely.contains_xy(area, gx.ravel(), gy.ravel()).reshape(ny, nx).astype(np.uint8)
+    return RoadRaster(x0, y0, ROAD_CELL_M, on)
+
+
+@dataclass(frozen=True)
+class WorldScenario:
+    """One scenario of a world.
+
+    Attributes:
+        name: the scenario's id (a catalogue's encounter id).
+        folder: where it was read from (None for the in-memory demo).
+        arrays: the engine's arrays. params: the configuration with the agent as the ego
+            (ego_mode 'policy'), one variant, time shift 0.
+        base_shift_s: the automatic time shift [s] (an episode adds the spread's draw).
+        road: the drivable-area raster, or None when road features are off.
+        scenario: the Scenario itself (for rendering).
+    """
+
+    name: str
+    folder: Path | None
+    arrays: ScenarioArrays
+    params: VariantParams
+    base_shift_s: float
+    road: RoadRaster | None
+    scenario: Scenario = field(repr=False)
+
+
+@dataclass(frozen=True)
+class World:
+    """Every scenario of an environment and its configuration."""
+
+    config: EnvConfig
+    scenarios: tuple[WorldScenario, ...]
+
+    @property
+    def n(self) -> int:
+        """Number of scenarios S."""
+        return len(self.scenarios)
+
+    @property
+    def max_others(self) -> int:
+        """The most replayed road users of any scenario."""
+        return max(len(w.arrays.other_ids) for w in self.scenarios)
+
+
+class AgentSeat:
+    """The policy object in the ego's seat of the environment's variants (vei.policy API).
+
+    The environment hands the engine the agent's demand itself (vei.sim.observe.Demand);
+    this object only makes the variants policy variants and, when called by a
+    :class:`vei.sim.observe.PolicyDriver`, keeps the Observation it was shown.
+    """
+
+    name = "vei.gym agent"
+
+    def __init__(self) -> None:
+        self.last_observation: Any = None
+
+    def init_state(self, batch_size: int) -> None:
+        """No memory."""
+        return None
+
+    def act(self, obs: Any, state: Any) -> tuple[Any, Any]:
+        """Keep ``obs``; demand 0 (the environment supplies the real demand)."""
+        from vei.policy.base import PolicyAction
+
+        self.last_observation = obs
+        return PolicyAction(accel_mps2=np.zeros(obs.batch_size)), state
+
+
+def _scenario_folders(path: Path) -> list[Path]:
+    if (path / "scenario.json").is_file():
+        return [path]
+    subs = (
+        sorted(p for p in path.iterdir() if (p / "scenario.json").is_file())
+        if path.is_dir()
+        else []
+    )
+    if not subs:
+        raise InputError(
+            "not a scenario folder (no scenario.json) and no sub-folder is one "
+            "(write one with 'vei reconstruct --out')",
+            path=path,
+        )
+    return subs
+
+
+def _catalogue(path: Path) -> list[tuple[str, Path, float]]:
+    import pandas as pd
+
+    from vei.catalogue.store import TABLE, encounter_dir
+
+    table = path / TABLE
+    if not table.is_file():
+        raise InputError(f"not a vei catalogue (no {TABLE}); run 'vei catalogue' first", path=path)
+    rows = pd.read_parquet(table)
+    if rows.empty:
+        raise InputError("the catalogue has no encounter", path=table)
+    out = []
+    for _, r in rows.iterrows():
+        eid = str(r["encounter_id"])
+        out.append((eid, encounter_dir(path, eid) / "scenario", float(r["time_shift_auto_s"])))
+    return out
+
+
+def _agent_params(case: CaseConfig, arrays: ScenarioArrays, seat: AgentSeat) -> VariantParams:
+    base = VariantParams.from_case(case, arrays, 1)
+    return base.with_values(
+        ego_mode=EGO_POLICY,
+        policy=np.array([seat], dtype=object),
+        perception=np.array([base.perception[0]], dtype=object),
+    )
+
+
+def load_world(config: EnvConfig, seat: AgentSeat) -> World:
+    """Read the configured scenarios (see the module docstring).
+
+    Raises:
+        InputError: a folder that is no scenario (or catalogue), a scenario without a map
+            while ``road_features`` is on (naming the folder and the way out).
+    """
+    from vei.experiments.timeshift import find_time_shift
+    from vei.io.scenario import read_scenario
+
+    entries: list[tuple[str, Path | None, Scenario, float | None]] = []
+    tmp: Path | None = None
+    if config.source == "demo":
+        from vei.experiments.demo_map import write_demo_scenario
+
+        tmp = Path(tempfile.mkdtemp(prefix="vei-gym-demo-"))
+        folder = write_demo_scenario(tmp / "demo")
+        entries.append(("demo", folder, read_scenario(folder), None))
+    elif config.source == "folder":
+        assert config.path is not None
+        for folder in _scenario_folders(config.path):
+            scen = read_scenario(folder)
+            entries.append((scen.id, folder, scen, None))
+    else:
+        assert config.path is not None
+        for eid, folder, shift in _catalogue(config.path):
+            entries.append((eid, folder, read_scenario(folder), shift))
+    case = config.case
+    assert isinstance(case, CaseConfig)
+    out = []
+    for name, folder, scen, shift in entries:
+        road = None
+        if config.road_features:
+            rel = scen.maps.get("opendrive")
+            xodr = None if rel is None or folder is None else folder / rel
+            if xodr is None or not xodr.is_file():
+                raise InputError(
+                    "the scenario has no road map (map.xodr), which the observation's "
+                    "rider_on_road needs: reconstruct it with 'vei reconstruct --map', or set "
+                    "road_features=False",
+                    path=folder,
+                    field="maps.opendrive",
+                )
+            road = road_raster(scen, xodr)
+        arrays = prepare_scenario(scen, config.sim)
+        if shift is None:
+            shift = float(find_time_shift(scen, sim=config.sim))
+        out.append(
+            WorldScenario(
+                name, folder, arrays, _agent_params(case, arrays, seat), shift, road, scen
+            )
+        )
+    if not out:
+        raise ConfigError("the environment has no scenario")
+    return World(config, tuple(out))
+
+
+__all__ = ["AgentSeat", "RoadRaster", "World", "WorldScenario", "load_world", "road_raster"]

@@ -1,0 +1,433 @@
+"""The variation model: which quantities of an encounter vary, and how (``variation:``).
+
+A risk spec (``vei risk --spec FILE``; the ``risk:`` section of catalogue settings)::
+
+    base: normal-cap              # the configuration whatever is not varied keeps
+    time_shift_reference: auto    # auto: time_shift_s offsets the automatic shift; zero:
+                                  # time_shift_s is the absolute shift (0 = the recording)
+    seed: 0                       # sampling seed (every estimator; per-sample run configs
+                                  # do not depend on it)
+    variation:                    # one distribution per varied quantity (sweep names)
+      time_shift_s: {dist: uniform, min: -2.0, max: 2.0}
+      ego.cruise_speed_mps: {dist: normal, mean: recorded, cv: 0.22, min: 1.0}
+      cap.perception_delay_s: {dist: uniform, min: 0.0, max: 0.3}
+      rider: {profile: calibrated, category: auto}   # null: the base configuration's rider
+    fixed: {cap.t_safe_s: 2.0}    # optional: parameters held at a value (sweep names)
+    perception: {enabled: true, position_noise_std_m: 0.3}   # optional sensor model
+    injury_relevant_speed_mps: 5.56   # optional: the injury-relevant impact speed [m/s]
+
+Without ``variation:`` the defaults of :mod:`vei.risk.defaults` apply (every default with
+its unit and source; docs/risk.md). The quantities are sweep parameters
+(:mod:`vei.sweep.params`: a float parameter's name is its run-config path), so every
+sample is a sweep variant and its run configuration is written the way sweeps write
+theirs. ``rider`` is the calibrated population (:mod:`vei.calibrate.profile`): five
+correlated log-normal parameters, i.e. five standard-normal dimensions through the
+Cholesky factor of the population's log-covariance (dimension ``rider.<param>`` is the
+part of that parameter not explained by the ones before it).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import pandas as pd
+
+from vei.config import CASE_PRESETS
+from vei.config.distributions import Distribution, parse_distribution
+from vei.config.perception import PerceptionConfig
+from vei.errors import ConfigError, InputError
+from vei.risk.defaults import INJURY_RELEVANT_SPEED_MPS, default_variation
+
+FloatArray = npt.NDArray[np.float64]
+
+TIME_SHIFT_REFERENCES: tuple[str, ...] = ("auto", "zero")
+RIDER_CATEGORIES: tuple[str, ...] = ("auto", "escooter", "cyclist", "all")
+_SPEC_KEYS = {
+    "base",
+    "time_shift_reference",
+    "seed",
+    "variation",
+    "fixed",
+    "perception",
+    "injury_relevant_speed_mps",
+}
+
+
+@dataclass(frozen=True)
+class RiderVariation:
+    """The rider population that varies the social-force rider.
+
+    Attributes:
+        profile: a rider profile file or 'calibrated' (the shipped profile).
+        category: 'auto' (the primary rider's category), 'escooter', 'cyclist' or 'all'.
+    """
+
+    profile: str = "calibrated"
+    category: str = "auto"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.profile, str) or not self.profile:
+            raise ConfigError(f"rider.profile must be a file or 'calibrated', got {self.profile!r}")
+        if self.category not in RIDER_CATEGORIES:
+            raise ConfigError(
+                f"rider.category must be one of {', '.join(RIDER_CATEGORIES)}, got {self.category!r}"
+            )
+
+
+@dataclass(frozen=True)
+class VariationModel:
+    """A validated risk spec (module docstring for the YAML form).
+
+    Attributes:
+        distributions: (sweep parameter name, Distribution) of each varied float quantity,
+            in :data:`vei.sweep.params.PARAMETERS` order.
+        rider: the rider population, or None (the base configuration's rider).
+        base: configuration preset (``vei.config.CASE_PRESETS``).
+        time_shift_reference: 'auto' or 'zero'.
+        seed: sampling seed (>= 0).
+        fixed: (sweep parameter name, value) held fixed.
+        perception: the ego's sensor model for every sample, or None (the base's).
+        injury_relevant_speed_mps: a collision is injury-relevant at an impact speed >= this.
+        source: the file it came from (for messages).
+    """
+
+    distributions: tuple[tuple[str, Distribution], ...]
+    rider: RiderVariation | None = None
+    base: str = "normal-cap"
+    time_shift_reference: str = "auto"
+    seed: int = 0
+    fixed: tuple[tuple[str, Any], ...] = ()
+    perception: PerceptionConfig | None = None
+    injury_relevant_speed_mps: float = INJURY_RELEVANT_SPEED_MPS
+    source: str | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        where = self.source or "risk spec"
+        if self.base not in CASE_PRESETS:
+            raise ConfigError(
+                f"{where}: base must be one of {', '.join(CASE_PRESETS)}, got {self.base!r}"
+            )
+        if self.time_shift_reference not in TIME_SHIFT_REFERENCES:
+            raise ConfigError(
+                f"{where}: time_shift_reference must be auto or zero, got {self.time_shift_reference!r}"
+            )
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ConfigError(f"{where}: seed must be an integer >= 0, got {self.seed!r}")
+        v = self.injury_relevant_speed_mps
+        if isinstance(v, bool) or not isinstance(v, int | float) or not (0 < v < math.inf):
+            raise ConfigError(f"{where}: injury_relevant_speed_mps must be > 0, got {v!r}")
+        if not self.dimension_names:
+            raise ConfigError(
+                f"{where}: the variation is empty: nothing varies (give at least one "
+                "distribution, e.g. time_shift_s: {dist: uniform, min: -2, max: 2})"
+            )
+        if self.rider is not None and CASE_PRESETS[self.base].rider != "sfm":
+            raise ConfigError(
+                f"{where}: variation.rider varies the social-force rider, but base "
+                f"'{self.base}' replays the rider: use an SFM base (e.g. normal-cap) or rider: null"
+            )
+        names = [n for n, _ in self.distributions] + [n for n, _ in self.fixed]
+        if len(set(names)) != len(names):
+            raise ConfigError(f"{where}: a parameter is both varied and fixed: {sorted(names)}")
+
+    @property
+    def varied(self) -> tuple[tuple[str, Distribution], ...]:
+        """The distributions that are dimensions (not fixed values)."""
+        return tuple((n, d) for n, d in self.distributions if not d.is_fixed)
+
+    @property
+    def rider_dimensions(self) -> tuple[str, ...]:
+        """Names of the rider population's dimensions (empty without a population)."""
+        from vei.calibrate.profile import POP_PARAMETERS
+
+        return tuple(f"rider.{p}" for p in POP_PARAMETERS) if self.rider is not None else ()
+
+    @property
+    def dimension_names(self) -> tuple[str, ...]:
+        """The standard-space dimensions, in order: the varied distributions, then the
+        rider population's five."""
+        return tuple(n for n, _ in self.varied) + self.rider_dimensions
+
+    @property
+    def dimension(self) -> int:
+        """d, the number of standard-normal dimensions."""
+        return len(self.dimension_names)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The YAML form (parse_variation of it gives an equal model)."""
+        import dataclasses
+
+        var: dict[str, Any] = {n: d.to_dict() for n, d in self.distributions}
+        var["rider"] = (
+            None
+            if self.rider is None
+            else {"profile": self.rider.profile, "category": self.rider.category}
+        )
+        out: dict[str, Any] = {
+            "base": self.base,
+            "time_shift_reference": self.time_shift_reference,
+            "seed": self.seed,
+            "variation": var,
+            "fixed": dict(self.fixed),
+            "injury_relevant_speed_mps": self.injury_relevant_speed_mps,
+        }
+        if self.perception is not None:
+            out["perception"] = dataclasses.asdict(self.perception)
+        return out
+
+    def digest(self) -> str:
+        """A stable hash of the model's content."""
+        import hashlib
+        import json
+
+        text = json.dumps(self.to_dict(), sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _check_parameter(name: str, where: str) -> None:
+    from vei.sweep.params import PARAMETERS, POLICY_PARAM, check_name
+
+    check_name(name, where)
+    if name == POLICY_PARAM:
+        raise ConfigError(f"{where}: the policy is chosen with --policy (or 'fixed'), not varied")
+    if name not in PARAMETERS or PARAMETERS[name].kind != "float":
+        floats = [n for n, p in PARAMETERS.items() if p.kind == "float"]
+        raise ConfigError(
+            f"{where}: '{name}' is not a varied quantity; expected one of {', '.join(floats)}"
+        )
+
+
+def _check_support(name: str, dist: Distribution, where: str) -> None:
+    """A distribution must stay within the parameter's physical bounds (sfm.k_des_nspm > 0,
+    cap.a_min_mps2 < 0, ...): its window must lie inside them."""
+    from vei.sweep.params import PARAMETERS
+
+    p = PARAMETERS[name]
+    lo, hi = (dist.value, dist.value) if dist.is_fixed else (dist.low, dist.high)
+    if dist.kind == "lognormal":
+        lo = max(lo, 0.0)
+    for bound, val, is_low in ((p.lower, lo, True), (p.upper, hi, False)):
+        if bound is None:
+            continue
+        open_ = p.lower_open if is_low else p.upper_open
+        bad = (
+            (val < bound or (open_ and val == bound))
+            if is_low
+            else (val > bound or (open_ and val == bound))
+        )
+        if bad:
+            side = "min" if is_low else "max"
+            op = (">" if open_ else ">=") if is_low else ("<" if open_ else "<=")
+            raise ConfigError(
+                f"{where}: {name} must be {op} {bound:g} [{p.unit}], but the distribution "
+                f"reaches {val:g}: give a {side} (e.g. {side}: {bound:g})"
+            )
+
+
+def parse_variation(raw: Any, where: str = "risk spec") -> VariationModel:
+    """A risk spec mapping (module docstring) -> a validated :class:`VariationModel`.
+
+    Raises:
+        ConfigError: unknown keys, impossible distributions, an empty variation, values
+            outside a parameter's bounds (each naming ``where`` and the key).
+    """
+    from vei.sweep.params import PARAMETERS, parse_perception
+
+    if raw is None:
+        raw = {}
+    if not isinstance(raw, Mapping):
+        raise ConfigError(f"{where}: expected a mapping at the top level")
+    unknown = set(map(str, raw)) - _SPEC_KEYS
+    if unknown:
+        raise ConfigError(
+            f"{where}: unknown key(s) {', '.join(sorted(unknown))}; expected "
+            f"{', '.join(sorted(_SPEC_KEYS))}"
+        )
+    var = default_variation() if "variation" not in raw else raw["variation"]
+    if var is None or (isinstance(var, Mapping) and not var):
+        raise ConfigError(
+            f"{where}: variation is empty: nothing varies (give at least one distribution, "
+            "or leave the key out for the defaults)"
+        )
+    if not isinstance(var, Mapping):
+        raise ConfigError(f"{where}: variation must be a mapping of quantities to distributions")
+    dists: dict[str, Distribution] = {}
+    rider: RiderVariation | None = None
+    for key, val in var.items():
+        name = str(key)
+        loc = f"{where}: variation.{name}"
+        if name == "rider":
+            if val is None:
+                continue
+            if not isinstance(val, Mapping) or set(map(str, val)) - {"profile", "category"}:
+                raise ConfigError(f"{loc}: expected {{profile: calibrated, category: auto}}")
+            try:
+                rider = RiderVariation(**{str(k): v for k, v in val.items()})
+            except ConfigError as exc:
+                raise ConfigError(f"{where}: variation.{exc}") from None
+            continue
+        _check_parameter(name, loc)
+        dist = parse_distribution(val, loc, allow_recorded=name == "ego.cruise_speed_mps")
+        _check_support(name, dist, loc)
+        dists[name] = dist
+    fixed_raw = raw.get("fixed") or {}
+    if not isinstance(fixed_raw, Mapping):
+        raise ConfigError(f"{where}: fixed must be a mapping of parameter names to values")
+    fixed: dict[str, Any] = {}
+    for key, val in fixed_raw.items():
+        name = str(key)
+        from vei.sweep.params import check_name
+
+        check_name(name, f"{where}: fixed")
+        if name not in PARAMETERS:
+            raise ConfigError(f"{where}: fixed: unknown parameter '{name}'")
+        fixed[name] = PARAMETERS[name].check(val, f"{where}: fixed")
+    order = list(PARAMETERS)
+    seed = raw.get("seed", 0)
+    model = VariationModel(
+        distributions=tuple(sorted(dists.items(), key=lambda kv: order.index(kv[0]))),
+        rider=rider,
+        base=raw.get("base", "normal-cap"),
+        time_shift_reference=raw.get("time_shift_reference", "auto"),
+        seed=seed,
+        fixed=tuple(sorted(fixed.items(), key=lambda kv: order.index(kv[0]))),
+        perception=parse_perception(raw.get("perception"), where),
+        injury_relevant_speed_mps=raw.get("injury_relevant_speed_mps", INJURY_RELEVANT_SPEED_MPS),
+        source=where,
+    )
+    return model
+
+
+def load_variation(path: str | Path) -> VariationModel:
+    """Read a risk spec (YAML / JSON) into a :class:`VariationModel`.
+
+    Raises:
+        InputError: the file is missing or not valid YAML. ConfigError: its content.
+    """
+    import yaml
+
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"cannot read the risk spec: {exc.strerror}", path=path) from exc
+    try:
+        raw = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise InputError(f"not valid YAML: {exc}", path=path) from exc
+    return parse_variation(raw, str(path))
+
+
+# --------------------------------------------------------------------------------------
+# The standard space of one scenario
+# --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ScenarioSpace:
+    """A variation model resolved for one scenario: standard normal u [N, d] -> the
+    sweep parameters of N samples.
+
+    Attributes:
+        model: the variation model.
+        distributions: (name, Distribution) with 'recorded' resolved, varied ones only.
+        fixed: {sweep parameter: value} (the model's fixed values and fixed distributions).
+        rider_mean, rider_chol: log-mean [5] and lower Cholesky factor [5, 5] of the rider
+            population (empty arrays without one).
+        rider_profile: the loaded rider profile (None without one).
+        category: the rider population used.
+    """
+
+    model: VariationModel
+    distributions: tuple[tuple[str, Distribution], ...]
+    fixed: dict[str, Any]
+    rider_mean: FloatArray
+    rider_chol: FloatArray
+    rider_profile: Any = None
+    category: str = ""
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Dimension names (= model.dimension_names)."""
+        return self.model.dimension_names
+
+    @property
+    def dimension(self) -> int:
+        """d."""
+        return self.model.dimension
+
+    def to_params(self, u: npt.ArrayLike) -> pd.DataFrame:
+        """The sweep parameters of samples u [N, d]: one column per varied quantity (its
+        sweep name), the fixed parameters, and the population rider's ``rider.*``
+        (RIDER_PARAM_COLUMNS, VariantParams-ready: k_des = mass / tau) when there is one."""
+        u = np.atleast_2d(np.asarray(u, dtype=np.float64))
+        if u.shape[1] != self.dimension:
+            raise ValueError(f"expected samples of dimension {self.dimension}, got {u.shape}")
+        cols: dict[str, Any] = {}
+        for j, (name, dist) in enumerate(self.distributions):
+            cols[name] = dist.from_standard(u[:, j])
+        for name, value in self.fixed.items():
+            cols[name] = [value] * len(u)
+        if self.rider_profile is not None:
+            from vei.calibrate.profile import POP_PARAMETERS, SAMPLE_BOUNDS, population_params
+
+            z = u[:, len(self.distributions) :]
+            logs = self.rider_mean[None, :] + z @ self.rider_chol.T
+            vals = {
+                n: np.clip(np.exp(logs[:, i]), *SAMPLE_BOUNDS[n])
+                for i, n in enumerate(POP_PARAMETERS)
+            }
+            riders = population_params(self.rider_profile, vals, len(u))
+            for fname, arr in riders.items():
+                if fname != "tau_s":
+                    cols[f"rider.{fname}"] = arr
+        return pd.DataFrame(cols, index=pd.RangeIndex(len(u)))
+
+    def normalised(self, u: npt.ArrayLike) -> FloatArray:
+        """Phi(u) [N, d] in [0, 1]^d: the variation's probability-integral cube (the
+        space where "distinct failures" are counted, docs/risk.md)."""
+        from scipy.special import ndtr
+
+        return ndtr(np.atleast_2d(np.asarray(u, dtype=np.float64)))
+
+
+def resolve_space(
+    model: VariationModel, recorded_cruise_mps: float, rider_category: str
+) -> ScenarioSpace:
+    """The model's standard space for one scenario.
+
+    Args:
+        model: the variation model.
+        recorded_cruise_mps: the scenario's recorded ego median moving speed [m/s] (what
+            ``mean: recorded`` means).
+        rider_category: the primary rider's category ('escooter' / 'cyclist'), used by
+            ``category: auto``.
+    Raises:
+        ConfigError: a resolved distribution is impossible (e.g. its truncation window
+            holds no probability for this scenario's recorded speed); the rider profile
+            cannot be read.
+    """
+    from vei.calibrate.profile import load_profile
+
+    dists = tuple((n, d.resolve(recorded_cruise_mps)) for n, d in model.varied)
+    fixed = dict(model.fixed)
+    fixed.update({n: d.value for n, d in model.distributions if d.is_fixed})
+    if model.rider is None:
+        return ScenarioSpace(model, dists, fixed, np.zeros(0), np.zeros((0, 0)))
+    try:
+        profile = load_profile(model.rider.profile)
+    except InputError as exc:
+        raise ConfigError(f"{model.source or 'risk spec'}: variation.rider: {exc}") from None
+    cat = rider_category if model.rider.category == "auto" else model.rider.category
+    pops = profile["populations"]
+    pop = pops[cat] if cat in pops else pops["all"]
+    mean = np.asarray(pop["log_mean"], dtype=np.float64)
+    cov = np.asarray(pop["log_cov"], dtype=np.float64)
+    # Cholesky of the (positive semi-definite) covariance; a tiny ridge where singular
+    scale = max(float(np.trace(cov)) / len(mean), 1e-12)
+    chol = np.linalg.cholesky(cov + 1e-12 * scale * np.eye(len(mean)))
+    return ScenarioSpace(model, dists, fixed, mean, chol, profile, cat if cat in pops else "all")

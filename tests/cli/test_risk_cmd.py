@@ -1,0 +1,129 @@
+"""``vei risk`` end to end on the demo: the figures with intervals, the planner
+comparison, every written run configuration re-run alone with ``vei run`` giving the
+sample's row, and bad input answered with one clear line and exit 2 (or, for a target
+the budget cannot reach, an honest partial answer with exit 0)."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from tests.experiments.rerun import assert_runs_equal_sweep
+from vei.cli.main import main
+
+
+def _cli(args: list[str]) -> tuple[int, str]:
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(buf):
+        code = main(args)
+    return code, buf.getvalue()
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory) -> Path:
+    from vei.experiments.demo_data import demo_interaction
+    from vei.io.scenario import write_scenario
+    from vei.recon.pipeline import reconstruct
+
+    path = tmp_path_factory.mktemp("risk") / "scenario"
+    write_scenario(reconstruct(demo_interaction()), path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def assessed(demo, tmp_path_factory) -> tuple[Path, str]:
+    out = tmp_path_factory.mktemp("risk_out") / "out"
+    code, text = _cli(["risk", str(demo), "--out", str(out), "--policy", "paper-cap",
+                       "--policy", "none", "--budget", "8000", "--sobol", "64",
+                       "--no-progress"])  # fmt: skip
+    assert code == 0, text
+    return out, text
+
+
+def test_figures_with_intervals_and_the_comparison(assessed):
+    out, text = assessed
+    doc = json.loads((out / "risk.json").read_text())
+    assert doc["format"] == "vei.risk/1"
+    by = {p["policy"]: p for p in doc["planners"]}
+    for pol in ("paper-cap", "none"):
+        pc = by[pol]["p_collision"]
+        lo, hi = pc["ci95"]
+        assert lo <= pc["value"] <= hi and 0 < lo and hi < 1
+        assert by[pol]["n_simulations"] >= 2000
+        assert by[pol]["failure_modes"]["kinds"]
+    # no avoidance collides far more often than the CAP: the difference excludes 0
+    (cmp,) = doc["comparisons"]
+    assert cmp["verdict"] == "A safer" and cmp["difference_p_collision"]["ci95"][1] < 0
+    assert "paper-cap is safer than none" in text
+    assert set(doc["sobol"]["collision"]) == set(doc["dimensions"])
+    assert (out / "probability_map.png").stat().st_size > 10_000
+    summary = pd.read_csv(out / "summary.csv")
+    assert list(summary["policy"]) == ["paper-cap", "none"]
+
+
+def test_every_sample_reruns_alone_with_vei_run(demo, assessed, tmp_path):
+    out, _ = assessed
+    samples = pd.read_parquet(out / "samples.parquet")
+    assert samples["variant_id"].is_unique or samples.duplicated("variant_id").sum() < 10
+    configs = {c.stem for c in (out / "configs").glob("*.yaml")}
+    uniq = samples.drop_duplicates("variant_id")
+    first = uniq.loc[uniq["collision"], "variant_id"].head(200)
+    assert len(first) and set(first) <= configs  # the first 200 collisions, and 20 others
+    assert len(configs) == len(first) + 20
+    written = uniq[uniq["variant_id"].isin(configs)]
+    pick = [
+        written.loc[(written["policy"] == pol) & written["collision"], "variant_id"].iloc[0]
+        for pol in written["policy"].unique()
+    ]
+    pick.append(written.loc[~written["collision"], "variant_id"].iloc[0])
+    chosen = [out / "configs" / f"{vid}.yaml" for vid in pick]
+    rows = samples.drop_duplicates("variant_id")
+    assert assert_runs_equal_sweep(demo, chosen, rows, tmp_path) > 0
+
+
+def _spec(tmp_path: Path, text: str) -> Path:
+    p = tmp_path / "risk.yaml"
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize(
+    ("extra", "spec", "message"),
+    [
+        ([], "variation:\n  time_shift_s: {dist: normal, mean: 0, std: -1}\n", "std must be > 0"),
+        (
+            [],
+            "variation:\n  time_shift_s: {dist: normal, mean: 0, std: 1, min: 40}\n",
+            "impossible parameters",
+        ),
+        ([], "variation: {}\n", "variation is empty"),
+        (["--budget", "10"], None, "too small to say anything"),
+        (["--target-rel-ci", "0"], None, "--target-rel-ci"),
+        (["--method", "bisect"], None, "--method must be one of"),
+        (["--policy", "brake-hard"], None, "ego.policy"),
+        (["--configs", "some"], None, "--configs"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(demo, tmp_path, extra, spec, message):
+    args = ["risk", str(demo), "--out", str(tmp_path / "o"), "--no-progress", *extra]
+    if spec is not None:
+        args += ["--spec", str(_spec(tmp_path, spec))]
+    code, text = _cli(args)
+    assert code == 2, text
+    assert message in text and "Traceback" not in text
+
+
+def test_unreachable_target_is_an_honest_partial_answer(demo, tmp_path):
+    code, text = _cli(["risk", str(demo), "--out", str(tmp_path / "o"), "--budget", "300",
+                       "--target-rel-ci", "0.01", "--method", "mc", "--sobol", "0",
+                       "--no-progress"])  # fmt: skip
+    assert code == 0, text
+    assert "target relative CI 0.01 not reached" in text
+    doc = json.loads((tmp_path / "o" / "risk.json").read_text())
+    (p,) = doc["planners"]
+    assert p["target_reached"] is False and p["n_simulations"] == 300

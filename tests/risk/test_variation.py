@@ -1,0 +1,156 @@
+"""The variation model: distributions against scipy.stats, the spec's checks (every bad
+input a ConfigError naming the key), the standard space and the rider population."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from vei.config.distributions import Distribution, parse_distribution
+from vei.errors import ConfigError
+from vei.risk.defaults import CRUISE_SPEED_CV, DEFAULTS, defaults_table
+from vei.risk.variation import parse_variation, resolve_space
+
+P = np.array([1e-9, 1e-4, 0.1, 0.5, 0.9, 0.9999, 1 - 1e-9])
+
+
+def test_quantiles_equal_scipy():
+    d = parse_distribution({"dist": "normal", "mean": 2.0, "std": 0.5, "min": 1.5, "max": 4.0}, "x")
+    ref = stats.truncnorm((1.5 - 2) / 0.5, (4 - 2) / 0.5, loc=2, scale=0.5)
+    assert d.ppf(P) == pytest.approx(ref.ppf(P), rel=1e-9, abs=1e-12)
+    assert d.cdf(d.ppf(P)) == pytest.approx(P, rel=1e-7, abs=1e-12)
+    ln = parse_distribution({"dist": "lognormal", "median": 3.0, "sigma_log": 0.4}, "x")
+    assert ln.ppf(P) == pytest.approx(stats.lognorm(0.4, scale=3.0).ppf(P), rel=1e-9)
+    un = parse_distribution({"dist": "uniform", "min": -2, "max": 2}, "x")
+    assert un.ppf(P) == pytest.approx(stats.uniform(-2, 4).ppf(P), rel=1e-12)
+    # standard normal u -> x: the same as ppf(Phi(u)), with far tails kept
+    u = np.array([-8.0, -1.0, 0.0, 1.0, 8.0])
+    assert un.from_standard(u) == pytest.approx(un.ppf(stats.norm.cdf(u)), abs=1e-12)
+    assert d.from_standard(np.array([8.0]))[0] < 4.0
+    assert d.from_standard(np.array([8.0]))[0] == pytest.approx(
+        ref.ppf(stats.norm.cdf(8.0)), abs=1e-9
+    )
+
+
+def test_recorded_mean_resolves_per_scenario():
+    d = parse_distribution({"dist": "normal", "mean": "recorded", "cv": 0.22, "min": 1.0},
+                           "v", allow_recorded=True)  # fmt: skip
+    assert not d.resolved
+    r = d.resolve(6.0)
+    assert (r.mean, r.std, r.low) == (6.0, pytest.approx(1.32), 1.0)
+    with pytest.raises(ConfigError, match="only known for ego.cruise_speed_mps"):
+        parse_distribution({"dist": "normal", "mean": "recorded", "cv": 0.2}, "v")
+
+
+@pytest.mark.parametrize(
+    ("raw", "message"),
+    [
+        ({"dist": "normal", "mean": 1.0, "std": -1.0}, "std must be > 0"),
+        ({"dist": "normal", "mean": 0.0, "std": 1.0, "min": 50.0}, "impossible parameters"),
+        ({"dist": "uniform", "min": 2.0, "max": 1.0}, "min < max"),
+        ({"dist": "lognormal", "median": -1.0, "sigma_log": 0.3}, "median must be > 0"),
+        ({"dist": "normal", "mean": 1.0}, "exactly one of 'std' and 'cv'"),
+        ({"dist": "beta", "a": 1}, "dist must be one of"),
+        ({"dist": "uniform", "min": 0, "max": 1, "mean": 3}, "unknown key"),
+        ({"dist": "normal", "mean": float("nan"), "std": 1}, "finite"),
+    ],
+)
+def test_impossible_distributions_are_refused(raw, message):
+    with pytest.raises(ConfigError, match=message) as info:
+        parse_distribution(raw, "spec.yaml: variation.time_shift_s")
+    assert "spec.yaml: variation.time_shift_s" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("raw", "message"),
+    [
+        ({"variation": {}}, "variation is empty"),
+        ({"variation": None}, "variation is empty"),
+        ({"variation": {"rider": None}}, "the variation is empty"),
+        ({"varation": {}}, "unknown key"),
+        (
+            {"variation": {"cap.t_safe": {"dist": "uniform", "min": 1, "max": 2}}},
+            "renamed|not a varied",
+        ),
+        (
+            {"variation": {"cap.a_min_mps2": {"dist": "normal", "mean": -6, "std": 1}}},
+            "must be < 0",
+        ),
+        ({"variation": {"ego.policy": {"dist": "uniform", "min": 0, "max": 1}}}, "--policy"),
+        ({"base": "replay"}, "replays the rider"),
+        ({"seed": -1}, "seed"),
+        ({"injury_relevant_speed_mps": 0}, "injury_relevant_speed_mps"),
+        ({"time_shift_reference": "recording"}, "auto or zero"),
+    ],
+)
+def test_bad_specs_are_refused(raw, message):
+    with pytest.raises(ConfigError, match=message):
+        parse_variation(raw, "risk.yaml")
+
+
+def test_defaults_and_round_trip():
+    m = parse_variation({})
+    assert m.dimension_names[:2] == ("time_shift_s", "ego.cruise_speed_mps")
+    assert len(m.dimension_names) == 7  # + the rider population's five
+    again = parse_variation(m.to_dict())
+    assert again == m and again.digest() == m.digest()
+    names = {d.name for d in DEFAULTS}
+    assert names == {"time_shift_s", "ego.cruise_speed_mps", "rider"}
+    assert f"cv {CRUISE_SPEED_CV}" in defaults_table() or "cv" in defaults_table()
+
+
+def test_docs_show_todays_defaults_table():
+    from pathlib import Path
+
+    from vei.risk.defaults import TABLE_BEGIN, TABLE_END
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "risk.md").read_text()
+    inner = doc.split(TABLE_BEGIN)[1].split(TABLE_END)[0]
+    assert inner.strip() == defaults_table().strip()
+
+
+def test_space_maps_standard_normal_to_the_distributions():
+    m = parse_variation({})
+    space = resolve_space(m, recorded_cruise_mps=6.0, rider_category="cyclist")
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal((40_000, space.dimension))
+    p = space.to_params(u)
+    ts = p["time_shift_s"].to_numpy()
+    assert ts.min() >= -2 and ts.max() <= 2
+    assert stats.kstest(ts, stats.uniform(-2, 4).cdf).pvalue > 1e-3
+    v = p["ego.cruise_speed_mps"].to_numpy()
+    assert v.min() >= 1.0
+    assert np.mean(v) == pytest.approx(6.0, abs=0.03) and np.std(v) == pytest.approx(1.32, rel=0.03)
+    # the rider population: log-parameters with the profile's mean and covariance
+    from vei.calibrate.profile import POP_PARAMETERS, load_profile
+
+    pop = load_profile("calibrated")["populations"]["cyclist"]
+    logs = np.log(np.column_stack([
+        p["rider.v0_mps"], 95.0 / p["rider.k_des_nspm"], p["rider.lookahead_m"],
+        p["rider.max_speed_mps"], p["rider.max_accel_mps2"],
+    ]))  # fmt: skip
+    assert len(POP_PARAMETERS) == 5
+    # clipping to the sample bounds moves the tails a little: compare medians / spreads
+    assert np.median(logs, axis=0) == pytest.approx(np.asarray(pop["log_mean"]), abs=0.03)
+    sd = np.sqrt(np.diag(np.asarray(pop["log_cov"])))
+    iqr = np.subtract(*np.quantile(logs, [0.75, 0.25], axis=0)) / 1.349
+    assert iqr == pytest.approx(sd, rel=0.06)
+    assert p["rider.mass_kg"].eq(95.0).all()
+
+
+def test_fixed_values_and_fixed_distributions_reach_the_parameters():
+    m = parse_variation({
+        "variation": {"time_shift_s": {"dist": "uniform", "min": -1, "max": 1},
+                      "cap.t_safe_s": 1.5},
+        "fixed": {"cap.d_buf_m": 2.0},
+    })  # fmt: skip
+    # a variation section replaces the defaults: no rider population unless it names one
+    assert m.dimension_names == ("time_shift_s",) and m.rider is None
+    space = resolve_space(m, 5.0, "escooter")
+    p = space.to_params(np.zeros((3, space.dimension)))
+    assert p["cap.t_safe_s"].tolist() == [1.5] * 3 and p["cap.d_buf_m"].tolist() == [2.0] * 3
+    assert p["time_shift_s"].tolist() == [0.0] * 3
+    assert math.isclose(Distribution("uniform", low=0, high=1).ppf(np.array([0.25]))[0], 0.25)
