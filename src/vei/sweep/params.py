@@ -313,6 +313,42 @@ def parse_variation_section(raw: Any, where: str) -> tuple[tuple[str, Any], ...]
     return tuple(sorted(out.items(), key=lambda kv: order.index(kv[0])))
 
 
+def parse_reconstruction(raw: Any, where: str) -> int | None:
+    """``reconstruction: {samples: N}`` -> N (None when absent)."""
+    if raw is None:
+        return None
+    if not isinstance(raw, Mapping):
+        raise ConfigError(f"{where}: 'reconstruction' must be a mapping like {{samples: 200}}")
+    unknown = set(map(str, raw)) - {"samples"}
+    if unknown:
+        raise ConfigError(
+            f"{where}: reconstruction: unknown key(s) {', '.join(sorted(unknown))}; expected samples"
+        )
+    if "samples" not in raw:
+        raise ConfigError(f"{where}: reconstruction: missing 'samples'")
+    n = raw["samples"]
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ConfigError(f"{where}: reconstruction.samples must be an integer >= 1, got {n!r}")
+    return n
+
+
+def check_v2x_spec(names: Any, v2x: Any, where: str) -> None:
+    """A sweep spec's ``v2x`` is a V2XConfig or None, and swept ``v2x.*`` parameters need it
+    enabled (they would change nothing otherwise).
+
+    Raises:
+        ConfigError: naming ``where`` and the parameters.
+    """
+    if v2x is not None and not isinstance(v2x, V2XConfig):
+        raise ConfigError(f"{where}: v2x must be a V2XConfig or None")
+    swept = [n for n in names if n.startswith("v2x.")]
+    if swept and (v2x is None or not v2x.enabled):
+        raise ConfigError(
+            f"{where}: parameters {', '.join(swept)} need V2X: add 'v2x: {{enabled: true}}' "
+            "to the spec"
+        )
+
+
 def resolve_policy(value: Any, where: str, base_dir: Path | None) -> Any:
     """A sweep's ``ego.policy`` value with a relative file path made absolute.
 
