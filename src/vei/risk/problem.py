@@ -109,6 +109,7 @@ class RiskProblem:
             time_shift_reference=model.time_shift_reference,
             base=model.base,
             perception=model.perception,
+            v2x=model.v2x,
         )
         prepared = evaluator.prepare(path)
         scenario = read_scenario(path)
