@@ -15,7 +15,7 @@ while ideal perception does not (the occlusion decides); V2X can only close that
 same scan runs after ``--make-critical timing+path`` (the rider's path moved to meet the
 car's). Prints one line per rider and writes ``search.csv`` into the work folder.
 
-    python examples/v2x_search_recordings.py --root ../shared/data/trafficmonitoring \\
+    python -m benchmarks.v2x_search --root ../shared/data/trafficmonitoring \\
         --map ../shared/data/maps/ingolstadt_research_intersection.net.xml.gz --work /tmp/v2x-search
 
 Takes about ten minutes on two cores (the timing+path search is the slow part).
