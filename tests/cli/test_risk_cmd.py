@@ -38,7 +38,9 @@ def demo(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def assessed(demo, tmp_path_factory) -> tuple[Path, str]:
     out = tmp_path_factory.mktemp("risk_out") / "out"
-    code, text = _cli(["risk", str(demo), "--out", str(out), "--policy", "paper-cap",
+    # aeb, not paper-cap: with riders that arrive from beyond its reach (issue 22) the
+    # paper's CAP avoids every sample of the demo (P(collision) < 1.84e-3 in 2,000)
+    code, text = _cli(["risk", str(demo), "--out", str(out), "--policy", "aeb",
                        "--policy", "none", "--budget", "8000", "--sobol", "64",
                        "--no-progress"])  # fmt: skip
     assert code == 0, text
@@ -50,7 +52,7 @@ def test_figures_with_intervals_and_the_comparison(assessed):
     doc = json.loads((out / "risk.json").read_text())
     assert doc["format"] == "vei.risk/1"
     by = {p["policy"]: p for p in doc["planners"]}
-    for pol in ("paper-cap", "none"):
+    for pol in ("aeb", "none"):
         pc = by[pol]["p_collision"]
         lo, hi = pc["ci95"]
         assert lo <= pc["value"] <= hi and 0 < lo and hi < 1
@@ -59,17 +61,22 @@ def test_figures_with_intervals_and_the_comparison(assessed):
     # no avoidance collides far more often than the CAP: the difference excludes 0
     (cmp,) = doc["comparisons"]
     assert cmp["verdict"] == "A safer" and cmp["difference_p_collision"]["ci95"][1] < 0
-    assert "paper-cap is safer than none" in text
+    assert "aeb is safer than none" in text
     assert set(doc["sobol"]["collision"]) == set(doc["dimensions"])
     assert (out / "probability_map.png").stat().st_size > 10_000
     summary = pd.read_csv(out / "summary.csv")
-    assert list(summary["policy"]) == ["paper-cap", "none"]
+    assert list(summary["policy"]) == ["aeb", "none"]
 
 
 def test_every_sample_reruns_alone_with_vei_run(demo, assessed, tmp_path):
     out, _ = assessed
     samples = pd.read_parquet(out / "samples.parquet")
-    assert samples["variant_id"].is_unique or samples.duplicated("variant_id").sum() < 10
+    # a sample that two estimators share (the Monte Carlo pilot, cross-entropy's first
+    # level, the pairing on common random numbers) keeps one id and one outcome
+    shared = samples.groupby("variant_id")[["collision", "min_gap_m", "policy"]].nunique(
+        dropna=False
+    )
+    assert (shared <= 1).all().all()
     configs = {c.stem for c in (out / "configs").glob("*.yaml")}
     uniq = samples.drop_duplicates("variant_id")
     first = uniq.loc[uniq["collision"], "variant_id"].head(200)
@@ -121,6 +128,7 @@ def test_bad_input_is_one_line_and_exit_2(demo, tmp_path, extra, spec, message):
 def test_unreachable_target_is_an_honest_partial_answer(demo, tmp_path):
     code, text = _cli(["risk", str(demo), "--out", str(tmp_path / "o"), "--budget", "300",
                        "--target-rel-ci", "0.01", "--method", "mc", "--sobol", "0",
+                       "--policy", "none",
                        "--no-progress"])  # fmt: skip
     assert code == 0, text
     assert "target relative CI 0.01 not reached" in text

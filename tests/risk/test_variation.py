@@ -154,3 +154,36 @@ def test_fixed_values_and_fixed_distributions_reach_the_parameters():
     assert p["cap.t_safe_s"].tolist() == [1.5] * 3 and p["cap.d_buf_m"].tolist() == [2.0] * 3
     assert p["time_shift_s"].tolist() == [0.0] * 3
     assert math.isclose(Distribution("uniform", low=0, high=1).ppf(np.array([0.25]))[0], 0.25)
+
+
+def test_continuations_reach_for_the_fast_end_of_the_sampled_cruise_speeds():
+    """Issue 22 under a variation: every sample's riders enter from beyond the car's reach
+    at the 99.9 % quantile of the cruise speed (hand value: a normal of mean 5 m/s, std
+    1 m/s cut below at 1 m/s puts it at 5 + 3.0902 m/s), its value when fixed, None
+    when the model leaves the cruise speed to the base configuration."""
+    from vei.risk.variation import reach_speed_mps
+
+    drawn = parse_variation(
+        {
+            "variation": {
+                "ego.cruise_speed_mps": {
+                    "dist": "normal",
+                    "mean": "recorded",
+                    "cv": 0.2,
+                    "min": 1.0,
+                }
+            }
+        }  # fmt: skip
+    )
+    assert reach_speed_mps(drawn, 5.0) == pytest.approx(5.0 + 3.0902, abs=1e-3)
+    fixed = parse_variation(
+        {
+            "variation": {"time_shift_s": {"dist": "uniform", "min": -1, "max": 1}},
+            "fixed": {"ego.cruise_speed_mps": 7.5},
+        }  # fmt: skip
+    )
+    assert reach_speed_mps(fixed, 5.0) == 7.5
+    shift_only = parse_variation(
+        {"variation": {"time_shift_s": {"dist": "uniform", "min": -1, "max": 1}}}
+    )
+    assert reach_speed_mps(shift_only, 5.0) is None

@@ -72,3 +72,16 @@ def test_variation_sweep_reruns_with_vei_run(tmp_path):
     assert len(configs) == 3
     assert assert_runs_equal_sweep(scen, configs, res, tmp_path / "rerun") > 0
     assert (tmp_path / "out" / "probability_map.png").is_file()
+
+
+def test_a_drawn_cruise_speed_sets_the_continuations_reach():
+    """Issue 22: the run-ins reach beyond the car at the 99.9 % quantile of a drawn
+    cruise speed (truncated normal 6 +- 1 m/s cut at 2 m/s: 6 + 3.0902 m/s by hand), the
+    same in the sweep and in each variant's run configuration."""
+    from vei.sweep.params import reach_speed_of, variant_config
+
+    spec = spec_from_dict(SPEC)
+    assert reach_speed_of(spec) == pytest.approx(6.0 + 3.0902, abs=1e-3)
+    cfg = variant_config({"time_shift_s": 0.0, "ego.cruise_speed_mps": 5.0}, spec,
+                         auto_shift_s=1.0)  # fmt: skip
+    assert cfg.sim.continuation.ego_speed_mps == pytest.approx(6.0 + 3.0902, abs=1e-3)

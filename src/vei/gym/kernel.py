@@ -18,7 +18,8 @@ Packed arrays (:mod:`vei.gym.core` builds them), S scenarios, B environments:
   K [B] step index, SC [B] scenario index, SHIFT [B] the rider's time shift [s].
   Scenario tables padded to the longest: EP [S, 10, Np] ego path (x y yaw cos sin, then
   slopes) on s0 + i ds; RT [S, 14, M] rider track (x y yaw speed vx vy arc, then slopes) on
-  t0 + i dt; RP [S, 10, N] rider path; others OX, OY, OYAW, OSP [S, T, O], OACT [S, T, O].
+  t0 + i dt, rt_sfm0 [S] the recording time [s] from which an SFM rider is driven (it is
+  replayed before: its run-in); RP [S, 10, N] rider path; others OX, OY, OYAW, OSP [S, T, O], OACT [S, T, O].
 """
 
 # ruff: noqa: N803, N806, E501
@@ -91,7 +92,7 @@ def step_envs(  # type: ignore[no-untyped-def]
     run, A, dt, FS, BS, HIT, K, SC, SHIFT,
     P, ALPHA, DIM,
     EP, ep_s0, ep_ds, ep_n,
-    RT, rt_t0, rt_dt, rt_tend, rt_n,
+    RT, rt_t0, rt_dt, rt_tend, rt_n, rt_sfm0,
     RP, rp_s0, rp_ds, rp_n, rp_len, rp_ex, rp_ey,
     OX, OY, OYAW, OACT, OL, OW, n_o,
     TERMS,
@@ -163,7 +164,7 @@ def step_envs(  # type: ignore[no-untyped-def]
                 prog,
                 r_act,
             )
-            if r_act and not collided:
+            if r_act and r_started and not collided:
                 look, vmax, amax_r = P[P_LOOK, sc], P[P_VMAX, sc], P[P_AMAX_R, sc]
                 fx, fy, pr = drive_force(
                     rx, ry, rvx, rvy, prog, RP[sc], rp_s0[sc], rp_ds[sc], rp_n[sc], rp_len[sc],
@@ -201,7 +202,8 @@ def step_envs(  # type: ignore[no-untyped-def]
                 nrvy = RT[sc, 5, i] + w * RT[sc, 12, i]
                 nprog = RT[sc, 6, i] + w * RT[sc, 13, i]
                 n_act = True
-                r_started = True
+                # before its SFM entry (a standing run-in) it stands replayed
+                r_started = t_rec >= rt_sfm0[sc] - 1e-9
         if collided:
             nrx, nry, nryaw = prev_x, prev_y, prev_yaw
             nrvx = nrvy = nrsp = 0.0

@@ -99,6 +99,8 @@ class Packed:
         self.rt_dt = np.array([a.rider_track.dt_s for a in arrs], f)
         self.rt_tend = np.array([a.rider_track.t_end_s for a in arrs], f)
         self.rt_n = np.array([a.rider_track.data.shape[0] for a in arrs], np.int64)
+        # recording time from which an SFM rider is driven (vei.sim.riders.sfm_entry_s)
+        self.rt_sfm0 = np.array([a.rider_sfm_entry_s for a in arrs], f)
         self.RP = _pad([_path_rows(a.rider_path) for a in arrs], 1)
         rp = [a.rider_path for a in arrs]
         self.rp_s0 = np.array([p.s_start_m for p in rp], f)
@@ -319,7 +321,7 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         step_envs(
             run, a, pk.dt, self.FS, self.BS, self.HIT, self.K, self.SC, self.SHIFT,
             pk.P, pk.ALPHA, pk.DIM, pk.EP, pk.ep_s0, pk.ep_ds, pk.ep_n,
-            pk.RT, pk.rt_t0, pk.rt_dt, pk.rt_tend, pk.rt_n,
+            pk.RT, pk.rt_t0, pk.rt_dt, pk.rt_tend, pk.rt_n, pk.rt_sfm0,
             pk.RP, pk.rp_s0, pk.rp_ds, pk.rp_n, pk.rp_len, pk.rp_ex, pk.rp_ey,
             pk.OX, pk.OY, pk.OYAW, pk.OACT, pk.OL, pk.OW, pk.n_o, self.TERMS,
         )  # fmt: skip

@@ -190,7 +190,10 @@ def write_configs(result: Any, folder: Path, rows: pd.DataFrame) -> list[Path]:
     names = tuple(n for n in PARAMETERS if n in rows.columns)
     spec = _SpecView(prob.model.base, prob.model.time_shift_reference, prob.model.perception,
                      names, prob.model.v2x)  # fmt: skip
-    return write_variant_configs(folder, rows, spec, prob.prepared.auto_shift_s)
+    reach = prob.evaluator.sim.continuation.ego_speed_mps  # what the samples ran with
+    return write_variant_configs(
+        folder, rows, spec, prob.prepared.auto_shift_s, reach_speed_mps=reach
+    )
 
 
 def write_risk(result: Any, out: Path, *, configs: str = "failures") -> None:

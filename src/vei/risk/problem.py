@@ -25,6 +25,7 @@ Outcomes of a sample (columns added to the engine's metrics):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,7 +36,7 @@ import numpy.typing as npt
 import pandas as pd
 
 from vei.errors import ConfigError
-from vei.risk.variation import ScenarioSpace, VariationModel, resolve_space
+from vei.risk.variation import ScenarioSpace, VariationModel, reach_speed_mps, resolve_space
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -91,10 +92,12 @@ class RiskProblem:
             InputError: the scenario cannot be read. ConfigError: a policy is unknown, a
                 distribution is impossible for this scenario.
         """
+        from vei.config import ContinuationConfig
+        from vei.continuation.scenario import recorded_ego_speed_mps
         from vei.experiments.timeshift import find_time_shift
         from vei.io.scenario import read_scenario
         from vei.sweep.evaluator import EngineEvaluator
-        from vei.sweep.params import PARAMETERS, POLICY_PARAM, resolve_policy
+        from vei.sweep.params import PARAMETERS, POLICY_PARAM, reach_sim, resolve_policy
 
         checked = []
         for pol in policies:
@@ -105,14 +108,21 @@ class RiskProblem:
         if checked and POLICY_PARAM in dict(model.fixed):
             raise ConfigError("the risk spec fixes ego.policy: give --policy or 'fixed', not both")
         path = Path(scenario_dir)
+        scenario = read_scenario(path)
+        # Every sample's riders enter from beyond the car's reach at the fast end of the
+        # sampled cruise speeds (issue 22), and the run configurations say the same.
+        recorded = recorded_ego_speed_mps(scenario)
+        if not math.isfinite(recorded):  # a car that never moves: the continuations' floor
+            recorded = ContinuationConfig().min_ego_speed_mps
+        reach = reach_speed_mps(model, recorded)
         evaluator = EngineEvaluator(
             time_shift_reference=model.time_shift_reference,
             base=model.base,
             perception=model.perception,
             v2x=model.v2x,
+            sim=reach_sim(reach),
         )
         prepared = evaluator.prepare(path)
-        scenario = read_scenario(path)
         rider = scenario.agent(scenario.primary_threat)
         shift = None
         if model.time_shift_reference == "auto":

@@ -407,6 +407,29 @@ class ScenarioSpace:
         return ndtr(np.atleast_2d(np.asarray(u, dtype=np.float64)))
 
 
+def reach_speed_mps(model: VariationModel, recorded_cruise_mps: float) -> float | None:
+    """The cruise speed every sample's run-ins and run-outs reach for [m/s]: the
+    :data:`vei.sweep.params.REACH_QUANTILE` quantile of ``ego.cruise_speed_mps``'s
+    distribution (its value when fixed; issue 22: every rider enters from beyond the car's
+    reach at the speeds it samples), None when the model does not set the cruise speed
+    (the base's recorded 'median-moving', as ``vei run`` does).
+
+    Args:
+        model: the variation model.
+        recorded_cruise_mps: the scenario's recorded ego median moving speed [m/s].
+    """
+    from vei.sweep.params import CRUISE_PARAM as CRUISE_NAME
+    from vei.sweep.params import REACH_QUANTILE
+
+    fixed = dict(model.fixed)
+    if CRUISE_NAME in fixed:
+        return float(fixed[CRUISE_NAME])
+    for name, dist in model.distributions:
+        if name == CRUISE_NAME:
+            return float(dist.resolve(recorded_cruise_mps).ppf(REACH_QUANTILE))
+    return None
+
+
 def resolve_space(
     model: VariationModel, recorded_cruise_mps: float, rider_category: str
 ) -> ScenarioSpace:

@@ -394,6 +394,9 @@ def check_name(name: str, where: str) -> None:
 
 #: The sweep parameter whose largest value sets the continuations' reach (issue 22).
 CRUISE_PARAM = "ego.cruise_speed_mps"
+#: A drawn cruise speed's continuations reach for this quantile of its distribution (the
+#: fast end of the sampled speeds, bar one sample in 1,000); vei risk uses it too.
+REACH_QUANTILE = 0.999
 
 
 def reach_speed_of(spec: SpecLike) -> float | None:
@@ -401,9 +404,15 @@ def reach_speed_of(spec: SpecLike) -> float | None:
     the fixed value of ``ego.cruise_speed_mps``), None when the spec does not name it (the
     base configuration's 'median-moving'). Every road user's run-in and run-out reach
     beyond the car's reach at this speed (vei.config.ContinuationConfig.ego_speed_mps), in
-    the sweep and in each variant's run configuration alike."""
+    the sweep and in each variant's run configuration alike. A cruise speed drawn from a
+    ``variation:`` distribution reaches for its 99.9 % quantile
+    (:data:`REACH_QUANTILE`)."""
     if CRUISE_PARAM not in spec.names:
         return None
+    drawn = dict(getattr(spec, "variation", ()) or ())
+    if CRUISE_PARAM in drawn:
+        dist = drawn[CRUISE_PARAM]
+        return float(dist.ppf(REACH_QUANTILE)) if dist.resolved else None
     p = spec.param(CRUISE_PARAM)
     vals = [p.max] if p.is_range else (list(p.choices) if p.choices is not None else [p.value])
     nums = [float(v) for v in vals if isinstance(v, int | float) and not isinstance(v, bool)]
