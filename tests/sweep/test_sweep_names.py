@@ -82,6 +82,12 @@ def test_a_variant_config_sets_the_field_of_the_parameters_name():
         "cap.perception_delay_s": 0.3,
         "ego.policy": "aeb",
         "ego.policy_params.ttc_full_s": 0.7,
+        "v2x.penetration_rate": 0.4,
+        "v2x.latency_s": 0.2,
+        "v2x.latency_jitter_s": 0.01,
+        "v2x.pdr_factor": 0.9,
+        "v2x.position_error_std_m": 1.5,
+        "v2x.clock_offset_s": -0.05,
     }
     assert set(values) | DESIGN_ONLY >= {n for n in PARAMETERS if not n.startswith("ego.pol")}
     run = variant_config(values, spec, auto_shift_s=0.0)

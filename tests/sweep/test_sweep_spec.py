@@ -207,6 +207,12 @@ def test_every_documented_parameter_is_known():
         "ego.policy_params.comfort_decel_mps2",
         "ego.policy_params.time_headway_s",
         "ego.policy_params.min_gap_m",
+        "v2x.penetration_rate",
+        "v2x.latency_s",
+        "v2x.latency_jitter_s",
+        "v2x.pdr_factor",
+        "v2x.position_error_std_m",
+        "v2x.clock_offset_s",
     }
 
 

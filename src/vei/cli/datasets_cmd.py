@@ -62,6 +62,14 @@ def _import_trafficmonitoring(
             help="Keep the whole INS record as the ego track (default: cut to the span the camera covers).",
         ),
     ] = False,
+    road_users: Annotated[
+        str,
+        typer.Option(
+            "--road-users",
+            help="'riders' (e-scooters and cyclists, the paper's annotations) or 'all' (also "
+            "the vehicles and pedestrians the camera tracked: occluders for perception and V2X).",
+        ),
+    ] = "riders",
 ) -> None:
     """Import a TrafficMonitoring scenario (Ingolstadt) as an interaction folder."""
     from vei.datasets.trafficmonitoring import import_scenario_with_summary, list_scenarios
@@ -77,7 +85,13 @@ def _import_trafficmonitoring(
             field="--scenario" if scenario is None else "--out",
         )
     s = import_scenario_with_summary(
-        root, scenario, out, rate_hz=rate_hz, include_ego_track=include_ego_track, full_ins=full_ins
+        root,
+        scenario,
+        out,
+        rate_hz=rate_hz,
+        include_ego_track=include_ego_track,
+        full_ins=full_ins,
+        road_users=road_users,
     )
     from vei.io.interaction import read_interaction
 

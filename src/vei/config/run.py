@@ -30,6 +30,7 @@ from vei.config.models import (
     _finite,
 )
 from vei.config.perception import PerceptionConfig
+from vei.config.v2x import V2XConfig
 from vei.errors import ConfigError
 
 
@@ -142,6 +143,9 @@ class CaseConfig:
             ``enabled: false`` = ideal perception (the paper's case). Its latency is
             ``cap.perception_delay_s``. Enabled, every closed-loop controller runs on the
             policy API (also 'none' / 'paper-cap'), which applies it.
+        v2x: VRU awareness messages from equipped riders, fused with the perception
+            (:class:`vei.config.v2x.V2XConfig`, docs/v2x.md); off by default. Enabled,
+            every closed-loop controller runs on the policy API, which applies it.
     """
 
     name: str
@@ -151,8 +155,13 @@ class CaseConfig:
     ego: EgoConfig = field(default_factory=EgoConfig)
     cap: CAPConfig = field(default_factory=CAPConfig)
     perception: PerceptionConfig | None = None
+    v2x: V2XConfig = field(default_factory=V2XConfig)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.v2x, V2XConfig):
+            raise ConfigError(
+                f"v2x must be a V2XConfig (vei.config.v2x) or a mapping, got {type(self.v2x).__name__}"
+            )
         if self.perception is not None and not isinstance(self.perception, PerceptionConfig):
             raise ConfigError(
                 f"perception must be a PerceptionConfig (vei.config.perception) or a mapping, "

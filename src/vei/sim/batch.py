@@ -42,6 +42,7 @@ class Block:
         rider_limits: some variant has a finite rider speed / acceleration cap.
         policy: the block's ego policy instance (ego_mode 3), unbound, else None.
         perception: the block's enabled PerceptionConfig, else None.
+        v2x: the block's enabled V2XConfig, else None.
     """
 
     start: int
@@ -57,6 +58,7 @@ class Block:
     rider_limits: bool
     policy: Any = None
     perception: Any = None
+    v2x: Any = None
 
 
 @dataclass(frozen=True)
@@ -100,7 +102,7 @@ def group_keys(params: VariantParams) -> npt.NDArray[np.int64]:
         ranks: dict[int, int] = {}
         rank = np.zeros(key.shape, dtype=np.int64)
         for i in np.flatnonzero(is_pol):
-            ident = (id(params.policy[i]), id(params.perception[i]))
+            ident = (id(params.policy[i]), id(params.perception[i]), id(params.v2x[i]))
             rank[i] = ranks.setdefault(ident, len(ranks) + 1)
         key = key + 8 * rank
     return key
@@ -136,6 +138,7 @@ def batch_flags(params: VariantParams, dt_s: float) -> BatchFlags:
                 and bool((np.isfinite(bp.max_speed_mps) | np.isfinite(bp.max_accel_mps2)).any()),
                 policy=bp.policy[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
                 perception=bp.perception[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
+                v2x=bp.v2x[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
             )
         )
     return BatchFlags(
