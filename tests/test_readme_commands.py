@@ -36,6 +36,13 @@ PROMISED = {
     "sweep": ["results.parquet", "critical.csv", "riskmap.png"],
     "policy-sweep": ["results.parquet", "policy_comparison.csv"],
     "mine": ["metrics.json"],
+    "inter-all": ["interaction.json", "annotations.csv"],
+    "scen-all": ["scenario.json", "map.xodr"],
+    "v2x-real": ["metrics.json", "timeseries.parquet"],
+    "occluded": ["scenario.json"],
+    "v2x-run": ["metrics.json"],
+    "v2x-sweep": ["results.parquet"],
+    "v2x-risk": ["risk.json", "samples.parquet"],
 }
 
 

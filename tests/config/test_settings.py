@@ -242,10 +242,13 @@ def test_inf_only_where_none_means_no_limit(base_params):
     }  # fmt: skip
 
 
-def _changed(value: typing.Any) -> typing.Any:
-    """Another valid value of a configuration field (x 1.25; 0 -> 0.25; None -> 4.0)."""
+def _changed(value: typing.Any, upper: float | None = None) -> typing.Any:
+    """Another valid value of a configuration field (x 1.25, or x 0.8 where that passes the
+    upper bound; 0 -> 0.25; None -> 4.0)."""
     if value is None:
         return 4.0
+    if value and upper is not None and value * 1.25 > upper:
+        return value * 0.8
     return value * 1.25 if value else 0.25
 
 
@@ -265,7 +268,7 @@ def test_from_case_reads_every_setting_from_its_path_with_its_conversion():
         elif s.kind == "bool":
             new = want = not old
         else:
-            new = _changed(old)
+            new = _changed(old, s.upper)
             want = new * base.sfm.k_des_factor if s.convert == "times_k_des_factor" else new
         case = dataclasses.replace(
             base, **{str(s.section): dataclasses.replace(section, **{str(s.config_field): new})}
@@ -317,7 +320,7 @@ def test_sweep_names_are_the_declared_paths():
     # a swept value goes through its setting's conversion (k_des x k_des_factor); the
     # sweep knows no other conversion of a number
     assert {s.convert for s in SETTINGS if s.sweep and s.kind == "float"} <= {
-        "identity", "times_k_des_factor", "median_moving", "policy_param",
+        "identity", "times_k_des_factor", "median_moving", "policy_param", "none_is_default",
     }  # fmt: skip
     from vei.sweep.evaluator import _K_DES_COLUMNS, _PARAM_FIELDS
 

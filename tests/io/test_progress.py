@@ -89,3 +89,21 @@ def test_the_kernel_says_when_it_compiles(tmp_path):
     second = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert second.stdout.split() == ["cold", "False", "compiled", "False", "cold", "False"]
     assert "compiling" not in second.stderr
+
+
+def test_a_stamp_without_machine_code_is_cold(tmp_path, monkeypatch):
+    """A stamp left behind in a cleared cache (numba's index files gone) is no warm kernel:
+    the first run must still announce its compilation."""
+    from vei.sim import kernel
+
+    monkeypatch.setattr(kernel, "_WARM", False)
+    monkeypatch.setattr(kernel, "available", lambda: True)
+    monkeypatch.setattr(kernel, "_build", lambda: None)
+    stamp = tmp_path / "loop.compiled"
+    monkeypatch.setattr(kernel, "_compiled_stamp", lambda _k: stamp)
+    stamp.write_text(kernel._compile_key() + "\n")
+    assert kernel.is_cold()  # no index file of the kernel's machine code
+    (tmp_path / "loop.kernel-87.py311.nbi").write_bytes(b"index")
+    assert not kernel.is_cold()
+    stamp.write_text("another machine\n")
+    assert kernel.is_cold()

@@ -33,6 +33,23 @@ def test_quantiles_equal_scipy():
     assert d.from_standard(np.array([8.0]))[0] == pytest.approx(
         ref.ppf(stats.norm.cdf(8.0)), abs=1e-9
     )
+    mid = np.linspace(-5.0, 5.0, 41)
+    assert d.from_standard(mid) == pytest.approx(ref.ppf(stats.norm.cdf(mid)), rel=1e-9)
+    # a cross-entropy stage reaches u = 10 and beyond: still inside the window, finite,
+    # increasing (was Phi(10) rounded to 1: a cruise speed of inf m/s); an untruncated
+    # upper tail follows mean + std u (hand value: 5.6 + 1.232 x 10 m/s; the window's
+    # 1e-4 of probability below 1 m/s moves it by 1e-5 m/s)
+    far = np.array([-40.0, -10.0, -8.3, 8.3, 10.0, 40.0])
+    cruise = parse_distribution({"dist": "normal", "mean": 5.6, "std": 1.232, "min": 1.0}, "v")
+    x = cruise.from_standard(far)
+    assert np.isfinite(x).all() and (np.diff(x) >= 0).all() and x[0] == pytest.approx(1.0)
+    assert x[4] == pytest.approx(5.6 + 1.232 * 10.0, abs=1e-4)
+    boxed = d.from_standard(far)
+    assert np.isfinite(boxed).all() and 1.5 <= boxed.min() and boxed.max() <= 4.0
+    cut = parse_distribution({"dist": "lognormal", "median": 3.0, "sigma_log": 0.4,
+                              "min": 1.0}, "x")  # fmt: skip
+    assert np.isfinite(cut.from_standard(far)).all()
+    assert cut.from_standard(np.array([10.0]))[0] == pytest.approx(3.0 * np.exp(4.0), rel=1e-3)
 
 
 def test_recorded_mean_resolves_per_scenario():

@@ -95,6 +95,12 @@ def test_a_variant_config_sets_the_field_of_the_parameters_name():
         "traffic.max_decel_mps2": 7.5,
         "traffic.reaction_time_s": 0.8,
         "traffic.pedestrians": True,
+        "v2x.penetration_rate": 0.4,
+        "v2x.latency_s": 0.2,
+        "v2x.latency_jitter_s": 0.01,
+        "v2x.pdr_factor": 0.9,
+        "v2x.position_error_std_m": 1.5,
+        "v2x.clock_offset_s": -0.05,
     }
     assert set(values) | DESIGN_ONLY >= {n for n in PARAMETERS if not n.startswith("ego.pol")}
     run = variant_config(values, spec, auto_shift_s=0.0)

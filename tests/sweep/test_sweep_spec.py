@@ -220,6 +220,12 @@ def test_every_documented_parameter_is_known():
         "traffic.max_decel_mps2",
         "traffic.reaction_time_s",
         "traffic.pedestrians",
+        "v2x.penetration_rate",
+        "v2x.latency_s",
+        "v2x.latency_jitter_s",
+        "v2x.pdr_factor",
+        "v2x.position_error_std_m",
+        "v2x.clock_offset_s",
     }
 
 

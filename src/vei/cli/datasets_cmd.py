@@ -66,8 +66,9 @@ def _import_trafficmonitoring(
         str,
         typer.Option(
             "--road-users",
-            help="riders (e-scooters and cyclists, default) or all: also every other vehicle and "
-            "pedestrian the camera tracked (the road users that react: case traffic settings).",
+            help="'riders' (e-scooters and cyclists, the paper's annotations) or 'all' (also "
+            "the vehicles and pedestrians the camera tracked: occluders for perception and V2X, "
+            "the road users that react: case traffic settings).",
         ),
     ] = "riders",
 ) -> None:
@@ -85,9 +86,14 @@ def _import_trafficmonitoring(
             field="--scenario" if scenario is None else "--out",
         )
     s = import_scenario_with_summary(
-        root, scenario, out, rate_hz=rate_hz, include_ego_track=include_ego_track,
-        full_ins=full_ins, road_users=road_users,
-    )  # fmt: skip
+        root,
+        scenario,
+        out,
+        rate_hz=rate_hz,
+        include_ego_track=include_ego_track,
+        full_ins=full_ins,
+        road_users=road_users,
+    )
     from vei.io.interaction import read_interaction
 
     it = read_interaction(s.out)

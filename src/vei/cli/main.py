@@ -26,6 +26,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "sweep_cmd",
     "catalogue_cmd",
     "calibrate_cmd",
+    "v2x_cmd",
     "risk_cmd",
 )
 

@@ -6,7 +6,8 @@ presets, the settings table, and files read into them.
 - :mod:`vei.config.run`: the engine (:class:`SimConfig`), the named configurations
   (:class:`CaseConfig`, :data:`CASE_PRESETS`), rider populations, :class:`RunConfig`.
 - :mod:`vei.config.metrics`, :mod:`vei.config.perception`: the metrics' and the sensor
-  model's settings.
+  model's settings; :mod:`vei.config.v2x`: V2X (riders' messages, channel, the car's
+  tracks).
 - :mod:`vei.config.settings`: the table of every sweepable setting (unit, bounds, path).
 - :mod:`vei.config.load`: YAML/JSON files into any of them (unknown keys are errors).
 
@@ -49,6 +50,7 @@ from vei.config.run import (
     SimConfig,
     case_preset,
 )
+from vei.config.v2x import V2XConfig
 
 __all__ = [
     "AGGRESSIVE_K_DES_FACTOR",
@@ -80,6 +82,7 @@ __all__ = [
     "SFMConfig",
     "SimConfig",
     "TrafficConfig",
+    "V2XConfig",
     "case_preset",
     "config_to_dict",
     "load_config",

@@ -20,6 +20,7 @@ from vei.config.metrics import MetricsConfig
 from vei.config.models import KERNEL_POLICIES, SFM_PRESETS, CAPConfig, EgoConfig, SFMConfig
 from vei.config.perception import PerceptionConfig
 from vei.config.run import CASE_PRESETS, CaseConfig, RiderPopulationConfig, RunConfig, SimConfig
+from vei.config.v2x import V2XConfig
 from vei.errors import ConfigError
 
 T = TypeVar("T")
@@ -76,6 +77,8 @@ def _build(cls: type[T], raw: Any, where: str) -> T:
         nested["rider"] = RiderPopulationConfig
     if cls is CaseConfig and raw.get("perception") is not None:
         nested["perception"] = PerceptionConfig
+    if cls is CaseConfig:
+        nested["v2x"] = V2XConfig
     for key, value in raw.items():
         sub = nested.get(key)
         if sub is RiderPopulationConfig and value is None:  # explicit "no population"

@@ -31,6 +31,7 @@ from vei.config.models import (
     _finite,
 )
 from vei.config.perception import PerceptionConfig
+from vei.config.v2x import V2XConfig
 from vei.errors import ConfigError
 
 
@@ -148,6 +149,9 @@ class CaseConfig:
             rider).
         traffic: recorded road users that react (:class:`vei.config.behaviour.
             TrafficConfig`: IDM cars, social-force pedestrians; off by default: replayed).
+        v2x: VRU awareness messages from equipped riders, fused with the perception
+            (:class:`vei.config.v2x.V2XConfig`, docs/v2x.md); off by default. Enabled,
+            every closed-loop controller runs on the policy API, which applies it.
     """
 
     name: str
@@ -159,8 +163,13 @@ class CaseConfig:
     perception: PerceptionConfig | None = None
     decision: DecisionConfig = field(default_factory=DecisionConfig)
     traffic: TrafficConfig = field(default_factory=TrafficConfig)
+    v2x: V2XConfig = field(default_factory=V2XConfig)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.v2x, V2XConfig):
+            raise ConfigError(
+                f"v2x must be a V2XConfig (vei.config.v2x) or a mapping, got {type(self.v2x).__name__}"
+            )
         if self.perception is not None and not isinstance(self.perception, PerceptionConfig):
             raise ConfigError(
                 f"perception must be a PerceptionConfig (vei.config.perception) or a mapping, "

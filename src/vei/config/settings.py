@@ -38,16 +38,20 @@ Kind = Literal["float", "bool", "int", "object"]
 #: median_moving: the value, or the recorded ego's median moving speed for
 #: 'median-moving'; policy_param: the built-in policy's parameter (``Setting.policy``'s
 #: config, its default for any other policy); derived: computed by
-#: ``VariantParams.from_case`` from several fields, the scenario or the run (see doc).
+#: ``VariantParams.from_case`` from several fields, the scenario or the run (see doc);
+#: none_is_default: the value, or for None the section's ``default_for(field)`` (e.g. a
+#: V2X technology's latency).
 Convert = Literal[
     "identity", "times_k_des_factor", "none_is_inf", "equals", "median_moving",
-    "policy_param", "derived",
+    "policy_param", "derived", "none_is_default",
 ]  # fmt: skip
 #: Conversions whose engine value is the configuration's number in the same unit (or +inf
 #: for None): the declared bounds are the configuration field's bounds too.
-NUMERIC_CONVERTS = ("identity", "times_k_des_factor", "none_is_inf", "median_moving")
+NUMERIC_CONVERTS = (
+    "identity", "times_k_des_factor", "none_is_inf", "median_moving", "none_is_default",
+)  # fmt: skip
 #: The run configuration's sections that hold settings (fields of CaseConfig).
-SECTIONS = ("sfm", "ego", "cap", "decision", "traffic")
+SECTIONS = ("sfm", "ego", "cap", "decision", "traffic", "v2x")
 
 
 @dataclass(frozen=True)
@@ -247,6 +251,22 @@ SETTINGS: tuple[Setting, ...] = (
             former=("policy",), **_DERIVED),
     Setting("perception", "perception", "object", "the policy's sensor model (None = "
             "ideal)", kind="object", kernel=False, **_DERIVED),
+    # V2X (vei.config.v2x, docs/v2x.md): the riders' messages and the channel, per variant.
+    Setting("v2x", "v2x", "object", "V2X (None = off): riders' VAMs, channel and the car's "
+            "tracks", kind="object", kernel=False, **_DERIVED),
+    _f("v2x_penetration_rate", "v2x.penetration_rate", "-", "V2X: share of riders equipped "
+       "(drawn per rider with the V2X seed)", lower=0.0, upper=1.0, sweep=True, kernel=False),
+    _f("v2x_latency_s", "v2x.latency_s", "s", "V2X: fixed part of the latency (None = the "
+       "technology's)", sweep=True, kernel=False, convert="none_is_default", **_NONNEG),
+    _f("v2x_latency_jitter_s", "v2x.latency_jitter_s", "s", "V2X: scale of the latency's "
+       "random part (None = the technology's)", sweep=True, kernel=False,
+       convert="none_is_default", **_NONNEG),
+    _f("v2x_pdr_factor", "v2x.pdr_factor", "-", "V2X: factor on every packet delivery "
+       "ratio (channel load)", lower=0.0, upper=1.0, sweep=True, kernel=False),
+    _f("v2x_position_error_std_m", "v2x.position_error_std_m", "m", "V2X: the riders' "
+       "GNSS error per axis (1 sigma)", sweep=True, kernel=False, **_NONNEG),
+    _f("v2x_clock_offset_s", "v2x.clock_offset_s", "s", "V2X: the riders' clock minus true "
+       "time", sweep=True, kernel=False),
     *(
         _f(f"{pol}_{name}", f"ego.policy_params.{name}", unit, doc, convert="policy_param",
            policy=pol, sweep=sweep, kernel=False, former=(f"{pol}.{name}",) if sweep else (),
@@ -338,8 +358,11 @@ def config_value(setting: Setting, case: Any) -> Any:
     if setting.path is None or setting.convert in ("derived", "policy_param"):
         raise ConfigError(f"setting {setting.field}: {setting.convert} is not read directly")
     node = case
+    parent = case
     for part in setting.path.split("."):
-        node = getattr(node, part)
+        parent, node = node, getattr(node, part)
+    if setting.convert == "none_is_default":
+        return parent.default_for(setting.config_field) if node is None else node
     if setting.convert == "times_k_des_factor":
         return node * case.sfm.k_des_factor
     if setting.convert == "none_is_inf":
@@ -371,7 +394,7 @@ def check_section(obj: Any, section: str) -> None:
             continue
         if s.kind != "float" or s.convert not in NUMERIC_CONVERTS:
             continue
-        if (value is None and s.convert == "none_is_inf") or (
+        if (value is None and s.convert in ("none_is_inf", "none_is_default")) or (
             isinstance(value, str) and s.convert == "median_moving"
         ):
             continue  # None / the sentinel: checked by the class

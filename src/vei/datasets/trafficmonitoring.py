@@ -63,6 +63,8 @@ from vei.types import Interaction, InteractionMeta
 #: vei.datasets.trafficmonitoring_files, where they live.
 __all__ = [
     "ANNOTATED_CATEGORIES",
+    "CLASS_DIMENSIONS_M",
+    "ROAD_USERS",
     "ANNOTATION_MAX_GAP_S",
     "CAMERA_CRS",
     "CAMERA_FPS",
@@ -113,6 +115,20 @@ YAW_MIN_SPEED_MPS = 0.5
 
 #: Categories turned into annotations (the paper annotates e-scooters; cyclists are riders too).
 ANNOTATED_CATEGORIES: tuple[str, ...] = ("escooter", "cyclist")
+#: ``road_users`` choices of :func:`import_scenario`: 'riders' annotates ANNOTATED_CATEGORIES,
+#: 'all' every track of a known category (vehicles and pedestrians too: occluders, others).
+ROAD_USERS: tuple[str, ...] = ("riders", "all")
+#: Footprints [m] (length, width) written for the camera's vehicle classes (its tracks
+#: carry no size): a typical van (e.g. a Mercedes Sprinter, 5.9 x 2.0), a 12 m city bus and
+#: a delivery truck at the EU width limit of 2.55 m (Directive 96/53/EC); other classes
+#: keep vei's category defaults (vei.types.DEFAULT_DIMENSIONS_M).
+CLASS_DIMENSIONS_M: dict[str, tuple[float, float]] = {
+    "transporter": (5.9, 2.0),
+    "car-transporter": (5.9, 2.0),
+    "van": (5.9, 2.0),
+    "bus": (12.0, 2.55),
+    "truck": (10.0, 2.55),
+}
 
 
 # ----------------------------------------------------------------------------- geometry
@@ -334,15 +350,20 @@ def import_scenario(
         full_ins: keep the whole INS record; by default the ego track is cut to the span
             the camera covers (plus one 10 Hz step each side), like the paper's clips.
         road_users: 'riders' (default: e-scooters and cyclists, the paper's annotations)
-            or 'all': also every other vehicle and pedestrian the camera tracked (category
-            'vehicle' / 'pedestrian'; the road users that react, vei.sim.traffic).
+            or 'all' (also vehicles and pedestrians, e.g. the stopped cars that hide a
+            rider; vehicles of the classes in CLASS_DIMENSIONS_M get those footprints).
     Raises:
         InputError: missing files, unknown scenario, malformed data.
     """
     return import_scenario_with_summary(
-        root, scenario, out, rate_hz=rate_hz, include_ego_track=include_ego_track,
-        full_ins=full_ins, road_users=road_users,
-    ).out  # fmt: skip
+        root,
+        scenario,
+        out,
+        rate_hz=rate_hz,
+        include_ego_track=include_ego_track,
+        full_ins=full_ins,
+        road_users=road_users,
+    ).out
 
 
 def import_scenario_with_summary(
@@ -363,6 +384,11 @@ def import_scenario_with_summary(
     ):
         raise InputError(
             f"rate_hz must be in (0, {CAMERA_FPS:g}] Hz, got {rate_hz!r}", field="rate_hz"
+        )
+    if road_users not in ROAD_USERS:
+        raise InputError(
+            f"road_users must be one of {', '.join(ROAD_USERS)}, got {road_users!r}",
+            field="road_users",
         )
     meas = _measurements(root)
     matching = read_matching(root, scenario)
@@ -389,12 +415,8 @@ def import_scenario_with_summary(
             row=1,
             field="relevant_track_id",
         )
-    if road_users not in ("riders", "all"):
-        raise InputError(
-            f"road_users must be 'riders' or 'all', got {road_users!r}", field="road_users"
-        )
-    kinds = ANNOTATED_CATEGORIES + (("vehicle", "pedestrian") if road_users == "all" else ())
-    wanted = [tid for tid, cat in categories.items() if cat in kinds and tid != own]
+    kept = ANNOTATED_CATEGORIES if road_users == "riders" else tuple(CLASS_TO_CATEGORY.values())
+    wanted = [tid for tid, cat in categories.items() if cat in kept and tid != own]
     if include_ego_track:
         wanted.append(own)
 
@@ -414,6 +436,9 @@ def import_scenario_with_summary(
             elat, elon, ehead, samples["lat_deg"].to_numpy(), samples["lon_deg"].to_numpy()
         )
         yaw_left = -_wrap180(_track_bearing_deg(track, ts, plane) - ehead)
+        size = (np.nan, np.nan)
+        if cat == "vehicle" and tid != own:
+            size = CLASS_DIMENSIONS_M.get(str(track["class_id"].mode().iloc[0]), size)
         ann_parts.append(
             pd.DataFrame(
                 {
@@ -423,12 +448,13 @@ def import_scenario_with_summary(
                     "x_m": x,
                     "y_m": y,
                     "yaw_deg": yaw_left,
-                    "length_m": np.nan,
-                    "width_m": np.nan,
+                    "length_m": size[0],
+                    "width_m": size[1],
                 }
             )
         )
-    if not ann_parts:
+    riders_seen = any(bool(part["category"].isin(ANNOTATED_CATEGORIES).any()) for part in ann_parts)
+    if not riders_seen:
         raise NoRidersError(
             f"scenario {scenario!r} has no e-scooter or cyclist seen by the camera while the car's INS records "
             f"([0, {t_end:.1f}] s after {ins.start_utc.isoformat()})",
@@ -463,8 +489,9 @@ def import_scenario_with_summary(
         + f"; t_s = 0 at its first sample (UTC = GPS week/tow - {GPS_UTC_LEAP_S} leap s). "
         f"Camera: 30 fps, frame k at "
         f"{matching.start_local.strftime('%Y-%m-%d %H:%M:%S.%f')[:-4]} CET + k/30 s = "
-        f"{video_offset_s:+.3f} s after t_s = 0; UTM 32N -> WGS84. Annotations: e-scooter and cyclist "
-        f"tracks (majority label), {rate_hz:g} Hz, ego-relative via geodesic inverse and the INS true "
+        f"{video_offset_s:+.3f} s after t_s = 0; UTM 32N -> WGS84. Annotations: "
+        + ("e-scooter and cyclist" if road_users == "riders" else "every road user's")
+        + f" tracks (majority label), {rate_hz:g} Hz, ego-relative via geodesic inverse and the INS true "
         f"heading; car's own camera track {own} "
         + ("annotated as 'vehicle' (diagnostics)" if include_ego_track else "left out")
         + ". "
@@ -496,7 +523,7 @@ def import_scenario_with_summary(
         video_start_utc=matching.start_utc,
         video_offset_s=video_offset_s,
         ego_duration_s=float(ego["t_s"].iloc[-1] - ego["t_s"].iloc[0]),
-        tracks={c: int(counts.get(c, 0)) for c in kinds},
+        tracks={c: int(counts.get(c, 0)) for c in ANNOTATED_CATEGORIES},
         annotations=int((annotations["track_id"] != own).sum()),
         own_track_median_m=median_m,
         own_track_p95_m=p95_m,

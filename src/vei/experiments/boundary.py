@@ -459,6 +459,7 @@ def search_boundary(
             time_shift_reference=spec.time_shift_reference,
             base=spec.base,
             perception=spec.perception,
+            v2x=spec.v2x,
             sim=reach_sim(speed),
         )
     prepared = evaluator.prepare(Path(scenario_dir))

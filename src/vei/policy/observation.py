@@ -49,6 +49,10 @@ CATEGORY_CODES: dict[str, int] = {
 #: Code of a category vei does not know.
 CATEGORY_OTHER = 5
 
+#: ``Observation.source`` codes (bit 0: the on-board sensor, bit 1: V2X): where a road
+#: user's entry comes from (vei.policy.v2x.fusion).
+SOURCE_NONE, SOURCE_SENSOR, SOURCE_V2X, SOURCE_BOTH = 0, 1, 2, 3
+
 
 def category_code(name: str) -> int:
     """The int8 code of a road-user category name (``CATEGORY_OTHER`` if unknown)."""
@@ -85,6 +89,13 @@ class Observation:
             object's nearest extent [m], +inf when not ahead in the path corridor.
         path_lateral_m: [B, N] signed lateral offset of the object centre from the ego
             path [m] (left positive), +inf where invalid.
+        source: [B, N] int8, where the entry comes from: :data:`SOURCE_SENSOR` (the
+            on-board perception; ideal perception counts as the sensor), :data:`SOURCE_V2X`
+            (a V2X message only), :data:`SOURCE_BOTH`; :data:`SOURCE_NONE` where invalid.
+            None (a hand-built observation) = sensor wherever valid.
+        position_std_m: [B, N] 1-sigma position uncertainty the car attaches to the entry
+            per axis [m]: the sensor's noise, a V2X message's stated accuracy, or their
+            fusion (vei.policy.v2x.fusion); +inf where invalid. None = unknown.
     """
 
     t_s: FloatArray
@@ -111,6 +122,8 @@ class Observation:
     category: npt.NDArray[np.int8]
     path_gap_m: FloatArray
     path_lateral_m: FloatArray
+    source: npt.NDArray[np.int8] | None = None
+    position_std_m: FloatArray | None = None
 
     @property
     def batch_size(self) -> int:
@@ -138,6 +151,30 @@ class Observation:
                 out[f.name] = v
         return SimpleNamespace(**out)
 
+    def sensor_view(self) -> Observation:
+        """This observation without the entries known from V2X alone (their ``valid``
+        False, pose and velocity 0, gap / lateral offset / age / uncertainty +inf): what
+        the on-board sensor gives. Entries of both sources keep their fused values."""
+        if self.source is None:
+            return self
+        keep = self.valid & ((self.source & SOURCE_SENSOR) != 0)
+        if np.array_equal(keep, self.valid):
+            return self
+        from dataclasses import replace
+
+        z, inf = 0.0, np.inf
+        out: dict[str, Any] = {"valid": keep}
+        for name, fill in (
+            ("rel_x_m", z), ("rel_y_m", z), ("rel_yaw_rad", z), ("rel_vx_mps", z),
+            ("rel_vy_mps", z), ("age_s", inf), ("path_gap_m", inf), ("path_lateral_m", inf),
+            ("position_std_m", inf),
+        ):  # fmt: skip
+            v = getattr(self, name)
+            if v is not None:
+                out[name] = np.where(keep, v, fill)
+        out["source"] = np.where(keep, self.source, SOURCE_NONE).astype(np.int8)
+        return replace(self, **out)
+
 
 def wrap_angle(a: npt.ArrayLike) -> FloatArray:
     """Angles wrapped to (-pi, pi] [rad]."""
@@ -145,4 +182,14 @@ def wrap_angle(a: npt.ArrayLike) -> FloatArray:
     return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
 
 
-__all__ = ["CATEGORY_CODES", "CATEGORY_OTHER", "Observation", "category_code", "wrap_angle"]
+__all__ = [
+    "CATEGORY_CODES",
+    "CATEGORY_OTHER",
+    "SOURCE_BOTH",
+    "SOURCE_NONE",
+    "SOURCE_SENSOR",
+    "SOURCE_V2X",
+    "Observation",
+    "category_code",
+    "wrap_angle",
+]

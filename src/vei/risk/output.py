@@ -49,6 +49,7 @@ class _SpecView:
     time_shift_reference: str
     perception: Any
     names: tuple[str, ...]
+    v2x: Any = None
 
 
 def _jsonable(obj: Any) -> Any:
@@ -188,7 +189,7 @@ def write_configs(result: Any, folder: Path, rows: pd.DataFrame) -> list[Path]:
     prob = result.problem
     names = tuple(n for n in PARAMETERS if n in rows.columns)
     spec = _SpecView(prob.model.base, prob.model.time_shift_reference, prob.model.perception,
-                     names)  # fmt: skip
+                     names, prob.model.v2x)  # fmt: skip
     reach = prob.evaluator.sim.continuation.ego_speed_mps  # what the samples ran with
     return write_variant_configs(
         folder, rows, spec, prob.prepared.auto_shift_s, reach_speed_mps=reach

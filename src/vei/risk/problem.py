@@ -119,6 +119,7 @@ class RiskProblem:
             time_shift_reference=model.time_shift_reference,
             base=model.base,
             perception=model.perception,
+            v2x=model.v2x,
             sim=reach_sim(reach),
         )
         prepared = evaluator.prepare(path)

@@ -14,6 +14,7 @@ A risk spec (``vei risk --spec FILE``; the ``risk:`` section of catalogue settin
       rider: {profile: calibrated, category: auto}   # null: the base configuration's rider
     fixed: {cap.t_safe_s: 2.0}    # optional: parameters held at a value (sweep names)
     perception: {enabled: true, position_noise_std_m: 0.3}   # optional sensor model
+    v2x: {enabled: true, penetration_rate: 0.5}   # optional V2X (docs/v2x.md)
     injury_relevant_speed_mps: 5.56   # optional: the injury-relevant impact speed [m/s]
 
 Without ``variation:`` the defaults of :mod:`vei.risk.defaults` apply (every default with
@@ -41,6 +42,7 @@ import pandas as pd
 from vei.config import CASE_PRESETS
 from vei.config.distributions import Distribution, parse_distribution
 from vei.config.perception import PerceptionConfig
+from vei.config.v2x import V2XConfig
 from vei.errors import ConfigError, InputError
 from vei.risk.defaults import INJURY_RELEVANT_SPEED_MPS, default_variation
 
@@ -55,6 +57,7 @@ _SPEC_KEYS = {
     "variation",
     "fixed",
     "perception",
+    "v2x",
     "injury_relevant_speed_mps",
 }
 
@@ -93,6 +96,8 @@ class VariationModel:
         seed: sampling seed (>= 0).
         fixed: (sweep parameter name, value) held fixed.
         perception: the ego's sensor model for every sample, or None (the base's).
+        v2x: V2X for every sample (docs/v2x.md), or None (the base's: off); a varied or
+            fixed ``v2x.*`` needs it enabled.
         injury_relevant_speed_mps: a collision is injury-relevant at an impact speed >= this.
         source: the file it came from (for messages).
     """
@@ -104,6 +109,7 @@ class VariationModel:
     seed: int = 0
     fixed: tuple[tuple[str, Any], ...] = ()
     perception: PerceptionConfig | None = None
+    v2x: V2XConfig | None = None
     injury_relevant_speed_mps: float = INJURY_RELEVANT_SPEED_MPS
     source: str | None = field(default=None, compare=False)
 
@@ -122,6 +128,9 @@ class VariationModel:
         v = self.injury_relevant_speed_mps
         if isinstance(v, bool) or not isinstance(v, int | float) or not (0 < v < math.inf):
             raise ConfigError(f"{where}: injury_relevant_speed_mps must be > 0, got {v!r}")
+        from vei.sweep.params import check_v2x_spec
+
+        check_v2x_spec([n for n, _ in (*self.distributions, *self.fixed)], self.v2x, where)
         if not self.dimension_names:
             raise ConfigError(
                 f"{where}: the variation is empty: nothing varies (give at least one "
@@ -179,6 +188,8 @@ class VariationModel:
         }
         if self.perception is not None:
             out["perception"] = dataclasses.asdict(self.perception)
+        if self.v2x is not None:
+            out["v2x"] = dataclasses.asdict(self.v2x)
         return out
 
     def digest(self) -> str:
@@ -237,7 +248,7 @@ def parse_variation(raw: Any, where: str = "risk spec") -> VariationModel:
         ConfigError: unknown keys, impossible distributions, an empty variation, values
             outside a parameter's bounds (each naming ``where`` and the key).
     """
-    from vei.sweep.params import PARAMETERS, parse_perception
+    from vei.sweep.params import PARAMETERS, parse_perception, parse_v2x
 
     if raw is None:
         raw = {}
@@ -298,6 +309,7 @@ def parse_variation(raw: Any, where: str = "risk spec") -> VariationModel:
         seed=seed,
         fixed=tuple(sorted(fixed.items(), key=lambda kv: order.index(kv[0]))),
         perception=parse_perception(raw.get("perception"), where),
+        v2x=parse_v2x(raw.get("v2x"), where),
         injury_relevant_speed_mps=raw.get("injury_relevant_speed_mps", INJURY_RELEVANT_SPEED_MPS),
         source=where,
     )

@@ -47,6 +47,7 @@ class Block:
         traffic: the recorded cars react (VariantParams.cars_react): True / False if
             uniform in the block, else the [b] mask. peds: the recorded pedestrians walk by
             the social force (VariantParams.peds_sfm), alike.
+        v2x: the block's enabled V2XConfig, else None.
     """
 
     start: int
@@ -65,6 +66,7 @@ class Block:
     decide: bool | npt.NDArray[np.bool_] = False
     traffic: bool | npt.NDArray[np.bool_] = False
     peds: bool | npt.NDArray[np.bool_] = False
+    v2x: Any = None
 
 
 @dataclass(frozen=True)
@@ -108,7 +110,7 @@ def group_keys(params: VariantParams) -> npt.NDArray[np.int64]:
         ranks: dict[int, int] = {}
         rank = np.zeros(key.shape, dtype=np.int64)
         for i in np.flatnonzero(is_pol):
-            ident = (id(params.policy[i]), id(params.perception[i]))
+            ident = (id(params.policy[i]), id(params.perception[i]), id(params.v2x[i]))
             rank[i] = ranks.setdefault(ident, len(ranks) + 1)
         key = key + 8 * rank
     return key
@@ -147,6 +149,7 @@ def batch_flags(params: VariantParams, dt_s: float) -> BatchFlags:
                 decide=_switch(bp.decide) if sfm else False,
                 traffic=_switch(bp.cars_react),
                 peds=_switch(bp.peds_sfm),
+                v2x=bp.v2x[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
             )
         )
     return BatchFlags(

@@ -28,7 +28,13 @@ import numpy.typing as npt
 from vei.errors import ConfigError, PolicyError
 from vei.models import ego as ego_model
 from vei.policy.base import PolicyAction, check_policy
-from vei.policy.observation import Observation, category_code, wrap_angle
+from vei.policy.observation import (
+    SOURCE_NONE,
+    SOURCE_SENSOR,
+    Observation,
+    category_code,
+    wrap_angle,
+)
 from vei.policy.perception_random import label_keys, variant_keys_u64
 from vei.sim.batch import BatchFlags, Block
 from vei.sim.state import ScenarioArrays, SimState, VariantParams
@@ -113,6 +119,8 @@ def build_observation(
     valid: npt.NDArray[np.bool_],
     age_s: FloatArray,
     table: tuple[FloatArray, FloatArray, npt.NDArray[np.int8]],
+    source: npt.NDArray[np.int8] | None = None,
+    position_std_m: FloatArray | None = None,
 ) -> Observation:
     """The Observation of one block from its state slice and the perceived truth.
 
@@ -120,6 +128,10 @@ def build_observation(
         st: the full SimState at step k. blk: the block. truth: [6, b, N] perceived ground
             truth (delayed). valid: [b, N] perceived. age_s: [b, N] age of the sample [s].
         table: :func:`object_table`.
+        source: [b, N] int8 where each entry comes from (vei.policy.observation SOURCE_*);
+            None = the sensor wherever valid.
+        position_std_m: [b, N] 1-sigma position uncertainty [m]; None = the block's
+            sensor noise (0 for ideal perception) wherever valid.
     """
     sl = slice(blk.start, blk.stop)
     p = blk.params
@@ -164,6 +176,11 @@ def build_observation(
             gap[bi, oj1] = np.where(ahead, g, np.inf)
     lat = np.where(valid, path_lateral(path, s_e, ox, oy), np.inf)
     z = np.zeros((b, n))
+    if source is None:
+        source = np.where(valid, SOURCE_SENSOR, SOURCE_NONE).astype(np.int8)
+    if position_std_m is None:
+        noise = blk.perception.position_noise_std_m if blk.perception is not None else 0.0
+        position_std_m = np.where(valid, float(noise), np.inf)
     return Observation(
         t_s=np.full(b, st.k * arrays.dt_s),
         dt_s=arrays.dt_s,
@@ -189,6 +206,8 @@ def build_observation(
         category=np.broadcast_to(cat, (b, n)),
         path_gap_m=gap,
         path_lateral_m=lat,
+        source=source,
+        position_std_m=position_std_m,
     )
 
 
@@ -289,6 +308,7 @@ class PolicyDriver:
         self.hist_len = h
         self._ring: list[FloatArray | None] = [None] * len(self.blocks)
         self._pstates: list[Any] = [None] * len(self.blocks)
+        self.v2x_states: list[Any] = [None] * len(self.blocks)
 
     def act(self, st: SimState) -> Demand | None:
         """The PolicyAction [B] of step k (accel_mps2 for every variant: the command of
@@ -320,7 +340,12 @@ class PolicyDriver:
             age = np.broadcast_to((self.delay[i] * self.arrays.dt_s)[:, None], valid.shape)
             if blk.perception is not None:
                 seen, valid, age = self._perceive(i, st, blk, seen, valid, age)
-            obs = build_observation(st, self.arrays, blk, seen, valid, age, self.table)
+            source = std = None
+            if blk.v2x is not None:
+                seen, valid, age, source, std = self._v2x(i, st, blk, truth, seen, valid, age)
+            obs = build_observation(st, self.arrays, blk, seen, valid, age, self.table, source, std)
+            if blk.v2x is not None and not blk.v2x.policies_use_v2x and _builtin(blk.policy):
+                obs = obs.sensor_view()
             when = f"step {st.k} (t = {st.k * self.arrays.dt_s:.3f} s)"
             out = _guarded(
                 self.policies[i], "act", self.policies[i].act, obs, self.states[i], when=when
@@ -397,6 +422,53 @@ class PolicyDriver:
             ]
         )
         return world, tracked, np.where(tracked, z(po.age_s) + age, np.inf)
+
+    def _v2x(
+        self,
+        i: int,
+        st: SimState,
+        blk: Block,
+        now: FloatArray,
+        seen: FloatArray,
+        valid: Any,
+        age: Any,
+    ) -> tuple[FloatArray, Any, FloatArray, npt.NDArray[np.int8], FloatArray]:
+        """V2X of block i (vei.policy.v2x): the riders' messages of the current truth
+        ``now`` [6, b, N] into the car's tracks, fused with the perceived ``seen``.
+
+        Returns the fused world [6, b, N], valid, age [s], source and position sigma [m]
+        ([b, N]); the block's V2X state is kept in ``v2x_states[i]``.
+        """
+        from vei.policy.v2x import fusion
+        from vei.policy.v2x import model as v2x_model
+
+        cfg = blk.v2x
+        sl = slice(blk.start, blk.stop)
+        length, width, cats = self.table
+        codes = [category_code(c) for c in cfg.sender_categories]
+        cols = np.flatnonzero(np.isin(cats, codes))
+        keys = self.variant_keys[sl]
+        vparams = v2x_model.V2XParams.of(blk.params)
+        state = self.v2x_states[i]
+        if state is None:
+            state = v2x_model.init_state(cfg, vparams, keys, cols)
+        world = v2x_model.World(
+            x_m=now[0], y_m=now[1], yaw_rad=now[2], vx_mps=now[3], vy_mps=now[4],
+            valid=now[5] > 0.5, length_m=length, width_m=width,
+            is_vehicle=cats == category_code("vehicle"), ego_x_m=st.ego_x_m[sl],
+            ego_y_m=st.ego_y_m[sl],
+        )  # fmt: skip
+        objs, self.v2x_states[i], _ = v2x_model.step(
+            cfg, vparams, state, world, cols, st.k, self.arrays.dt_s, keys
+        )
+        noise = blk.perception.position_noise_std_m if blk.perception is not None else 0.0
+        return fusion.fuse(seen, np.asarray(valid, dtype=bool), np.asarray(age, dtype=np.float64),
+                           noise, objs, cols)  # fmt: skip
+
+
+def _builtin(policy: Any) -> bool:
+    """The policy is one of vei's own (vei.policy.*), not a user's."""
+    return type(policy).__module__.startswith("vei.policy.")
 
 
 __all__ = [

@@ -125,6 +125,13 @@ class VariantParams:
     use_rider_force: BoolArray
     policy: npt.NDArray[np.object_]
     perception: npt.NDArray[np.object_]
+    v2x: npt.NDArray[np.object_]
+    v2x_penetration_rate: FloatArray
+    v2x_latency_s: FloatArray
+    v2x_latency_jitter_s: FloatArray
+    v2x_pdr_factor: FloatArray
+    v2x_position_error_std_m: FloatArray
+    v2x_clock_offset_s: FloatArray
     aeb_ttc_warning_s: FloatArray
     aeb_ttc_partial_s: FloatArray
     aeb_ttc_full_s: FloatArray
@@ -194,6 +201,10 @@ class VariantParams:
             raise ConfigError(
                 "VariantParams.perception applies to policy variants (ego_mode 3) only"
             )
+        if any(
+            q is not None and m != EGO_POLICY for q, m in zip(self.v2x, self.ego_mode, strict=True)
+        ):
+            raise ConfigError("VariantParams.v2x applies to policy variants (ego_mode 3) only")
 
     @property
     def batch_size(self) -> int:
@@ -227,12 +238,13 @@ class VariantParams:
             VariantParams with B variants.
         """
         sfm, ego = case.sfm, case.ego
-        # An enabled sensor model runs every closed-loop controller on the policy API.
+        # An enabled sensor model (or V2X) runs every closed-loop controller on the policy API.
+        with_v2x = bool(case.v2x.enabled) and case.ego_mode != "replay-speed"
         perceived = (
             case.perception is not None
             and bool(case.perception.enabled)
             and case.ego_mode != "replay-speed"
-        )
+        ) or with_v2x
         if ego.cruise_speed_mps == MEDIAN_MOVING:
             vd = arrays.ego_median_moving_speed_mps
             if not math.isfinite(vd):
@@ -291,7 +303,10 @@ class VariantParams:
                 "initial_speed_mps": v_init,
                 "ego_start_s_m": 0.0 if case.ego_mode == "replay-speed" else -run_up_m,
                 "policy": _case_policy(case, perceived),
-                "perception": case.perception if perceived else None,
+                "perception": case.perception
+                if perceived and case.perception is not None and case.perception.enabled
+                else None,
+                "v2x": case.v2x if with_v2x else None,
                 **_policy_param_values(case),
             }
         )

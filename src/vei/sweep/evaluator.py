@@ -122,6 +122,7 @@ def variant_params(
     time_shift_reference: str = "auto",
     auto_shift_s: float | None = None,
     perception: Any = None,
+    v2x: Any = None,
 ) -> Any:
     """The engine's per-variant parameters ([B] arrays) of a variants table, vectorised.
 
@@ -138,6 +139,7 @@ def variant_params(
         auto_shift_s: the scenario's automatic shift [s] (reference 'auto').
         perception: the spec's sensor model (PerceptionConfig) for every variant; None:
             the base configuration's.
+        v2x: the spec's V2X (V2XConfig) for every variant; None: the base's (off).
 
     Returns:
         ``vei.sim.state.VariantParams`` with B variants in row order (labels = variant ids).
@@ -157,6 +159,7 @@ def variant_params(
         time_shift_reference=time_shift_reference,
         base=base,
         perception=perception,
+        v2x=v2x,
     )
     b = len(variants)
     cats = [c for c in _CATEGORICAL if c in variants.columns]
@@ -220,6 +223,7 @@ class EngineEvaluator:
             carry the sample they run on in column SAMPLE_COLUMN. None: mean trajectory.
         perception: the spec's sensor model (PerceptionConfig) for every variant; None:
             the base configuration's.
+        v2x: the spec's V2X (V2XConfig) for every variant; None: the base's (off).
     """
 
     def __init__(
@@ -231,11 +235,13 @@ class EngineEvaluator:
         reconstruction_samples: int | None = None,
         sample_seed: int = 0,
         perception: Any = None,
+        v2x: Any = None,
     ) -> None:
         from vei.config import SimConfig
 
         self.reconstruction_samples = reconstruction_samples
         self.perception = perception
+        self.v2x = v2x
         self.sample_seed = sample_seed
         self.time_shift_reference = time_shift_reference
         self.base = base
@@ -276,6 +282,7 @@ class EngineEvaluator:
             time_shift_reference=self.time_shift_reference,
             auto_shift_s=prepared.auto_shift_s,
             perception=self.perception,
+            v2x=self.v2x,
         )
 
     def score(self, result: Any, params: Any) -> pd.DataFrame:

@@ -28,6 +28,7 @@ from vei.calibrate.columns import RIDER_PARAM_COLUMNS
 from vei.config import CASE_PRESETS, SFM_PRESETS, RunConfig, validate_policy_spec
 from vei.config.perception import PerceptionConfig
 from vei.config.settings import SECTIONS, SETTINGS, Setting
+from vei.config.v2x import V2XConfig
 from vei.errors import ConfigError
 
 
@@ -40,7 +41,8 @@ class SpecLike(Protocol):
     @property
     def time_shift_reference(self) -> str: ...
 
-    # Optional too: ``perception`` (a PerceptionConfig or None), read with getattr.
+    # Optional too: ``perception`` (a PerceptionConfig or None) and ``v2x`` (a V2XConfig
+    # or None), read with getattr.
 
 
 RIDER_MODELS: tuple[str, ...] = ("replay", "normal", "aggressive")
@@ -249,6 +251,28 @@ def parse_perception(raw: Any, where: str) -> PerceptionConfig | None:
         raise ConfigError(f"{where}: {exc}") from None
 
 
+def parse_v2x(raw: Any, where: str) -> V2XConfig | None:
+    """A sweep spec's ``v2x: {...}`` section -> V2XConfig (None when absent).
+
+    The keys are those of the run configuration's ``case: {v2x: ...}`` (the fields of
+    :class:`vei.config.v2x.V2XConfig`, same defaults: ``enabled: true`` switches it on).
+
+    Raises:
+        ConfigError: not a mapping, an unknown key or a bad value (naming ``where`` and
+            the key).
+    """
+    from vei.config.load import load_config
+
+    if raw is None:
+        return None
+    if not isinstance(raw, Mapping):
+        raise ConfigError(f"{where}: 'v2x' must be a mapping like {{enabled: true, ...}}")
+    try:
+        return load_config(dict(raw), V2XConfig)
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: v2x: {str(exc).removeprefix('config: ')}") from None
+
+
 def parse_variation_section(raw: Any, where: str) -> tuple[tuple[str, Any], ...]:
     """A sweep spec's ``variation: {parameter: {dist: ...}}`` -> ((name,
     vei.config.distributions.Distribution), ...) in PARAMETERS order (float parameters
@@ -287,6 +311,42 @@ def parse_variation_section(raw: Any, where: str) -> tuple[tuple[str, Any], ...]
         out[name] = dist
     order = list(PARAMETERS)
     return tuple(sorted(out.items(), key=lambda kv: order.index(kv[0])))
+
+
+def parse_reconstruction(raw: Any, where: str) -> int | None:
+    """``reconstruction: {samples: N}`` -> N (None when absent)."""
+    if raw is None:
+        return None
+    if not isinstance(raw, Mapping):
+        raise ConfigError(f"{where}: 'reconstruction' must be a mapping like {{samples: 200}}")
+    unknown = set(map(str, raw)) - {"samples"}
+    if unknown:
+        raise ConfigError(
+            f"{where}: reconstruction: unknown key(s) {', '.join(sorted(unknown))}; expected samples"
+        )
+    if "samples" not in raw:
+        raise ConfigError(f"{where}: reconstruction: missing 'samples'")
+    n = raw["samples"]
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ConfigError(f"{where}: reconstruction.samples must be an integer >= 1, got {n!r}")
+    return n
+
+
+def check_v2x_spec(names: Any, v2x: Any, where: str) -> None:
+    """A sweep spec's ``v2x`` is a V2XConfig or None, and swept ``v2x.*`` parameters need it
+    enabled (they would change nothing otherwise).
+
+    Raises:
+        ConfigError: naming ``where`` and the parameters.
+    """
+    if v2x is not None and not isinstance(v2x, V2XConfig):
+        raise ConfigError(f"{where}: v2x must be a V2XConfig or None")
+    swept = [n for n in names if n.startswith("v2x.")]
+    if swept and (v2x is None or not v2x.enabled):
+        raise ConfigError(
+            f"{where}: parameters {', '.join(swept)} need V2X: add 'v2x: {{enabled: true}}' "
+            "to the spec"
+        )
 
 
 def resolve_policy(value: Any, where: str, base_dir: Path | None) -> Any:
@@ -378,8 +438,9 @@ def variant_config(
 ) -> RunConfig:
     """The full run configuration of one variant (what ``vei run --config`` reads back).
 
-    Starts from ``CASE_PRESETS[spec.base]`` (with the spec's ``perception`` section, if
-    any, as its ``perception``); ``rider_model`` picks replay / the SFM Normal /
+    Starts from ``CASE_PRESETS[spec.base]`` (with the spec's ``perception`` and ``v2x``
+    sections, if any, as its ``perception`` / ``v2x``; swept ``v2x.*`` set that section's
+    fields); ``rider_model`` picks replay / the SFM Normal /
     Aggressive preset, then ``sfm.*``, ``ego.*`` and ``cap.*`` set the fields of those
     names (:data:`CONFIG_FIELDS`; ``sfm.k_des_nspm`` is the field k_des_nspm, so the
     configuration's ``k_des_factor``, 2 for the Aggressive presets, still multiplies it:
@@ -409,6 +470,9 @@ def variant_config(
     perception = getattr(spec, "perception", None)
     if perception is not None:  # the spec's sensor model, for every variant
         case = replace(case, perception=perception)
+    v2x = getattr(spec, "v2x", None)
+    if v2x is not None:  # the spec's V2X, for every variant
+        case = replace(case, v2x=v2x)
     rider = params.get("rider_model")
     if rider == "replay":
         case = replace(case, rider="replay")

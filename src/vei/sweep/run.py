@@ -259,6 +259,7 @@ def run_sweep(
             reconstruction_samples=spec.reconstruction_samples,
             sample_seed=spec.seed,
             perception=spec.perception,
+            v2x=spec.v2x,
             # continuations reach beyond the car at the sweep's largest cruise speed
             sim=reach_sim(reach_speed_of(spec)),
         )

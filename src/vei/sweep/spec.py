@@ -29,6 +29,7 @@ A sweep spec is a YAML (or JSON) mapping loaded into frozen dataclasses at the e
     perception: {enabled: true, fov_deg: 60.0, detection_probability: 0.7}
                                      # optional: the ego's sensor model for every variant
                                      # (the run config's case.perception keys)
+    v2x: {enabled: true}             # optional: V2X for every variant (case.v2x keys)
     variation: {cap.t_safe_s: {dist: normal, mean: 2.0, std: 0.3, min: 0.5}}
                                      # optional (random / lhs): drawn as u -> F^-1(u)
 
@@ -70,6 +71,7 @@ from vei.calibrate.population import (
 from vei.config import CASE_PRESETS, RiderPopulationConfig
 from vei.config.distributions import Distribution
 from vei.config.perception import PerceptionConfig
+from vei.config.v2x import V2XConfig  # noqa: F401 - SweepSpec.v2x's type
 from vei.errors import ConfigError, InputError
 from vei.sweep.ids import (  # noqa: F401 - variant_id/_seed part of this API
     name_variants,
@@ -91,7 +93,10 @@ from vei.sweep.params import (  # noqa: F401 - part of this module's API
     SpecLike,
     check_aeb_rows,
     check_name,
+    check_v2x_spec,
     parse_perception,
+    parse_reconstruction,
+    parse_v2x,
     parse_variation_section,
     resolve_policy,
     variant_config,
@@ -163,6 +168,8 @@ class SweepSpec:
             a_veh_n / b_veh_per_m / v0_mps / mass_kg (the population sets them).
         perception: the ego's sensor model for every variant (the run config's
             ``case.perception``); None: the base configuration's.
+        v2x: V2X for every variant (the run config's ``case.v2x``); None: the base
+            configuration's (off). Swept ``v2x.*`` parameters need it enabled.
         variation: (parameter, Distribution): random / lhs designs draw it as F^-1(u) of
             its design coordinate u in [0, 1) (vei.config.distributions; issue 23).
         source: file it was loaded from, if any (for messages).
@@ -177,6 +184,7 @@ class SweepSpec:
     reconstruction_samples: int | None = None
     rider: RiderPopulationConfig | None = None
     perception: PerceptionConfig | None = None
+    v2x: V2XConfig | None = None
     source: str | None = field(default=None, compare=False)
     variation: tuple[tuple[str, Distribution], ...] = ()
 
@@ -251,6 +259,7 @@ class SweepSpec:
             raise ConfigError(f"{where}: variation (distributions): {why}")
         if self.perception is not None and not isinstance(self.perception, PerceptionConfig):
             raise ConfigError(f"{where}: perception must be a PerceptionConfig or None")
+        check_v2x_spec(names, self.v2x, where)
         if self.rider is not None:
             if not isinstance(self.rider, RiderPopulationConfig):
                 raise ConfigError(f"{where}: rider must be a mapping {{profile, sample}}")
@@ -304,6 +313,8 @@ class SweepSpec:
             }
         if self.perception is not None:
             out["perception"] = dataclasses.asdict(self.perception)
+        if self.v2x is not None:
+            out["v2x"] = dataclasses.asdict(self.v2x)
         if self.variation:
             out["variation"] = {n: d.to_dict() for n, d in self.variation}
         return out
@@ -333,6 +344,7 @@ _SPEC_KEYS = {
     "reconstruction",
     "rider",
     "perception",
+    "v2x",
     "variation",
 }
 #: Variants-table column of the reconstruction sample a variant runs on.
@@ -442,31 +454,13 @@ def spec_from_dict(raw: Any, *, source: str | None = None) -> SweepSpec:
         seed=raw.get("seed", 0),
         time_shift_reference=raw.get("time_shift_reference", "auto"),
         base=raw.get("base", "normal-cap"),
-        reconstruction_samples=_parse_reconstruction(raw.get("reconstruction"), where),
+        reconstruction_samples=parse_reconstruction(raw.get("reconstruction"), where),
         rider=parse_population(raw.get("rider"), where, raw.get("seed", 0)),
         perception=parse_perception(raw.get("perception"), where),
+        v2x=parse_v2x(raw.get("v2x"), where),
         source=source,
         variation=parse_variation_section(raw.get("variation"), where),
     )
-
-
-def _parse_reconstruction(raw: Any, where: str) -> int | None:
-    """``reconstruction: {samples: N}`` -> N (None when absent)."""
-    if raw is None:
-        return None
-    if not isinstance(raw, Mapping):
-        raise ConfigError(f"{where}: 'reconstruction' must be a mapping like {{samples: 200}}")
-    unknown = set(map(str, raw)) - {"samples"}
-    if unknown:
-        raise ConfigError(
-            f"{where}: reconstruction: unknown key(s) {', '.join(sorted(unknown))}; expected samples"
-        )
-    if "samples" not in raw:
-        raise ConfigError(f"{where}: reconstruction: missing 'samples'")
-    n = raw["samples"]
-    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise ConfigError(f"{where}: reconstruction.samples must be an integer >= 1, got {n!r}")
-    return n
 
 
 def load_spec(path: str | Path) -> SweepSpec:

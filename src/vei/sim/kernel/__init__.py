@@ -141,8 +141,14 @@ def is_cold() -> bool:
     if _WARM or not available():
         return False
     stamp = _compiled_stamp(_build())
+    if stamp is None:
+        return True
+    # the stamp says who compiled; numba's index file that the machine code is still there
+    # (a cleared __pycache__ can leave the one without the other)
+    if not any(stamp.parent.glob("loop.*.nbi")):
+        return True
     try:
-        return stamp is None or stamp.read_text().strip() != _compile_key()
+        return stamp.read_text().strip() != _compile_key()
     except OSError:
         return True
 

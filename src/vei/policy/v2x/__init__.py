@@ -1,0 +1,17 @@
+"""V2X: riders that announce themselves (VRU awareness messages), a radio channel, and a
+car that fuses what it receives with its own perception.
+
+- :mod:`.vam`: the rider side (ETSI TS 103 300-3 generation rules, GNSS error);
+- :mod:`.channel`: delivery against distance, blockage by vehicle boxes, latency;
+- :mod:`.model`: one batched, seeded step from the riders' truth to the car's V2X tracks;
+- :mod:`.fusion`: the tracks fused with the on-board perception (source and age per road
+  user of the policy's Observation).
+
+The configuration is :class:`vei.config.v2x.V2XConfig` (``case: {v2x: {...}}``); the
+engine runs it in :class:`vei.sim.observe.PolicyDriver`. docs/v2x.md describes the model
+and the source of every default.
+"""
+
+from vei.config.v2x import V2XConfig
+
+__all__ = ["V2XConfig"]
