@@ -37,6 +37,12 @@ B (1 + R) 500 / wall time (best of ``REPEATS``, compiled kernel, record="none"; 
 NumPy reference at a smaller batch). Target: per agent-step, R = 4 within 2x of R = 1.
 ``python -m benchmarks.bench_engine --riders`` prints only this table.
 
+Fourth table, the road users' behaviour (issue 24, ``--behaviour`` prints only this one):
+normal-cap on the demo scene without and with the rider's decisions (and reacting cars),
+B = 10^4, compiled kernel; then a sweep chunk of 10^4 variants with two reacting cars
+following the ego (:func:`behaviour_scene`) scored in the kernel's pass. Target: the rate
+with decisions at least 50 % of the rate without.
+
 Third table, ego policies (vei.policy, ``--policy`` prints only this one): the demo scene
 (2 agents, 500 steps), SFM normal rider, B in ``POLICY_BATCHES`` over time shifts. Rows:
 the built-in CAP (``normal-cap``) on the compiled kernel and on the NumPy step; the same
@@ -372,11 +378,93 @@ def main_policy() -> None:
         print(f"{label:<30} {b:>7} {wall:8.2f} {rate:14.3g}")
 
 
+def behaviour_scene():
+    """The crossing scene (ego at 5.6 m/s, an e-scooter crossing at x = 60 m) with two cars
+    recorded behind the ego at its speed, 1 s and 2.5 s (bumper to bumper) behind it:
+    the reacting cars of the behaviour table (issue 24)."""
+    from vei.config import SimConfig
+    from vei.sim.state import prepare_scenario
+    from vei.sim.testing import TrackSpec, crossing_scenario
+
+    t = np.arange(0, 501) / 20.0
+    z = np.zeros_like(t)
+
+    def follower(headway_s: float) -> TrackSpec:
+        x = 5.6 * t - 4.7 - 5.6 * headway_s
+        return TrackSpec("vehicle", t, x, z, z, np.full_like(t, 5.6))
+
+    scene = crossing_scenario(others=[("car1", follower(1.0)), ("car2", follower(2.5))])
+    return prepare_scenario(scene, SimConfig())
+
+
+def behaviour_rows(batch: int = 10_000) -> list[tuple]:
+    """(label, B, wall s, agent-steps/s, secondary collisions, rear-end) of the behaviour
+    table: normal-cap on the demo scene off / with decisions / with decisions and
+    reacting cars (compiled kernel, record='none'), then a sweep chunk of ``batch``
+    variants with reacting cars on :func:`behaviour_scene` scored in the kernel's pass
+    (vei.sim.engine.simulate_metrics, the default sweep metrics)."""
+    from dataclasses import replace
+
+    from vei.config import DecisionConfig, TrafficConfig, case_preset
+    from vei.sim.engine import simulate, simulate_metrics
+    from vei.sim.state import VariantParams
+    from vei.sweep.evaluator import DEFAULT_METRICS
+
+    arrays, auto = _scene()
+    base = case_preset("normal-cap")
+    decide = replace(base, decision=DecisionConfig(enabled=True))
+    both = replace(decide, traffic=TrafficConfig(cars_react=True))
+    rows = []
+    for label, case in (
+        ("normal-cap", base),
+        ("+ decisions", decide),
+        ("+ decisions + cars", both),
+    ):
+        p = VariantParams.from_case(
+            case, arrays, batch, time_shift_s=auto + np.linspace(-3, 3, batch)
+        )
+        simulate(arrays, p.take(slice(0, 10)), record="none", kernel="auto")
+        wall = _best(lambda p=p: simulate(arrays, p, record="none", kernel="auto"), REPEATS)
+        rows.append(
+            (label, batch, wall, AGENTS_PER_VARIANT * batch * arrays.n_steps / wall, "", "")
+        )
+    a2 = behaviour_scene()
+    p = VariantParams.from_case(
+        both, a2, batch, time_shift_s=4.886 + np.linspace(-4, 4, batch)
+    )  # the meeting shift of the crossing scene, +-4 s
+    simulate_metrics(a2, p.take(slice(0, 10)), names=DEFAULT_METRICS)
+    t0 = time.perf_counter()
+    frame = simulate_metrics(a2, p, names=DEFAULT_METRICS)
+    wall = time.perf_counter() - t0
+    rows.append(
+        ("sweep chunk, 2 reacting cars", batch, wall, 4 * batch * a2.n_steps / wall,
+         int(frame["secondary_collision"].sum()), int(frame["rear_end_collision"].sum()))
+    )  # fmt: skip
+    return rows
+
+
+def main_behaviour() -> None:
+    """Print the behaviour table (issue 24): the rate with decisions must be >= 50 % of
+    the rate without."""
+    print(f"road users' behaviour: demo scene (2 agents, 500 steps), {os.cpu_count()} CPU(s)")
+    hdr = f"{'case':<30} {'B':>7} {'wall s':>8} {'agent-steps/s':>14} {'secondary':>10} {'rear-end':>9}"
+    print(hdr)
+    print("-" * len(hdr))
+    rows = behaviour_rows()
+    for label, b, wall, rate, sec, rear in rows:
+        print(f"{label:<30} {b:>7} {wall:8.2f} {rate:14.3g} {sec!s:>10} {rear!s:>9}")
+    ratio = rows[1][3] / rows[0][3]
+    print(f"target: decisions >= 50 % of the rate without: {100 * ratio:.0f} % "
+          f"{'MET' if ratio >= 0.5 else 'MISSED'}")  # fmt: skip
+
+
 if __name__ == "__main__":
     import sys
 
     args = sys.argv[1:]
-    if "--policy" in args:
+    if "--behaviour" in args:
+        main_behaviour()
+    elif "--policy" in args:
         main_policy()
     else:
         if "--riders" not in args:

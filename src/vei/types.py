@@ -201,6 +201,9 @@ class Trace:
         other_active: [B, T] bool, the other road user is present (the "interaction" span).
         collided: [B, T] bool, ego and other have collided at or before this step.
         ego_length_m, ego_width_m, other_length_m, other_width_m: footprints [m].
+        secondary: the run's secondary collisions (every contact but ego / this road
+            user: vei.metrics.secondary.secondary_record, a mapping of [B] arrays), or
+            None where the source reports none.
     """
 
     t_s: object
@@ -218,6 +221,7 @@ class Trace:
     ego_width_m: float
     other_length_m: float
     other_width_m: float
+    secondary: object = None
 
     @property
     def dt_s(self) -> float:

@@ -69,6 +69,19 @@ def _scored(frame: pd.DataFrame, scenario: Path, config: Path) -> dict:
         other_dims_m=(sim.rider_length_m or other.length_m, sim.rider_width_m or other.width_m),
     )
     assert len(runs) == 1
+    # the secondary collisions, as vei run scores them (vei.experiments.casestudy)
+    import dataclasses
+
+    from vei.metrics.secondary import secondary_from_timeseries
+
+    dims = {a.agent_id: (a.length_m, a.width_m) for a in scen.agents}
+    dims.update({"ego": (sim.ego_length_m or ego.length_m, sim.ego_width_m or ego.width_m)})
+    dims[other.agent_id] = (
+        sim.rider_length_m or other.length_m,
+        sim.rider_width_m or other.width_m,
+    )
+    sec = secondary_from_timeseries(frame, runs, dims, other.agent_id)
+    trace = dataclasses.replace(trace, secondary=sec)
     case = load_config(config, RunConfig).case
     summary = summarize(trace, names=DEFAULT_METRICS, params=run_params([case]))
     return {name: summary[name].iloc[0] for name in DEFAULT_METRICS}

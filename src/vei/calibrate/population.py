@@ -5,7 +5,9 @@
 riders: each gets its own v0, k_des (= mass / tau), look-ahead, speed and acceleration
 limits drawn from the profile population (:func:`vei.calibrate.profile.sample_population`);
 A and b are the profile's. A rider's vehicle force switch and k_des factor stay the case's
-(so an Aggressive configuration keeps f_veh off and its k_des amplification).
+(so an Aggressive configuration keeps f_veh off and its k_des amplification). Where the
+case's riders decide (``decision.enabled``) each gets its own critical gap, drawn from the
+gap-acceptance fit's logistic (:func:`sample_critical_gaps`): some riders hardly ever yield.
 """
 
 from __future__ import annotations
@@ -92,6 +94,7 @@ def population_cases(case: CaseConfig, pop: RiderPopulationConfig) -> list[CaseC
     if case.rider != "sfm":
         raise ConfigError(f"configuration {case.name!r}: a rider population needs rider 'sfm'")
     s = sample_riders(pop)
+    gaps = sample_critical_gaps(case.decision, pop.sample, pop.seed)  # decisions: their spread
     out = []
     for i in range(pop.sample):
         sfm = replace(
@@ -107,5 +110,23 @@ def population_cases(case: CaseConfig, pop: RiderPopulationConfig) -> list[CaseC
             b_veh_per_m=float(s["b_veh_per_m"][i]),
             speed_from_recording=False,
         )
-        out.append(replace(case, name=f"{case.name}#{i}", sfm=sfm))
+        dec = (
+            replace(case.decision, critical_gap_s=float(gaps[i]))
+            if gaps is not None
+            else case.decision
+        )
+        out.append(replace(case, name=f"{case.name}#{i}", sfm=sfm, decision=dec))
     return out
+
+
+def sample_critical_gaps(decision: Any, n: int, seed: int) -> FloatArray | None:
+    """[N] critical gaps [s] of a rider population that decides (``decision.enabled``):
+    logistic with location ``decision.critical_gap_s`` and scale ``decision.gap_scale_s``
+    (the gap-acceptance fit's spread: ``P(t_c < DTA)`` is the population's go
+    probability), within the setting's bounds [-30, 30] s; seeded apart from the SFM
+    draws. None where the riders do not decide."""
+    if not decision.enabled:
+        return None
+    u = np.random.default_rng([seed, 24]).uniform(1e-9, 1.0 - 1e-9, n)
+    t_c = decision.critical_gap_s + decision.gap_scale_s * np.log(u / (1.0 - u))
+    return np.clip(t_c, -30.0, 30.0)

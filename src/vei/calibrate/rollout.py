@@ -29,6 +29,7 @@ import numpy.typing as npt
 
 from vei.boxes import closest_point_on_box
 from vei.calibrate.tracks import MOVING_MPS, RiderTrack, SceneTracks
+from vei.models.drivable_path import jitter_mask
 from vei.models.ego import build_path
 
 FloatArray = npt.NDArray[np.float64]
@@ -130,16 +131,23 @@ def decimated(x: FloatArray, y: FloatArray, spacing_m: float) -> IntArray:
     return np.asarray(keep, dtype=np.intp)
 
 
-def pack_paths(tracks: list[RiderTrack]) -> PackedPaths:
+def pack_paths(tracks: list[RiderTrack], collapse_waits: bool = False) -> PackedPaths:
     """Arc-length tables (:func:`vei.models.ego.build_path`) of the tracks' smoothed paths.
 
     Each path is built from the positions spaced >= PATH_MIN_SPACING_M apart; a sample's
     arc length is that of the last kept point before it plus its distance from it.
+    ``collapse_waits``: a wait whose positions jitter contributes its first point only
+    (:func:`vei.models.drivable_path.jitter_mask`, as the engine's rider paths; the
+    whole-track rollouts of vei.calibrate.decision_validate, which start standing riders).
     """
     xs, ys, cs, ss, offs, ns, s0, lens, arcs = [], [], [], [], [], [], [], [], []
     total = 0
     for tr in tracks:
-        k = decimated(tr.x_m, tr.y_m, PATH_MIN_SPACING_M)
+        base = np.arange(tr.t_s.size)
+        if collapse_waits:
+            wait = jitter_mask(tr.x_m, tr.y_m, tr.t_s)
+            base = np.flatnonzero(~wait | np.concatenate([[True], ~wait[:-1]]))
+        k = base[decimated(tr.x_m[base], tr.y_m[base], PATH_MIN_SPACING_M)]
         yaw0 = float(np.arctan2(tr.vy_mps[0], tr.vx_mps[0]))
         p = build_path(
             tr.x_m[k], tr.y_m[k], yaw_hint_rad=yaw0, ds_m=PATH_DS_M, extend_m=PATH_EXTEND_M
@@ -227,6 +235,7 @@ def make_windows(
     horizon_s: float,
     stride_s: float = 0.5,
     dt_s: float = 0.05,
+    starts: list[tuple[int, int]] | None = None,
 ) -> Windows:
     """Every window of ``horizon_s`` starting every ``stride_s`` at a moving sample.
 
@@ -237,13 +246,15 @@ def make_windows(
         tracks: the rider tracks (index = ``Windows.track``). scenes: scenario -> its
             SceneTracks (for the vehicles). paths: :func:`pack_paths` of ``tracks``.
         horizon_s: rollout length [s]. stride_s: spacing of the starts [s]. dt_s: step [s].
+        starts: the windows' (track index, start sample) given (whole-track rollouts of
+            vei.calibrate.decision_validate; standing starts allowed) instead of found.
     Returns:
         The Windows (B may be 0).
     """
     h = int(round(horizon_s / dt_s))
     stride = max(1, int(round(stride_s / dt_s)))
-    rows: list[tuple[int, int]] = []
-    for j, tr in enumerate(tracks):
+    rows: list[tuple[int, int]] = [] if starts is None else list(starts)
+    for j, tr in enumerate(tracks if starts is None else ()):
         sp = tr.speed_mps
         for s in range(0, tr.t_s.size - h, stride):
             if sp[s] > MOVING_MPS:
@@ -323,6 +334,7 @@ def sfm_force(
     prog0: FloatArray,
     p: dict[str, FloatArray],
     veh: tuple[FloatArray, ...] | None,
+    speed_cap: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Social force on riders [B] (capped at m a_max) and their updated progress.
 
@@ -332,6 +344,8 @@ def sfm_force(
         x, y, vx, vy: rider state [B] (m, m/s). prog0: progress before the step [B] (m).
         p: parameters (PARAM_NAMES) [B]. veh: (x, y, yaw, length, width, active) [B, K]
             of the vehicles at this step, or None.
+        speed_cap: [B] a cap on the desired speed [m/s] (the yield decision's,
+            vei.calibrate.decision_validate; +inf = none), or None.
     Returns:
         (fx_n, fy_n, prog_m) [B].
     """
@@ -344,6 +358,8 @@ def sfm_force(
     dx = g[:, 0] - x
     dy = g[:, 1] - y
     f = p["v0_mps"] / np.sqrt(dx * dx + dy * dy + p["sigma_m"] ** 2)
+    if speed_cap is not None:
+        f = f * np.minimum(1.0, speed_cap / np.maximum(f * np.sqrt(dx * dx + dy * dy), 1e-9))
     k = p["k_des_nspm"]
     fx = k * (f * dx - vx)
     fy = k * (f * dy - vy)

@@ -53,6 +53,19 @@ OVERVIEW_COLUMNS: tuple[tuple[str, str, str, str], ...] = (
     ("mean_safety_index", "mean SI", ".3f", "mean safety index over the unflagged configurations"),
     ("worst_min_gap_m", "worst gap [m]", ".2f", "smallest simulated box gap"),
     ("casestudy_collisions", "case-study collisions", "d", "of the paper's five configurations"),
+    (
+        "secondary_share",
+        "secondary share",
+        ".3f",
+        "share of configurations with a secondary collision (the ego rear-ended, the rider into "
+        "another car, ...)",
+    ),
+    (
+        "rear_end_share",
+        "rear-end share",
+        ".3f",
+        "share of configurations in which a vehicle hit the ego from behind",
+    ),
 )
 
 

@@ -136,7 +136,9 @@ def encounter_scores(rows: pd.DataFrame) -> pd.DataFrame:
     ranks last. Returns columns encounter_id, recording, rider_id, category, the recorded
     geometry, n_configs, n_flagged, flagged_collisions, collision_share,
     mean_safety_index, worst_min_gap_m, worst_min_ttc_s, casestudy_collisions, the
-    ``risk_*`` columns where estimated, rank.
+    ``risk_*`` columns where estimated, secondary_share / rear_end_share (issue 24: share
+    of its unflagged configurations with a secondary / a rear-end collision, where the
+    rows report them), rank.
     """
     from vei.metrics.seen import flagged_mask
 
@@ -175,6 +177,13 @@ def encounter_scores(rows: pd.DataFrame) -> pd.DataFrame:
     out["casestudy_collisions"] = (
         cs.groupby("encounter_id")["collision"].sum().reindex(out.index).fillna(0).astype(int)
     )
+    # secondary collisions (issue 24): the share of configurations with one, a rear-end
+    for col, name in (
+        ("secondary_collision", "secondary_share"),
+        ("rear_end_collision", "rear_end_share"),
+    ):
+        if col in rows:
+            out[name] = g[col].apply(lambda c: c.fillna(False).astype(bool).mean()).astype(float)
     risk_cols = [c for c in all_rows.columns if c.startswith("risk_")]
     for c in risk_cols:  # issue 23: one estimate per encounter, constant over its rows
         out[c] = ga[c].first()

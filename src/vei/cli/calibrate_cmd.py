@@ -1,4 +1,5 @@
-"""``vei calibrate riders|validate``: fit the social-force rider to real rider tracks."""
+"""``vei calibrate riders|validate|decisions``: fit the social-force rider (and its yield /
+go decision) to real rider tracks."""
 
 from __future__ import annotations
 
@@ -106,9 +107,48 @@ def _validate(
         typer.echo(f"written: {path}")
 
 
+def _decisions(
+    root: Annotated[Path, typer.Option("--root", help=_ROOT_HELP)],
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Also write decisions.json (cases, fit, validation) here."),
+    ] = None,
+    horizon_s: Annotated[
+        float, typer.Option("--horizon-s", help="The rider's decision horizon [s] (> 0).")
+    ] = 4.0,
+    horizons: Annotated[
+        str, typer.Option("--horizons", help="Rollout horizons of the ADE/FDE check [s].")
+    ] = "3,5",
+) -> None:
+    """Yield / go cases of the recorded riders, the gap-acceptance fit, and its
+    leave-one-scenario-out validation (decisions, stops, ADE/FDE)."""
+    import time
+
+    from vei.calibrate.decision_validate import validate_decisions
+    from vei.calibrate.tracks import load_scenes
+    from vei.io.atomic import write_json
+
+    if not horizon_s > 0:
+        raise InputError(f"expected > 0, got {horizon_s}", field="--horizon-s")
+    try:
+        hs = tuple(float(h) for h in horizons.split(","))
+    except ValueError:
+        raise InputError(
+            f"expected numbers like 3,5; got {horizons!r}", field="--horizons"
+        ) from None
+    t0 = time.perf_counter()
+    val = validate_decisions(load_scenes(root), hs, decision_horizon_s=horizon_s)
+    typer.echo(val.format())
+    typer.echo(f"time: {time.perf_counter() - t0:.1f} s")
+    if out is not None:
+        path = write_json(Path(out) / "decisions.json", val.to_dict())
+        typer.echo(f"written: {path}")
+
+
 def register(app: typer.Typer) -> None:
     """Add the ``calibrate`` command group to the app."""
     cal = typer.Typer(help="Fit the rider model to real rider tracks.", no_args_is_help=True)
     cal.command("riders")(_riders)
     cal.command("validate")(_validate)
+    cal.command("decisions")(_decisions)
     app.add_typer(cal, name="calibrate")

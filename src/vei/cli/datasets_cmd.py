@@ -67,7 +67,8 @@ def _import_trafficmonitoring(
         typer.Option(
             "--road-users",
             help="'riders' (e-scooters and cyclists, the paper's annotations) or 'all' (also "
-            "the vehicles and pedestrians the camera tracked: occluders for perception and V2X).",
+            "the vehicles and pedestrians the camera tracked: occluders for perception and V2X, "
+            "the road users that react: case traffic settings).",
         ),
     ] = "riders",
 ) -> None:

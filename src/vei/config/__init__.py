@@ -15,6 +15,7 @@ presets, the settings table, and files read into them.
 nothing of vei but vei.errors and vei.types (DESIGN.md, dependency direction).
 """
 
+from vei.config.behaviour import DecisionConfig, TrafficConfig
 from vei.config.continuation import ContinuationConfig
 from vei.config.load import config_to_dict, load_config
 from vei.config.metrics import MetricsConfig
@@ -68,6 +69,7 @@ __all__ = [
     "CAPConfig",
     "CaseConfig",
     "ContinuationConfig",
+    "DecisionConfig",
     "DesiredVelocityForm",
     "EgoConfig",
     "EgoMode",
@@ -79,6 +81,7 @@ __all__ = [
     "RunConfig",
     "SFMConfig",
     "SimConfig",
+    "TrafficConfig",
     "V2XConfig",
     "case_preset",
     "config_to_dict",

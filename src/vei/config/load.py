@@ -14,6 +14,7 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
+from vei.config.behaviour import DecisionConfig, TrafficConfig
 from vei.config.continuation import ContinuationConfig
 from vei.config.metrics import MetricsConfig
 from vei.config.models import KERNEL_POLICIES, SFM_PRESETS, CAPConfig, EgoConfig, SFMConfig
@@ -69,6 +70,8 @@ def _build(cls: type[T], raw: Any, where: str) -> T:
         "sim": SimConfig,
         "metrics": MetricsConfig,
         "continuation": ContinuationConfig,
+        "decision": DecisionConfig,
+        "traffic": TrafficConfig,
     }
     if cls is RunConfig:  # CaseConfig.rider is a string; RunConfig.rider a population
         nested["rider"] = RiderPopulationConfig

@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
+from vei.config.behaviour import DecisionConfig, TrafficConfig
 from vei.config.continuation import ContinuationConfig
 from vei.config.metrics import MetricsConfig
 from vei.config.models import (
@@ -143,6 +144,11 @@ class CaseConfig:
             ``enabled: false`` = ideal perception (the paper's case). Its latency is
             ``cap.perception_delay_s``. Enabled, every closed-loop controller runs on the
             policy API (also 'none' / 'paper-cap'), which applies it.
+        decision: the social-force rider's yield / go decision at a conflict with the car
+            (:class:`vei.config.behaviour.DecisionConfig`; off by default: the paper's
+            rider).
+        traffic: recorded road users that react (:class:`vei.config.behaviour.
+            TrafficConfig`: IDM cars, social-force pedestrians; off by default: replayed).
         v2x: VRU awareness messages from equipped riders, fused with the perception
             (:class:`vei.config.v2x.V2XConfig`, docs/v2x.md); off by default. Enabled,
             every closed-loop controller runs on the policy API, which applies it.
@@ -155,6 +161,8 @@ class CaseConfig:
     ego: EgoConfig = field(default_factory=EgoConfig)
     cap: CAPConfig = field(default_factory=CAPConfig)
     perception: PerceptionConfig | None = None
+    decision: DecisionConfig = field(default_factory=DecisionConfig)
+    traffic: TrafficConfig = field(default_factory=TrafficConfig)
     v2x: V2XConfig = field(default_factory=V2XConfig)
 
     def __post_init__(self) -> None:
@@ -185,7 +193,13 @@ class CaseConfig:
             object.__setattr__(self, "ego_mode", KERNEL_POLICIES.get(pol, "policy"))
         elif self.ego_mode == "policy":
             raise ConfigError("ego_mode 'policy' needs ego.policy (a policy name or class)")
-        for name, cls in (("sfm", SFMConfig), ("ego", EgoConfig), ("cap", CAPConfig)):
+        for name, cls in (
+            ("sfm", SFMConfig),
+            ("ego", EgoConfig),
+            ("cap", CAPConfig),
+            ("decision", DecisionConfig),
+            ("traffic", TrafficConfig),
+        ):
             if not isinstance(getattr(self, name), cls):
                 raise ConfigError(f"{name} must be a {cls.__name__}")
         if self.ego_mode == "cap" and self.ego.max_decel_mps2 < -self.cap.a_min_mps2:

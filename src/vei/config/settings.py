@@ -51,7 +51,7 @@ NUMERIC_CONVERTS = (
     "identity", "times_k_des_factor", "none_is_inf", "median_moving", "none_is_default",
 )  # fmt: skip
 #: The run configuration's sections that hold settings (fields of CaseConfig).
-SECTIONS = ("sfm", "ego", "cap", "v2x")
+SECTIONS = ("sfm", "ego", "cap", "decision", "traffic", "v2x")
 
 
 @dataclass(frozen=True)
@@ -286,6 +286,54 @@ SETTINGS: tuple[Setting, ...] = (
             ("idm", "delta", "-", "IDM acceleration exponent", _POS, False),
         )
     ),
+    # ---- issue 24: the rider's yield / go decision (vei.models.decision_core)
+    _b("decide", "decision.enabled", "the social-force rider decides yield / go at a "
+       "conflict with the car (gap acceptance)", sweep=True),
+    _f("critical_gap_s", "decision.critical_gap_s", "s", "the rider's critical gap t_c on "
+       "the difference in time-to-arrival (the car's minus the rider's): it goes when the "
+       "offered gap is at least this", sweep=True, lower=-30.0, upper=30.0),
+    _f("decision_horizon_s", "decision.horizon_s", "s", "the rider decides when it is "
+       "this far (time to arrive) from the conflict zone", **_POS),
+    _f("yield_decel_mps2", "decision.yield_decel_mps2", "m/s^2", "deceleration of a "
+       "yielding rider's stop", sweep=True, **_POS),
+    _f("stop_margin_m", "decision.stop_margin_m", "m", "a yielding rider stops this far "
+       "short of the conflict zone", **_NONNEG),
+    _f("clear_margin_m", "decision.clear_margin_m", "m", "the car has left the conflict "
+       "zone once its rear is this far beyond it", **_NONNEG),
+    # ---- issue 24: recorded cars that react (IDM), pedestrians (social force)
+    _b("cars_react", "traffic.cars_react", "recorded cars on or across the ego's path "
+       "react (IDM along their recorded paths) when the ego deviates", sweep=True),
+    _f("car_v0_mps", "traffic.idm_desired_speed_mps", "m/s", "reacting cars' IDM desired "
+       "speed v0", sweep=True, **_POS),
+    _f("car_headway_s", "traffic.idm_time_headway_s", "s", "reacting cars' IDM time "
+       "headway T", sweep=True, **_NONNEG),
+    _f("car_min_gap_m", "traffic.idm_min_gap_m", "m", "reacting cars' IDM jam distance "
+       "s0", sweep=True, **_NONNEG),
+    _f("car_accel_mps2", "traffic.idm_max_accel_mps2", "m/s^2", "reacting cars' IDM "
+       "maximum acceleration a", sweep=True, **_POS),
+    _f("car_decel_mps2", "traffic.idm_comfort_decel_mps2", "m/s^2", "reacting cars' IDM "
+       "comfortable deceleration b", sweep=True, **_POS),
+    _f("car_delta", "traffic.idm_delta", "-", "reacting cars' IDM acceleration exponent",
+       **_POS),
+    _f("car_max_decel_mps2", "traffic.max_decel_mps2", "m/s^2", "reacting cars' hardest "
+       "braking", sweep=True, **_POS),
+    _f("car_reaction_s", "traffic.reaction_time_s", "s", "reacting drivers' reaction "
+       "time", sweep=True, **_NONNEG),
+    _f("car_trigger_mps2", "traffic.trigger_mps2", "m/s^2", "a car reacts once the IDM "
+       "asks this much more braking of it than its recording", **_NONNEG),
+    _b("peds_sfm", "traffic.pedestrians", "recorded pedestrians walk by the social force "
+       "(Helbing-Molnar), reacting to the car, the riders and each other (the NumPy step)",
+       sweep=True, kernel=False),
+    _f("ped_tau_s", "traffic.ped_tau_s", "s", "pedestrians' relaxation time tau", **_POS, kernel=False),
+    _f("ped_a_n", "traffic.ped_a_n", "N", "pedestrians' repulsion strength A", **_NONNEG, kernel=False),
+    _f("ped_b_m", "traffic.ped_b_m", "m", "pedestrians' repulsion range B among "
+       "pedestrians", **_POS, kernel=False),
+    _f("ped_mass_kg", "traffic.ped_mass_kg", "kg", "pedestrian mass", **_POS, kernel=False),
+    _f("ped_lambda", "traffic.ped_lambda", "-", "pedestrians' anisotropy lambda (1 = "
+       "isotropic)", lower=0.0, upper=1.0, kernel=False),
+    _f("ped_radius_m", "traffic.ped_radius_m", "m", "pedestrian body radius", **_POS, kernel=False),
+    _f("ped_vehicle_range_m", "traffic.ped_vehicle_range_m", "m", "range B of a "
+       "pedestrian's repulsion from vehicles and riders", **_POS, kernel=False),
     Setting("labels", "name", "object", "the configuration's name (outputs)", kind="object",
             kernel=False),
 )  # fmt: skip

@@ -18,6 +18,7 @@ same outputs. ``write_casestudy`` writes::
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import importlib.util
 from collections.abc import Callable, Sequence
@@ -38,6 +39,7 @@ from vei.metrics import (
     summary_records,
     trace_from_timeseries,
 )
+from vei.metrics.secondary import secondary_from_timeseries
 from vei.types import CONTINUATION_COLUMN, EGO_ID, TIMESERIES_COLUMNS, Scenario
 
 #: Signature of a backend: (scenario, cases, time_shift_s, sim) -> long time series with
@@ -354,6 +356,12 @@ def run_casestudy(
     other_dims = (sim.rider_length_m or other.length_m, sim.rider_width_m or other.width_m)
     trace, runs = trace_from_timeseries(
         frame, other_id=other.agent_id, ego_dims_m=ego_dims, other_dims_m=other_dims
+    )
+    # secondary collisions (issue 24): every contact but the ego's with the rider
+    dims = {a.agent_id: (a.length_m, a.width_m) for a in scenario.agents}
+    dims.update({EGO_ID: ego_dims, other.agent_id: other_dims})
+    trace = dataclasses.replace(
+        trace, secondary=secondary_from_timeseries(frame, runs, dims, other.agent_id)
     )
     names = [c for c, _ in runs]
     order = [c.name for c in case_objs]

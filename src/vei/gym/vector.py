@@ -284,6 +284,16 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             fields[name] = np.zeros((n, 0))
         for name in ("extra_active", "extra_started", "extra_done", "extra_hit"):
             fields[name] = np.zeros((n, 0), bool)
+        # issue 24's state (the env's rider never decides, its cars replay, no pedestrians
+        # walk): as at k = 0; the contact latches and secondary summaries are not kept
+        from vei.sim.contacts import initial_contact_state
+        from vei.sim.pedestrians import initial_pedestrian_state
+        from vei.sim.traffic import initial_traffic_state
+
+        fields["rider_decision"] = np.zeros(n, np.int8)
+        fields.update(initial_traffic_state(arrays, n))
+        fields.update(initial_contact_state(n, no, arrays.traffic.n))
+        fields.update(initial_pedestrian_state(arrays, n))
         return SimState(**fields)
 
     def reset(

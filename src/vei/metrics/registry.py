@@ -17,6 +17,7 @@ import numpy.typing as npt
 import vei.metrics.conflict as conflict
 import vei.metrics.ego_dynamics as ego_dynamics
 import vei.metrics.kinematics as kinematics
+import vei.metrics.secondary as secondary
 import vei.metrics.seen as seen
 import vei.metrics.severity as severity
 import vei.metrics.ttc as ttc
@@ -280,6 +281,51 @@ _ALL: tuple[Metric, ...] = (
         "the paper's safety index on the zones of the relative-velocity TTC "
         "(min_ttc_rel_s's series), 0 on collision",
         lambda a, c: seen.safety_index_rel(a, c),
+    ),
+    # ---- issue 24: secondary collisions (every contact but the ego's with this rider)
+    Metric(
+        "secondary_collision",
+        "scalar",
+        "bool",
+        "some other pair of road users touched (the ego rear-ended, the rider into a car, a "
+        "reacting car into another; vei.metrics.secondary)",
+        lambda a, c: secondary.secondary_metric("secondary_collision", a),
+    ),
+    Metric(
+        "secondary_collisions",
+        "scalar",
+        "1",
+        "number of pairs of road users that touched, the ego / rider pair aside (NaN: the "
+        "source reports none)",
+        lambda a, c: secondary.secondary_metric("secondary_collisions", a),
+    ),
+    Metric(
+        "secondary_first",
+        "scalar",
+        "label",
+        "the first secondary collision, 'striker -> struck' ('' if none)",
+        lambda a, c: secondary.secondary_metric("secondary_first", a),
+    ),
+    Metric(
+        "secondary_time_s",
+        "scalar",
+        "s",
+        "time of the first secondary collision (NaN if none)",
+        lambda a, c: secondary.secondary_metric("secondary_time_s", a),
+    ),
+    Metric(
+        "secondary_impact_speed_mps",
+        "scalar",
+        "m/s",
+        "highest relative speed at a secondary collision (NaN if none)",
+        lambda a, c: secondary.secondary_metric("secondary_impact_speed_mps", a),
+    ),
+    Metric(
+        "rear_end_collision",
+        "scalar",
+        "bool",
+        "a vehicle hit the ego from behind (the cost of hard braking)",
+        lambda a, c: secondary.secondary_metric("rear_end_collision", a),
     ),
     Metric("ttc_s", "series", "s", "paper TTC per step", lambda a, c: ttc.paper_ttc(a, c)),
     Metric(

@@ -113,6 +113,86 @@ def decimate_standstill(
     return np.asarray(keep, dtype=np.intp)
 
 
+#: A road user dwells where its track stays within this radius [m] of one point for at
+#: least DWELL_MIN_S [s] (the reconstructed tracks of waiting riders jitter by up to a
+#: metre: 1.4 m on stadtmitte_12_audi_geradeaus_03, 1.1 m on
+#: audi_10_marktkauf_linksabbiegen's cyclist_1, which waits for 20 s).
+DWELL_RADIUS_M = 1.5
+DWELL_MIN_S = 2.0
+
+
+def dwell_segments(
+    x_m: FloatArray,
+    y_m: FloatArray,
+    t_s: FloatArray,
+    radius_m: float = DWELL_RADIUS_M,
+    min_dwell_s: float = DWELL_MIN_S,
+) -> list[tuple[int, int]]:
+    """The dwells of a track: [(i, j)] sample ranges [i, j) over which it stays within
+    ``radius_m`` of sample i for at least ``min_dwell_s`` (a dwell ends at the first
+    sample that leaves the radius; the next is looked for from there). A track that moves
+    at more than ``radius_m / min_dwell_s`` (0.75 m/s) everywhere has none.
+
+    Args:
+        x_m, y_m: [M] positions in time order [m]. t_s: [M] their times [s].
+        radius_m, min_dwell_s: the dwell's radius [m] and least duration [s].
+    """
+    x = np.asarray(x_m, dtype=np.float64)
+    y = np.asarray(y_m, dtype=np.float64)
+    t = np.asarray(t_s, dtype=np.float64)
+    n = x.shape[0]
+    out: list[tuple[int, int]] = []
+    r2 = radius_m * radius_m
+    i = 0
+    while i < n:
+        # the samples within min_dwell_s of sample i: all inside the radius?
+        m = int(np.searchsorted(t, t[i] + min_dwell_s - 1e-9, side="left"))
+        if m >= n or np.any((x[i : m + 1] - x[i]) ** 2 + (y[i : m + 1] - y[i]) ** 2 >= r2):
+            i += 1
+            continue
+        d2 = (x[m:] - x[i]) ** 2 + (y[m:] - y[i]) ** 2
+        away = np.flatnonzero(d2 >= r2)
+        j = m + int(away[0]) if away.size else n
+        out.append((i, j))
+        i = j
+    return out
+
+
+def dwell_mask(
+    x_m: FloatArray,
+    y_m: FloatArray,
+    t_s: FloatArray,
+    radius_m: float = DWELL_RADIUS_M,
+    min_dwell_s: float = DWELL_MIN_S,
+) -> npt.NDArray[np.bool_]:
+    """[M] True at the samples of the track's dwells (:func:`dwell_segments`)."""
+    out = np.zeros(np.shape(x_m)[0], dtype=bool)
+    for i, j in dwell_segments(x_m, y_m, t_s, radius_m, min_dwell_s):
+        out[i:j] = True
+    return out
+
+
+#: A dwell jitters when the track travels more than twice its reach from the dwell's
+#: first sample plus this [m] within it: a reconstructed waiting rider goes back and forth
+#: (tens of metres within a metre); a standing run-in travels nothing; slow, steady motion
+#: travels about its reach.
+JITTER_M = 1.0
+
+
+def jitter_mask(x_m: FloatArray, y_m: FloatArray, t_s: FloatArray) -> npt.NDArray[np.bool_]:
+    """[M] the samples of the dwells (:func:`dwell_segments`) along which the track
+    jitters (see :data:`JITTER_M`): a wait whose path through its positions has loops."""
+    x = np.asarray(x_m, dtype=np.float64)
+    y = np.asarray(y_m, dtype=np.float64)
+    out = np.zeros(x.shape[0], dtype=bool)
+    for i, j in dwell_segments(x, y, t_s):
+        travel = float(np.hypot(np.diff(x[i:j]), np.diff(y[i:j])).sum())
+        reach = float(np.hypot(x[i:j] - x[i], y[i:j] - y[i]).max())
+        if travel > 2.0 * reach + JITTER_M:
+            out[i:j] = True
+    return out
+
+
 def path_curvature(path: PathTable, recorded_only: bool = True) -> FloatArray:
     """Curvature d(yaw)/ds of a PathTable's grid [1/m] (central differences), [N] or the
     recorded part [0, length_m] only."""

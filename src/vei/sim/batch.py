@@ -42,6 +42,11 @@ class Block:
         rider_limits: some variant has a finite rider speed / acceleration cap.
         policy: the block's ego policy instance (ego_mode 3), unbound, else None.
         perception: the block's enabled PerceptionConfig, else None.
+        decide: the rider's yield / go decision (VariantParams.decide): True / False if
+            uniform in the block (False for replay blocks), else the [b] mask.
+        traffic: the recorded cars react (VariantParams.cars_react): True / False if
+            uniform in the block, else the [b] mask. peds: the recorded pedestrians walk by
+            the social force (VariantParams.peds_sfm), alike.
         v2x: the block's enabled V2XConfig, else None.
     """
 
@@ -58,6 +63,9 @@ class Block:
     rider_limits: bool
     policy: Any = None
     perception: Any = None
+    decide: bool | npt.NDArray[np.bool_] = False
+    traffic: bool | npt.NDArray[np.bool_] = False
+    peds: bool | npt.NDArray[np.bool_] = False
     v2x: Any = None
 
 
@@ -138,6 +146,9 @@ def batch_flags(params: VariantParams, dt_s: float) -> BatchFlags:
                 and bool((np.isfinite(bp.max_speed_mps) | np.isfinite(bp.max_accel_mps2)).any()),
                 policy=bp.policy[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
                 perception=bp.perception[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
+                decide=_switch(bp.decide) if sfm else False,
+                traffic=_switch(bp.cars_react),
+                peds=_switch(bp.peds_sfm),
                 v2x=bp.v2x[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
             )
         )

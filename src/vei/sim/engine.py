@@ -62,7 +62,14 @@ from vei.errors import ConfigError
 from vei.policy.perception_random import label_keys
 from vei.sim.batch import BatchFlags, Block, batch_flags, group_keys
 from vei.sim.observe import PolicyDriver
-from vei.sim.result import _RECORDED, _RECORDED_EXTRA, SimResult
+from vei.sim.result import (
+    _RECORDED,
+    _RECORDED_BEHAVIOUR,
+    _RECORDED_CARS,
+    _RECORDED_EXTRA,
+    _RECORDED_PEDS,
+    SimResult,
+)
 from vei.sim.state import EGO_POLICY, ScenarioArrays, SimState, VariantParams, prepare_scenario
 from vei.sim.step import initial_state, step
 from vei.types import Scenario
@@ -73,7 +80,9 @@ if TYPE_CHECKING:
     from vei.config.metrics import MetricsConfig
 
 FloatArray = npt.NDArray[np.float64]
-_XNAMES = tuple(name for name, _, _ in _RECORDED_EXTRA)
+_XNAMES = tuple(name for name, _, _ in _RECORDED_EXTRA + _RECORDED_CARS + _RECORDED_PEDS)
+#: Every [B, T] series the engine records (the behaviour's beside the digested ones).
+_SERIES = _RECORDED + _RECORDED_BEHAVIOUR
 Record = Literal["full", "none"]
 Kernel = Literal["numpy", "numba", "auto"]
 
@@ -113,6 +122,8 @@ def simulate(
     from vei.sim import kernel as compiled
 
     use_numba = kernel == "numba" or (kernel == "auto" and compiled.available())
+    # social-force pedestrians (vei.sim.pedestrians) run the NumPy step only
+    use_numba = use_numba and not (arrays.peds.n and bool(params.peds_sfm.any()))
     # Group the variants into contiguous blocks of equal (ego mode, rider model, policy);
     # the outputs are put back into the caller's order at the end.
     keys = group_keys(params)
@@ -160,7 +171,7 @@ def simulate(
             }
         )
     series: dict[str, np.ndarray | None] = {
-        name: (bufs[name].T if bufs else None) for name, _, _ in _RECORDED
+        name: (bufs[name].T if bufs else None) for name, _, _ in _SERIES
     }
     return SimResult(
         t_s=arrays.t_s.copy(),
@@ -190,7 +201,9 @@ def simulate(
         extra_categories=arrays.riders.categories,
         extra_length_m=arrays.riders.length_m,
         extra_width_m=arrays.riders.width_m,
-        **{name: (xbufs[name].transpose(1, 0, 2) if xbufs else None) for name in _XNAMES},
+        car_ids=tuple(arrays.other_ids[j] for j in arrays.traffic.idx),
+        ped_ids=tuple(arrays.other_ids[j] for j in arrays.peds.idx),
+        **{name: (xbufs[name].transpose(1, 0, 2) if name in xbufs else None) for name in _XNAMES},
         **series,
     )
 
@@ -216,22 +229,28 @@ def _run_sorted(
     n_x = arrays.riders.n
     hit_buf = None
     if record == "full":
-        for name, _, dtype in _RECORDED:
+        for name, _, dtype in _SERIES:
             bufs[name] = np.empty((t_n, b), dtype=dtype)
         hit_buf = np.empty((t_n, b, no), dtype=bool)
         for name, _, dtype in _RECORDED_EXTRA:
             xbufs[name] = np.empty((t_n, b, n_x), dtype=dtype)
+        for name, _, dtype in _RECORDED_CARS:  # reacting cars [T, B, C]
+            xbufs[name] = np.empty((t_n, b, arrays.traffic.n), dtype=dtype)
+        if not use_numba:  # pedestrians [T, B, P] (the NumPy step only)
+            for name, _, dtype in _RECORDED_PEDS:
+                xbufs[name] = np.empty((t_n, b, arrays.peds.n), dtype=dtype)
     coll_t = np.full(b, np.nan)
     min_d = np.full(b, np.inf)
 
     def _rec(st: SimState) -> None:
         k = st.k
         if bufs:
-            for name, attr, _ in _RECORDED:
+            for name, attr, _ in _SERIES:
                 bufs[name][k] = getattr(st, attr)
             hit_buf[k] = st.hit_other
-            for name, attr, _ in _RECORDED_EXTRA:
-                xbufs[name][k] = getattr(st, attr)
+            for name, attr, _ in _RECORDED_EXTRA + _RECORDED_CARS + _RECORDED_PEDS:
+                if name in xbufs:
+                    xbufs[name][k] = getattr(st, attr)
         newly = st.collided & np.isnan(coll_t)
         if newly.any():
             coll_t[newly] = arrays.t_s[k]
@@ -357,8 +376,8 @@ def simulate_metrics(
     fused = np.zeros(b, dtype=bool)
     from vei.metrics.fused_layout import FUSED_METRICS, config_vector, metrics_frame
 
-    if use_numba and all(n in FUSED_METRICS for n in names):
-        fused = params.ego_mode != EGO_POLICY
+    if use_numba and all(n in kernel_metrics() for n in names):
+        fused = (params.ego_mode != EGO_POLICY) & ~(params.peds_sfm & bool(arrays.peds.n))
     parts: list[tuple[np.ndarray, pd.DataFrame]] = []
     idx = np.flatnonzero(fused)
     if idx.size:
@@ -370,7 +389,10 @@ def simulate_metrics(
         out = compiled.run(arrays, run_params, state, fl.hist_len, False, config_vector(cfg))
         rows = np.empty_like(out["metrics"])
         rows[perm] = out["metrics"]
-        parts.append((idx, metrics_frame(rows, names, cfg)))
+        frame = metrics_frame(rows, [n for n in names if n in FUSED_METRICS], cfg)
+        if len(frame.columns) < len(names):  # the secondary collisions, from the kernel's state
+            frame = _with_secondary(frame, names, arrays, out["final"], perm)
+        parts.append((idx, frame))
     rest = np.flatnonzero(~fused)
     for start in range(0, rest.size, full_batch):
         sel = rest[start : start + full_batch]
@@ -388,6 +410,47 @@ def simulate_metrics(
     order = np.concatenate([i for i, _ in parts])
     frame = pd.concat([f for _, f in parts], ignore_index=True)
     return frame.iloc[np.argsort(order, kind="stable")].reset_index(drop=True)
+
+
+def kernel_metrics() -> tuple[str, ...]:
+    """The scalar metrics :func:`simulate_metrics` scores inside the compiled kernel's pass:
+    the fused ones (vei.metrics.fused_layout.FUSED_METRICS) and the secondary collisions
+    (vei.metrics.secondary: the kernel's own contact latches)."""
+    from vei.metrics.fused_layout import FUSED_METRICS
+    from vei.metrics.secondary import SECONDARY_METRICS
+
+    return FUSED_METRICS + SECONDARY_METRICS
+
+
+def _with_secondary(
+    frame: pd.DataFrame,
+    names: Sequence[str],
+    arrays: ScenarioArrays,
+    final: dict[str, np.ndarray],
+    perm: npt.NDArray[np.intp],
+) -> pd.DataFrame:
+    """``frame`` with the requested secondary-collision columns from the kernel's final
+    state (sorted by ``perm``), in ``names`` order."""
+    import pandas as pd
+
+    from vei.metrics.secondary import secondary_column, secondary_record
+    from vei.sim.contacts import agent_name
+
+    def back(a: np.ndarray) -> np.ndarray:
+        out = np.empty_like(a)
+        out[perm] = a
+        return out
+
+    ids = (arrays.rider_id, arrays.other_ids, arrays.riders.ids)
+    rec = secondary_record(
+        back(final["sec_count"]), back(final["sec_first_t_s"]),
+        [agent_name(int(c), *ids) for c in back(final["sec_striker"])],
+        [agent_name(int(c), *ids) for c in back(final["sec_struck"])],
+        back(final["sec_max_speed_mps"]), back(final["rear_end"]),
+    )  # fmt: skip
+    b = perm.size
+    cols = {n: frame[n] if n in frame.columns else secondary_column(n, rec, b) for n in names}
+    return pd.DataFrame(cols)
 
 
 def run_cases(

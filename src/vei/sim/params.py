@@ -142,6 +142,30 @@ class VariantParams:
     idm_time_headway_s: FloatArray
     idm_min_gap_m: FloatArray
     idm_delta: FloatArray
+    decide: BoolArray
+    critical_gap_s: FloatArray
+    decision_horizon_s: FloatArray
+    yield_decel_mps2: FloatArray
+    stop_margin_m: FloatArray
+    clear_margin_m: FloatArray
+    cars_react: BoolArray
+    car_v0_mps: FloatArray
+    car_headway_s: FloatArray
+    car_min_gap_m: FloatArray
+    car_accel_mps2: FloatArray
+    car_decel_mps2: FloatArray
+    car_delta: FloatArray
+    car_max_decel_mps2: FloatArray
+    car_reaction_s: FloatArray
+    car_trigger_mps2: FloatArray
+    peds_sfm: BoolArray
+    ped_tau_s: FloatArray
+    ped_a_n: FloatArray
+    ped_b_m: FloatArray
+    ped_mass_kg: FloatArray
+    ped_lambda: FloatArray
+    ped_radius_m: FloatArray
+    ped_vehicle_range_m: FloatArray
     labels: npt.NDArray[np.object_]
 
     def __post_init__(self) -> None:
@@ -250,8 +274,11 @@ class VariantParams:
             from vei.models.sfm import speed_from_recording
 
             tr = arrays.rider_track
+            moving = getattr(arrays, "rider_moving_speeds_mps", None)  # outside its waits
             v0, vmax = speed_from_recording(
-                recorded_column(
+                moving
+                if moving is not None
+                else recorded_column(
                     tr, "speed_mps", getattr(arrays, "rider_recorded_span_s", (-math.inf, math.inf))
                 ),
                 sfm.lookahead_m,

@@ -55,6 +55,18 @@ class SimResult:
             [B, T, R] their simulated poses (replayed in replay variants); extra_active
             [B, T, R] presence; extra_hit [B, T, R] the ego-contact latch. None without
             time series.
+        rider_decision: [B, T] int8 the social-force rider's decision (vei.models.
+            decision_core: 0 FREE, 1 GO, 2 YIELD; 0 throughout without decisions); None
+            without time series.
+        car_ids: the reacting cars (vei.sim.traffic; their ids among other_ids).
+        car_x_m, car_y_m, car_yaw_rad, car_speed_mps: [B, T, C] their poses [m, rad] and
+            speeds [m/s] (their recording while they replay) in the variants with
+            ``cars_react`` (elsewhere not advanced: use the others' recording); car_mode
+            [B, T, C] int8 (0 replay, 1 reacting, 2 IDM, 3 stopped). None without time series. The secondary
+            collisions of each run are in ``final_state`` (sec_*, rear_end).
+        ped_ids: the recorded pedestrians (vei.sim.pedestrians). ped_x_m, ped_y_m,
+            ped_vx_mps, ped_vy_mps: [B, T, P] their engine poses and velocities where
+            ``peds_sfm`` (NumPy step; None from the compiled kernel).
     """
 
     t_s: FloatArray
@@ -108,6 +120,24 @@ class SimResult:
     extra_accel_mps2: FloatArray | None = None
     extra_active: npt.NDArray[np.bool_] | None = None
     extra_hit: npt.NDArray[np.bool_] | None = None
+    rider_decision: npt.NDArray[np.int8] | None = None
+    car_ids: tuple[str, ...] = ()
+    car_x_m: FloatArray | None = None
+    car_y_m: FloatArray | None = None
+    car_yaw_rad: FloatArray | None = None
+    car_speed_mps: FloatArray | None = None
+    car_mode: npt.NDArray[np.int8] | None = None
+    ped_ids: tuple[str, ...] = ()
+    ped_x_m: FloatArray | None = None
+    ped_y_m: FloatArray | None = None
+    ped_vx_mps: FloatArray | None = None
+    ped_vy_mps: FloatArray | None = None
+
+    @property
+    def secondary_count(self) -> npt.NDArray[np.int32]:
+        """[B] secondary collisions (every contact but the ego's with the primary rider,
+        vei.sim.contacts)."""
+        return np.asarray(self.final_state.sec_count)
 
     @property
     def batch_size(self) -> int:
@@ -159,7 +189,26 @@ class SimResult:
             ego_width_m=self.ego_width_m,
             other_length_m=self.rider_length_m,
             other_width_m=self.rider_width_m,
+            secondary=self.secondary(sel),
         )
+
+    def secondary(self, sel: slice | npt.NDArray[np.intp] = slice(None)) -> dict[str, np.ndarray]:
+        """The secondary collisions of the variants ``sel`` (vei.metrics.secondary.
+        secondary_record, from the engine's contact latches in ``final_state``)."""
+        from vei.metrics.secondary import secondary_record
+        from vei.sim.contacts import agent_name
+
+        fs = self.final_state
+
+        def names(codes: np.ndarray) -> list[str]:
+            ids = (self.rider_id, self.other_ids, self.extra_ids)
+            return [agent_name(int(c), *ids) for c in np.asarray(codes)[sel]]
+
+        return secondary_record(
+            np.asarray(fs.sec_count)[sel], np.asarray(fs.sec_first_t_s)[sel],
+            names(fs.sec_striker), names(fs.sec_struck),
+            np.asarray(fs.sec_max_speed_mps)[sel], np.asarray(fs.rear_end)[sel],
+        )  # fmt: skip
 
     def to_frame(
         self,
@@ -246,19 +295,47 @@ class SimResult:
                 df = _flatten(part, nb, t, 2 + n_x + j)
                 frames.append(df[act.ravel()])
         if include_others:
+            cars = (
+                {cid: c for c, cid in enumerate(self.car_ids)} if self.car_x_m is not None else {}
+            )
+            peds = (
+                {pid: q for q, pid in enumerate(self.ped_ids)} if self.ped_x_m is not None else {}
+            )
             for j, oid in enumerate(self.other_ids):
                 act = self.other_active[:, j]
-                acc = np.zeros(t)
+                if oid in peds:  # a social-force pedestrian where the variant simulates it
+                    q = peds[oid]
+                    on = np.asarray(self.params.peds_sfm)[idx][:, None]
+                    vx, vy = self.ped_vx_mps[idx, :, q], self.ped_vy_mps[idx, :, q]
+                    xs = np.where(on, self.ped_x_m[idx, :, q], self.other_x_m[:, j])
+                    ys = np.where(on, self.ped_y_m[idx, :, q], self.other_y_m[:, j])
+                    sp_ = np.hypot(vx, vy)
+                    yaws = np.where(on & (sp_ > 0.05), np.arctan2(vy, vx), self.other_yaw_rad[:, j])
+                    sps = np.where(on, sp_, self.other_speed_mps[:, j])
+                elif (
+                    oid in cars
+                ):  # a reacting car: the engine's pose (its recording while replayed)
+                    c = cars[oid]
+                    on = np.asarray(self.params.cars_react)[idx][:, None]  # else replayed
+                    xs = np.where(on, self.car_x_m[idx, :, c], self.other_x_m[:, j])
+                    ys = np.where(on, self.car_y_m[idx, :, c], self.other_y_m[:, j])
+                    yaws = np.where(on, self.car_yaw_rad[idx, :, c], self.other_yaw_rad[:, j])
+                    driven = on & (self.car_mode[idx, :, c] > 1)  # replayed: the recorded speed
+                    sps = np.where(
+                        driven, self.car_speed_mps[idx, :, c], self.other_speed_mps[:, j]
+                    )
+                else:
+                    xs = np.broadcast_to(self.other_x_m[:, j], (nb, t))
+                    ys = np.broadcast_to(self.other_y_m[:, j], (nb, t))
+                    yaws = np.broadcast_to(self.other_yaw_rad[:, j], (nb, t))
+                    sps = np.broadcast_to(self.other_speed_mps[:, j], (nb, t))
+                acc = np.zeros((nb, t))
                 if t > 1:
-                    acc[1:] = np.diff(self.other_speed_mps[:, j]) / (self.t_s[1] - self.t_s[0])
+                    acc[:, 1:] = np.diff(sps, axis=1) / (self.t_s[1] - self.t_s[0])
                 part = {
                     "config": cfg, "variant": var, "t_s": tt, "agent_id": oid,
                     "category": self.other_categories[j],
-                    "x_m": np.broadcast_to(self.other_x_m[:, j], (nb, t)),
-                    "y_m": np.broadcast_to(self.other_y_m[:, j], (nb, t)),
-                    "yaw_rad": np.broadcast_to(self.other_yaw_rad[:, j], (nb, t)),
-                    "speed_mps": np.broadcast_to(self.other_speed_mps[:, j], (nb, t)),
-                    "accel_mps2": np.broadcast_to(acc, (nb, t)),
+                    "x_m": xs, "y_m": ys, "yaw_rad": yaws, "speed_mps": sps, "accel_mps2": acc,
                     "active": np.broadcast_to(act, (nb, t)),
                     "collided": self.hit_other[idx, :, j], "cap_state": "",
                 }  # fmt: skip
@@ -316,4 +393,25 @@ _RECORDED_EXTRA = (
     ("extra_accel_mps2", "extra_a_mps2", np.float64),
     ("extra_active", "extra_active", np.bool_),
     ("extra_hit", "extra_hit", np.bool_),
+)
+
+#: (SimResult field, SimState field, dtype) of the [B, T] series of the road users'
+#: behaviour (issue 24), recorded beside :data:`_RECORDED` (whose arrays the kernel's
+#: regression digests hash).
+_RECORDED_BEHAVIOUR = (("rider_decision", "rider_decision", np.int8),)
+#: (SimResult field, SimState field, dtype) of the reacting cars' [B, T, C] series.
+_RECORDED_CARS = (
+    ("car_x_m", "car_x_m", np.float64),
+    ("car_y_m", "car_y_m", np.float64),
+    ("car_yaw_rad", "car_yaw_rad", np.float64),
+    ("car_speed_mps", "car_v_mps", np.float64),
+    ("car_mode", "car_mode", np.int8),
+)
+#: (SimResult field, SimState field, dtype) of the pedestrians' [B, T, P] series (the NumPy
+#: step only: the compiled kernel does not simulate pedestrians).
+_RECORDED_PEDS = (
+    ("ped_x_m", "ped_x_m", np.float64),
+    ("ped_y_m", "ped_y_m", np.float64),
+    ("ped_vx_mps", "ped_vx_mps", np.float64),
+    ("ped_vy_mps", "ped_vy_mps", np.float64),
 )

@@ -26,7 +26,7 @@ from vei.boxes import boxes_overlap
 from vei.continuation import recorded_span_s
 from vei.errors import InputError
 from vei.models import sfm as sfm_model
-from vei.models.drivable_path import decimate_standstill, recorded_arc_length
+from vei.models.drivable_path import decimate_standstill, jitter_mask, recorded_arc_length
 from vei.models.ego import PathTable, build_path
 from vei.sim.tables import TimeTable, _uniform_track, recorded_column
 from vei.types import EGO_ID, RIDER_CATEGORIES, Scenario
@@ -78,7 +78,19 @@ def rider_track(
         vx = vy = np.zeros_like(rx)
     sp = tr["speed_mps"].to_numpy(dtype=np.float64)
     sp = np.where(np.isfinite(sp), sp, np.hypot(vx, vy))
-    if min_step_m is None:
+    dwell = jitter_mask(rx, ry, rt) if min_step_m is None else None
+    if min_step_m is None and dwell is not None and dwell.any():
+        # A rider that waits (its track jitters within a metre for seconds): its path runs
+        # through the first point of each wait only (a social-force rider, whose progress
+        # never goes back, would get stuck in the jitter's loops), its arc_m is the
+        # recorded positions' monotone arc length along that path.
+        keep = ~dwell | np.concatenate([[True], ~dwell[:-1]])
+        path = build_path(
+            rx[keep], ry[keep], yaw_hint_rad=float(ryaw[0]), extend_m=50.0,
+            where=f"{where}: {agent_id}",
+        )  # fmt: skip
+        arc = np.maximum(recorded_arc_length(path, rx, ry), 0.0)
+    elif min_step_m is None:
         arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(rx), np.diff(ry)))])
         path = build_path(
             rx, ry, yaw_hint_rad=float(ryaw[0]), extend_m=50.0, where=f"{where}: {agent_id}"
@@ -96,6 +108,23 @@ def rider_track(
     df = tr.assign(yaw_rad=ryaw, speed_mps=sp, vx_mps=vx, vy_mps=vy, arc_m=arc)
     t0, dt, data = _uniform_track(df, RIDER_COLUMNS, f"{where}: {agent_id}")
     return TimeTable(t0, dt, data, RIDER_COLUMNS), path
+
+
+def moving_speeds(track: TimeTable, span_s: tuple[float, float]) -> FloatArray | None:
+    """The recorded speeds [m/s] of a rider's moving parts: its table's samples inside the
+    recorded span ``span_s`` outside its jittering waits (:func:`vei.models.drivable_path.
+    jitter_mask`: a waiting rider's jitter reads as 0.5-1 m/s of speed and would pull the
+    median moving speed, the calibrated rider's cruise speed, down); None where it never
+    dwells (then every recorded sample counts, as before)."""
+    t = track.t0_s + np.arange(track.data.shape[0]) * track.dt_s
+    rec = (t >= span_s[0] - 1e-6) & (t <= span_s[1] + 1e-6)
+    x, y = track.data[rec, track.col("x_m")], track.data[rec, track.col("y_m")]
+    if x.size == 0:
+        return None
+    dwell = jitter_mask(x, y, t[rec])
+    if not dwell.any():
+        return None
+    return np.ascontiguousarray(track.data[rec, track.col("speed_mps")][~dwell])
 
 
 @dataclass(frozen=True)

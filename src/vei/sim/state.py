@@ -27,6 +27,7 @@ from vei.models.drivable_path import (
     recorded_arc_length,
 )
 from vei.models.ego import PathTable, median_moving_speed_mps
+from vei.sim.decisions import Conflicts, find_conflicts
 from vei.sim.params import (
     EGO_CAP,
     EGO_MODE_CODES,
@@ -35,15 +36,18 @@ from vei.sim.params import (
     EGO_REPLAY_SPEED,
     VariantParams,
 )
+from vei.sim.pedestrians import Pedestrians, prepare_pedestrians
 from vei.sim.riders import (
     RIDER_PATH_STEP_M,
     ExtraRiders,
+    moving_speeds,
     prepare_extra_riders,
     rider_track,
     select_extra_riders,
     sfm_entry_s,
 )
 from vei.sim.tables import TimeTable, _uniform_track
+from vei.sim.traffic import Traffic, prepare_traffic
 from vei.types import EGO_ID, Scenario
 
 FloatArray = npt.NDArray[np.float64]
@@ -92,6 +96,15 @@ class ScenarioArrays:
             by its forces (vei.sim.riders.sfm_entry_s: the track's start, or its first
             recorded sample after a standing run-in, where it waits replayed); -inf =
             whenever it enters.
+        conflicts: where the rider's path crosses the ego's (vei.sim.decisions: the
+            conflict zones of the rider's yield / go decision).
+        rider_moving_speeds_mps: the rider's recorded speeds outside its waits
+            (vei.sim.riders.moving_speeds: the calibrated rider's cruise speed), None
+            where it never waits (every recorded speed counts).
+        traffic: the reacting cars among the replayed others (vei.sim.traffic: the
+            vehicles on or across the ego's path; they react where ``cars_react``).
+        peds: the recorded pedestrians (vei.sim.pedestrians; social-force driven where
+            ``peds_sfm``).
     """
 
     scenario_id: str
@@ -123,6 +136,10 @@ class ScenarioArrays:
     riders: ExtraRiders = field(default_factory=ExtraRiders)
     rider_recorded_span_s: tuple[float, float] = (-math.inf, math.inf)
     rider_sfm_entry_s: float = -math.inf
+    conflicts: Conflicts = field(default_factory=Conflicts)
+    rider_moving_speeds_mps: FloatArray | None = None
+    traffic: Traffic = field(default_factory=Traffic)
+    peds: Pedestrians = field(default_factory=Pedestrians)
 
     @property
     def n_steps(self) -> int:
@@ -238,6 +255,8 @@ def prepare_scenario(
 
     rider_len = float(sim.rider_length_m or rinfo.length_m)
     rider_wid = float(sim.rider_width_m or rinfo.width_m)
+    ego_len = float(sim.ego_length_m or ego_info.length_m)
+    ego_wid = float(sim.ego_width_m or ego_info.width_m)
     return ScenarioArrays(
         scenario_id=scenario.id,
         dt_s=float(sim.dt_s),
@@ -276,6 +295,12 @@ def prepare_scenario(
         ),
         rider_recorded_span_s=rec_span,
         rider_sfm_entry_s=sfm_entry_s(scenario, rid, r_track),
+        conflicts=find_conflicts(ego_path, rider_path, ego_len, ego_wid, rider_len, rider_wid),
+        rider_moving_speeds_mps=moving_speeds(r_track, rec_span),
+        traffic=prepare_traffic(
+            scenario, others, t_s, ego_path, ego_track, ego_len, ego_wid, where
+        ),
+        peds=prepare_pedestrians(scenario, others, t_s, where),
     )
 
 
@@ -317,6 +342,19 @@ class SimState(NamedTuple):
             (vei.sim.riders; R = 0 in the one-rider engine), like the rider_* fields.
         extra_active, extra_started, extra_done: [B, R] bool, like the rider's.
         extra_hit: [B, R] bool latch, the ego touched extra rider j (nothing stops).
+        rider_decision: [B] int8, the social-force rider's decision at its current
+            conflict (vei.models.decision_core: 0 FREE, 1 GO, 2 YIELD; 0 without decisions).
+        car_s_m, car_v_mps, car_timer_s, car_x_m, car_y_m, car_yaw_rad: [B, C] the
+            reacting cars (vei.sim.traffic): arc length along their paths [m], speed
+            [m/s], reaction countdown [s], pose [m, rad]; car_mode [B, C] int8
+            (vei.models.traffic_core: 0 replay, 1 reacting, 2 IDM, 3 stopped).
+        rider_hit_other: [B, n_o] bool latch, the rider touched replayed other j.
+        car_hit: [B, C] bool latch, reacting car j touched another other (car_hit_with:
+            which, -1 none). sec_count, sec_first_t_s, sec_striker, sec_struck,
+            sec_max_speed_mps, rear_end: [B] the secondary collisions so far
+            (vei.sim.contacts).
+        ped_x_m, ped_y_m, ped_vx_mps, ped_vy_mps, ped_prog_m: [B, P] the pedestrians
+            (vei.sim.pedestrians; meaningful where peds_sfm).
     """
 
     k: int
@@ -357,6 +395,28 @@ class SimState(NamedTuple):
     extra_started: BoolArray
     extra_done: BoolArray
     extra_hit: BoolArray
+    rider_decision: npt.NDArray[np.int8]
+    car_s_m: FloatArray
+    car_v_mps: FloatArray
+    car_timer_s: FloatArray
+    car_x_m: FloatArray
+    car_y_m: FloatArray
+    car_yaw_rad: FloatArray
+    car_mode: npt.NDArray[np.int8]
+    rider_hit_other: BoolArray
+    car_hit: BoolArray
+    car_hit_with: npt.NDArray[np.int32]
+    sec_count: npt.NDArray[np.int32]
+    sec_first_t_s: FloatArray
+    sec_striker: npt.NDArray[np.int32]
+    sec_struck: npt.NDArray[np.int32]
+    sec_max_speed_mps: FloatArray
+    rear_end: BoolArray
+    ped_x_m: FloatArray
+    ped_y_m: FloatArray
+    ped_vx_mps: FloatArray
+    ped_vy_mps: FloatArray
+    ped_prog_m: FloatArray
 
 
 __all__ = [

@@ -14,7 +14,20 @@ from vei.models import ego as ego_model
 from vei.models import ego_core
 from vei.models import sfm as sfm_model
 from vei.sim.batch import BatchFlags, Block, batch_flags
+from vei.sim.contacts import (
+    collide_ego_others,
+    contact_step,
+    initial_contact_state,
+    others_now,
+)
+from vei.sim.decisions import decide_block
 from vei.sim.observe import Demand
+from vei.sim.pedestrians import (
+    PED_FIELDS,
+    initial_pedestrian_state,
+    pedestrian_step,
+    rider_from_pedestrians,
+)
 from vei.sim.riders import initial_extra_state, pedestrian_sources, repulsion, step_extras
 from vei.sim.state import (
     EGO_CAP,
@@ -24,8 +37,10 @@ from vei.sim.state import (
     SimState,
     VariantParams,
 )
+from vei.sim.traffic import CAR_FLOAT_FIELDS, initial_traffic_state, traffic_step
 
 FloatArray = npt.NDArray[np.float64]
+_CAR_FIELDS = (*CAR_FLOAT_FIELDS, "car_mode")
 _EXTRA_FIELDS = (
     "extra_x_m", "extra_y_m", "extra_yaw_rad", "extra_vx_mps", "extra_vy_mps", "extra_speed_mps",
     "extra_a_mps2", "extra_prog_m", "extra_active", "extra_started", "extra_done", "extra_hit",
@@ -47,43 +62,6 @@ def _sub(a: npt.ArrayLike, idx: npt.NDArray[np.intp] | None) -> npt.ArrayLike:
     if idx is None or np.ndim(a) == 0:
         return a
     return np.asarray(a)[idx]
-
-
-def _collide_others(
-    arrays: ScenarioArrays,
-    k: int,
-    ex: FloatArray,
-    ey: FloatArray,
-    eyaw: FloatArray,
-    hit: npt.NDArray[np.bool_],
-) -> npt.NDArray[np.bool_]:
-    """Latch ego contacts with the replayed others at step k ([B, n_o]; copy if changed)."""
-    if hit.shape[1] == 0:
-        return hit
-    act = np.flatnonzero(arrays.other_active[k])
-    if act.size == 0:
-        return hit
-    reach = 0.5 * (
-        np.hypot(arrays.ego_length_m, arrays.ego_width_m)
-        + np.hypot(arrays.other_length_m, arrays.other_width_m)
-    )
-    out = hit
-    for j in act:
-        dx = arrays.other_x_m[k, j] - ex
-        dy = arrays.other_y_m[k, j] - ey
-        cand = np.flatnonzero((dx * dx + dy * dy <= reach[j] ** 2) & ~hit[:, j])
-        if cand.size == 0:
-            continue
-        ov = boxes_overlap(
-            ex[cand], ey[cand], eyaw[cand], arrays.ego_length_m, arrays.ego_width_m,
-            arrays.other_x_m[k, j], arrays.other_y_m[k, j], arrays.other_yaw_rad[k, j],
-            arrays.other_length_m[j], arrays.other_width_m[j],
-        )  # fmt: skip
-        if ov.any():
-            if out is hit:
-                out = hit.copy()
-            out[cand[ov], j] = True
-    return out
 
 
 def initial_state(
@@ -133,7 +111,7 @@ def initial_state(
     hist = np.zeros((4, fl.hist_len, b))
     hist[:, 0, :] = np.stack([rx, ry, ryaw, inside.astype(np.float64)])
     no = len(arrays.other_ids)
-    hit = _collide_others(arrays, 0, ex, ey, eyaw, np.zeros((b, no), dtype=bool))
+    hit = collide_ego_others(arrays, 0, ex, ey, eyaw, np.zeros((b, no), dtype=bool))
     return SimState(
         k=0,
         ego_s_m=s0,
@@ -162,6 +140,10 @@ def initial_state(
         hit_other=hit,
         hist=hist,
         **initial_extra_state(arrays.riders, b, params.rider_sfm),
+        rider_decision=np.zeros(b, dtype=np.int8),
+        **initial_traffic_state(arrays, b),
+        **initial_contact_state(b, no, arrays.traffic.n),
+        **initial_pedestrian_state(arrays, b),
     )
 
 
@@ -354,10 +336,12 @@ def _step_block(
         r_started = r_started | in_span
         r_done = r_done | (st.rider_started & ~in_span)
         r_prog = st.rider_prog_m
+        r_dec = st.rider_decision
     else:
         rx, ry, ryaw = st.rider_x_m.copy(), st.rider_y_m.copy(), st.rider_yaw_rad.copy()
         rvx, rvy, rsp = st.rider_vx_mps.copy(), st.rider_vy_mps.copy(), st.rider_speed_mps.copy()
         r_prog, r_active = st.rider_prog_m.copy(), st.rider_active.copy()
+        r_dec = st.rider_decision.copy()
         moving = st.rider_active & st.rider_started
         if any_coll:
             moving = moving & ~collided
@@ -365,8 +349,9 @@ def _step_block(
         if idx.size:
             sel = None if idx.size == b else idx
             _social_force_update(
-                st, arrays, blk, sel, t_rec, dt, (rx, ry, ryaw, rvx, rvy, rsp, r_prog, r_active)
-            )
+                st, arrays, blk, sel, t_rec, dt,
+                (rx, ry, ryaw, rvx, rvy, rsp, r_prog, r_active, r_dec),
+            )  # fmt: skip
             r_done = r_done | (st.rider_active & ~r_active)
         not_started = ~r_started
         if not_started.any():
@@ -420,7 +405,20 @@ def _step_block(
             rvx, rvy, rsp, r_acc = rvx.copy(), rvy.copy(), rsp.copy(), r_acc.copy()
             for arr in (v_new, a_act, a_rep, rvx, rvy, rsp, r_acc):
                 arr[hits] = 0.0
-    hit_other = _collide_others(arrays, k + 1, ex, ey, eyaw, st.hit_other)
+    cars = {f: getattr(st, f) for f in _CAR_FIELDS}
+    peds = {f: getattr(st, f) for f in PED_FIELDS}
+    poses = None
+    if arrays.peds.n and blk.peds is not False:  # pedestrians (vei.sim.pedestrians)
+        moving = cars if arrays.traffic.n and blk.traffic is not False else None
+        peds = pedestrian_step(st, arrays, p, blk.peds, dt, moving)
+    if arrays.traffic.n and blk.traffic is not False:  # reacting cars (vei.sim.traffic)
+        cars = traffic_step(st, arrays, p, blk.traffic, dt)
+    moved_cars = cars if arrays.traffic.n and blk.traffic is not False else None
+    moved_peds = peds if arrays.peds.n and blk.peds is not False else None
+    if moved_cars is not None or moved_peds is not None:
+        kn = min(k + 1, arrays.n_steps - 1)
+        poses = others_now(arrays, kn, b, moved_cars, moved_peds)[:3]
+    hit_other = collide_ego_others(arrays, k + 1, ex, ey, eyaw, st.hit_other, poses)
 
     extras = {}
     if arrays.riders.n:
@@ -433,7 +431,7 @@ def _step_block(
         hist[1, slot] = ry
         hist[2, slot] = ryaw
         hist[3, slot] = r_active
-    return {
+    out = {
         "ego_s_m": s_new,
         "ego_x_m": ex,
         "ego_y_m": ey,
@@ -460,7 +458,13 @@ def _step_block(
         "hit_other": hit_other,
         "hist": hist,
         **(extras or {f: getattr(st, f) for f in _EXTRA_FIELDS}),
+        "rider_decision": r_dec,
+        **cars,
+        **peds,
     }
+    # contacts between any two road users, the secondary collisions (vei.sim.contacts)
+    out.update(contact_step(st, out, arrays, blk.traffic, blk.peds))
+    return out
 
 
 def _policy_demand(act: Demand | None, p: VariantParams) -> tuple[FloatArray, FloatArray]:
@@ -493,8 +497,10 @@ def _social_force_update(
 ) -> None:
     """Social-force step of the moving riders ``sel`` (None = all), written into ``out``.
 
-    ``out`` = (x, y, yaw, vx, vy, speed, progress, active) arrays of this step (fresh
-    copies, modified in place at ``sel``).
+    ``out`` = (x, y, yaw, vx, vy, speed, progress, active, decision) arrays of this step
+    (fresh copies, modified in place at ``sel``). Where the block's riders decide
+    (``blk.decide``, vei.sim.decisions) their desired velocity is capped by their yield
+    decision's speed.
     """
     p = blk.params
     g = _sub
@@ -511,6 +517,8 @@ def _social_force_update(
     vdx, vdy = sfm_model.desired_velocity(
         x0, y0, gx, gy, g(p.v0_mps, sel), g(p.sigma_m, sel), _sub(blk.paper_vdes, sel)
     )
+    if blk.decide is not False and arrays.conflicts.n:
+        vdx, vdy = decide_block(st, arrays, blk, sel, prog0, prog, vdx, vdy, out[8])
     fx, fy = sfm_model.destination_force(vdx, vdy, vx0, vy0, g(p.k_des_nspm, sel))
     vf = blk.vehicle_force
     if vf is not False:
@@ -545,10 +553,14 @@ def _social_force_update(
             for m in range(rr.n)
         ]
         ps = p if sel is None else p.take(sel)
-        hx, hy = repulsion(
-            x0, y0, rr.primary_radius_m, ps, sources + pedestrian_sources(arrays, st.k)
-        )
+        peds = pedestrian_sources(arrays, st.k)
+        if blk.peds is not False and arrays.peds.n:  # the simulated ones act instead
+            off = ~np.asarray(_sub(blk.peds, sel), dtype=bool)
+            peds = [(qx, qy, np.logical_and(a, off), r) for qx, qy, a, r in peds]
+        hx, hy = repulsion(x0, y0, rr.primary_radius_m, ps, sources + peds)
         fx, fy = fx + hx, fy + hy
+    if blk.peds is not False and arrays.peds.n:  # social-force pedestrians repel the rider
+        fx, fy = rider_from_pedestrians(st, arrays, blk, sel, x0, y0, fx, fy)
     mass = g(p.mass_kg, sel)
     if blk.rider_limits:
         fx, fy = sfm_model.cap_force(fx, fy, g(p.max_accel_mps2, sel) * mass)
@@ -563,7 +575,7 @@ def _social_force_update(
     fxe, fye = float(rp.end_x_m), float(rp.end_y_m)
     arrived = (nx - fxe) ** 2 + (ny - fye) ** 2 <= np.square(g(p.arrive_radius_m, sel))
     leaving = arrived & (g(t_rec, sel) > arrays.rider_track.t_end_s + _SPAN_EPS)
-    rx, ry, ryaw, rvx, rvy, rsp, r_prog, r_active = out
+    rx, ry, ryaw, rvx, rvy, rsp, r_prog, r_active = out[:8]
     s = slice(None) if sel is None else sel
     rx[s] = nx
     ry[s] = ny

@@ -58,6 +58,12 @@ DEFAULT_METRICS: tuple[str, ...] = (
     "impact_side",
     "striking",
     "injury_risk",
+    # issue 24: secondary collisions (vei.metrics.secondary)
+    "secondary_collision",
+    "secondary_collisions",
+    "secondary_first",
+    "secondary_impact_speed_mps",
+    "rear_end_collision",
     # issue 22 / 28.7: could the car have known (flagged runs count apart), and the safety
     # index on the relative-velocity TTC
     "first_seen_gap_m",
@@ -68,7 +74,15 @@ DEFAULT_METRICS: tuple[str, ...] = (
 
 
 #: Categorical sweep parameters: variants sharing them share one base configuration.
-_CATEGORICAL = ("rider_model", "sfm.use_vehicle_force", POLICY_PARAM)
+_CATEGORICAL = (
+    "rider_model",
+    "sfm.use_vehicle_force",
+    POLICY_PARAM,
+    # issue 24: the rider's decisions and the reacting road users switch model branches
+    "decision.enabled",
+    "traffic.cars_react",
+    "traffic.pedestrians",
+)
 
 
 #: Float sweep parameter (results column) -> VariantParams field: the sweepable settings
@@ -313,10 +327,10 @@ class EngineEvaluator:
         if not kernel.available():
             return
         import vei.metrics.fused  # noqa: F401
-        from vei.metrics.fused_layout import FUSED_METRICS
+        from vei.sim.engine import kernel_metrics
 
         kernel._build()
-        if load_kernel and all(n in FUSED_METRICS for n in self.metrics):
+        if load_kernel and all(n in kernel_metrics() for n in self.metrics):
             from vei.config import case_preset
             from vei.sim.engine import simulate_metrics
             from vei.sim.state import VariantParams, prepare_scenario
@@ -341,8 +355,7 @@ class EngineEvaluator:
         then ``self.metrics`` columns (collision bool, the others float). Variants with a
         SAMPLE_COLUMN run on that sample's arrays (one batch per sample).
         """
-        from vei.metrics.fused_layout import FUSED_METRICS
-        from vei.sim.engine import simulate, simulate_metrics
+        from vei.sim.engine import kernel_metrics, simulate, simulate_metrics
 
         if SAMPLE_COLUMN in variants.columns and prepared.sample_arrays:
             parts = []
@@ -360,7 +373,7 @@ class EngineEvaluator:
         params = self.params(prepared, prepared.arrays, variants)
         # Scored as a run's time series is (vei run, vei casestudy): bit-identical metrics,
         # with the variant's rider mass and full brake (delta-v, DRAC ceiling) as in vei run.
-        if all(name in FUSED_METRICS for name in self.metrics):
+        if all(name in kernel_metrics() for name in self.metrics):
             # in the compiled kernel's pass, no [B, T] series (policy variants and the
             # NumPy kernel: recorded in sub-batches and summarized; same rows)
             summary = simulate_metrics(

@@ -43,5 +43,7 @@ def test_every_kernel_module_is_in_the_digest() -> None:
     extra = {"../../boxes.py", "../../config/settings.py", "../../metrics/fused.py"}
     extra |= {"../../metrics/fused_layout.py", "../../metrics/fused_ops.py"}
     extra |= {"../../models/ego_core.py", "../../models/sfm_core.py"}
+    extra |= {"../../models/decision_core.py"}  # the rider's decision (issue 24)
+    extra |= {"../../models/traffic_core.py"}  # reacting cars (issue 24)
     assert compiled | extra == set(kernel._KERNEL_SOURCES)
     assert all((here / n).is_file() for n in kernel._KERNEL_SOURCES)

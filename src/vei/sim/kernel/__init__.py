@@ -78,10 +78,11 @@ def _build() -> Any:
 #: vei.boxes gives it the box-overlap test, vei.config.settings the order of P's rows
 #: (layout's P_* constants). Paths relative to this package.
 _KERNEL_SOURCES = (
-    "loop.py", "scalar.py", "ego.py", "sfm.py", "riders.py", "layout.py",
+    "loop.py", "scalar.py", "ego.py", "sfm.py", "riders.py", "layout.py", "decision.py",
+    "traffic.py", "../../models/traffic_core.py",
     "../../boxes.py", "../../config/settings.py", "../../metrics/fused.py",
     "../../metrics/fused_layout.py", "../../metrics/fused_ops.py",
-    "../../models/ego_core.py", "../../models/sfm_core.py",
+    "../../models/ego_core.py", "../../models/sfm_core.py", "../../models/decision_core.py",
 )  # fmt: skip
 
 
@@ -217,6 +218,90 @@ def _extra_args(arrays: Any) -> tuple[Any, ...]:
     )  # fmt: skip
 
 
+def _conflict_args(arrays: Any) -> tuple[Any, ...]:
+    """The kernel's conflict arguments (vei.sim.decisions.Conflicts): K and its [K]
+    arrays (zone exit, crossing along the rider's and the ego's path, half-lengths)."""
+    c = arrays.conflicts
+    f = np.float64
+    return (
+        int(c.n), np.ascontiguousarray(c.exit_m, f), np.ascontiguousarray(c.s_rider_m, f),
+        np.ascontiguousarray(c.s_ego_m, f), np.ascontiguousarray(c.hz_rider_m, f),
+        np.ascontiguousarray(c.hz_ego_m, f),
+    )  # fmt: skip
+
+
+def _traffic_args(arrays: Any, state0: Any, b: int, tt: int) -> tuple[tuple, tuple, tuple]:
+    """The kernel's reacting-car arguments (vei.sim.traffic.Traffic), their initial state,
+    and the output / final buffers (see the kernel's signature)."""
+    tr = arrays.traffic
+    c, no = tr.n, len(arrays.other_ids)
+    f = np.float64
+    tci = np.full(no, -1, dtype=np.int64)
+    tci[tr.idx] = np.arange(c)
+    veh = np.array([cat == "vehicle" for cat in arrays.other_categories], dtype=np.bool_)
+    scene = (
+        int(c), np.ascontiguousarray(tr.idx, np.int64), np.ascontiguousarray(tr.length_m, f),
+        np.ascontiguousarray(tr.width_m, f), tci, np.ascontiguousarray(tr.ptab, f),
+        np.ascontiguousarray(tr.ps0, f), np.ascontiguousarray(tr.pds, f),
+        np.ascontiguousarray(tr.pn, np.int64), np.ascontiguousarray(tr.s_rec_m, f),
+        np.ascontiguousarray(tr.v_rec_mps, f), np.ascontiguousarray(tr.a_rec_mps2, f),
+        np.ascontiguousarray(tr.active), np.ascontiguousarray(tr.ego_s_rec_m, f),
+        np.ascontiguousarray(tr.ego_v_rec_mps, f), np.ascontiguousarray(tr.mtab, f),
+        np.ascontiguousarray(tr.m0, f), np.ascontiguousarray(tr.mn, np.int64),
+        np.ascontiguousarray(tr.pair), np.ascontiguousarray(arrays.other_speed_mps, f), veh,
+    )  # fmt: skip
+    from vei.sim.traffic import CAR_FLOAT_FIELDS
+
+    cs0 = np.ascontiguousarray(
+        np.stack([getattr(state0, n) for n in CAR_FLOAT_FIELDS]).astype(f).reshape(6, b, c)
+    )
+    sec0 = np.stack(
+        [state0.sec_count.astype(f), state0.sec_first_t_s, state0.sec_striker.astype(f),
+         state0.sec_struck.astype(f), state0.sec_max_speed_mps, state0.rear_end.astype(f)]
+    )  # fmt: skip
+    init = (
+        cs0, np.ascontiguousarray(state0.car_mode, np.int64),
+        np.ascontiguousarray(state0.car_hit.astype(np.uint8)),
+        np.ascontiguousarray(state0.car_hit_with, np.int64),
+        np.ascontiguousarray(state0.rider_hit_other.astype(np.uint8)), np.ascontiguousarray(sec0),
+    )  # fmt: skip
+    bufs = (
+        np.zeros((b, 4, tt, c)), np.zeros((b, tt, c), dtype=np.uint8),
+        np.empty((6, b, c)), np.empty((b, c), dtype=np.int64), np.empty((b, c), dtype=np.uint8),
+        np.empty((b, c), dtype=np.int64), np.empty((b, no), dtype=np.uint8), np.empty((6, b)),
+    )  # fmt: skip
+    return scene, init, bufs
+
+
+def _traffic_final(state0: Any, bufs: tuple, final: dict[str, Any], record: bool) -> dict | None:
+    """Put the kernel's reacting-car and contact finals into ``final``; the car series
+    (record) as a dict of [B, T, C] arrays."""
+    from vei.sim.traffic import CAR_FLOAT_FIELDS
+
+    oc, ocm, cfs, cfm, cfh, cfw, rfh, secf = bufs
+    for j, n in enumerate(CAR_FLOAT_FIELDS):
+        final[n] = cfs[j].copy()
+    final["car_mode"] = cfm.astype(np.int8)
+    final["car_hit"] = cfh.astype(bool)
+    final["car_hit_with"] = cfw.astype(np.int32)
+    final["rider_hit_other"] = rfh.astype(bool)
+    final["sec_count"] = secf[0].astype(np.int32)
+    final["sec_first_t_s"] = secf[1].copy()
+    final["sec_striker"] = secf[2].astype(np.int32)
+    final["sec_struck"] = secf[3].astype(np.int32)
+    final["sec_max_speed_mps"] = secf[4].copy()
+    final["rear_end"] = secf[5] > 0.5
+    if not record:
+        return None
+    for j, src in enumerate(("car_x_m", "car_y_m", "car_yaw_rad", "car_v_mps")):
+        oc[:, j, 0, :] = getattr(state0, src)
+    ocm[:, 0, :] = state0.car_mode
+    return {
+        "car_x_m": oc[:, 0], "car_y_m": oc[:, 1], "car_yaw_rad": oc[:, 2],
+        "car_speed_mps": oc[:, 3], "car_mode": ocm.astype(np.int8),
+    }  # fmt: skip
+
+
 def run(
     arrays: Any,
     params: Any,
@@ -259,7 +344,7 @@ def run(
     )
     tt = t_n if record else 1
     out = np.empty((b, N_OUT, tt))
-    outb = np.zeros((b, 3, tt), dtype=np.uint8)
+    outb = np.zeros((b, 4, tt), dtype=np.uint8)  # cap, rider active, collided, decision
     outh = np.zeros((b, tt, no), dtype=np.uint8)
     h0 = np.ascontiguousarray(state0.hit_other.astype(np.uint8))
     if record:
@@ -273,6 +358,7 @@ def run(
         outb[:, 0, 0] = state0.cap_state
         outb[:, 1, 0] = state0.rider_active
         outb[:, 2, 0] = state0.collided
+        outb[:, 3, 0] = state0.rider_decision
         outh[:, 0] = h0
     fs = np.empty((len(FLOAT_FIELDS), b))
     fb = np.empty((len(BOOL_FIELDS), b), dtype=np.uint8)
@@ -313,6 +399,7 @@ def run(
 
     from vei.io.progress import activity
 
+    t_scene, t_init, t_bufs = _traffic_args(arrays, state0, b, tt)
     prev_chunk = numba.set_parallel_chunksize(_CHUNK)
     announce = activity(COMPILE_MESSAGE) if cold else contextlib.nullcontext()
     try:
@@ -332,12 +419,14 @@ def run(
                 p_mat, s0, b0, out, outb, outh, h0, fs, fb, fh, coll_t, min_d,
                 *xa, xs0, xb0, outx, outxb, xfs, xfb,
                 scored, t_m, dt_m, mcfg, m_out,
+                *_conflict_args(arrays), *t_scene, *t_init, *t_bufs,
             )  # fmt: skip
     finally:
         numba.set_parallel_chunksize(prev_chunk)
     _loaded(kernel, cold)
     final = {f: fs[j].copy() for j, f in enumerate(FLOAT_FIELDS)}
     final["cap_state"] = fs[FLOAT_FIELDS.index("cap_state")].astype(np.int8)
+    final["rider_decision"] = fs[FLOAT_FIELDS.index("rider_decision")].astype(np.int8)
     for j, f in enumerate(BOOL_FIELDS):
         final[f] = fb[j].astype(bool)
     final["hit_other"] = h0.astype(bool)
@@ -347,6 +436,9 @@ def run(
         final[f] = xfs[j].copy()
     for j, f in enumerate(EXTRA_BOOL_FIELDS):
         final[f] = xfb[j].astype(bool)
+    cars = _traffic_final(state0, t_bufs, final, record)
+    for f in state0._fields:  # fields the kernel does not advance keep their start values
+        final.setdefault(f, getattr(state0, f))
     extra = None
     series = None
     hit = None
@@ -358,6 +450,7 @@ def run(
         )  # fmt: skip
         series = {n: out[:, j, :] for j, n in enumerate(names)}
         series["cap_state"] = outb[:, 0, :].astype(np.int8)
+        series["rider_decision"] = outb[:, 3, :].astype(np.int8)
         series["rider_active"] = outb[:, 1, :].astype(bool)
         series["collided"] = outb[:, 2, :].astype(bool)
         hit = outh.astype(bool)
@@ -365,6 +458,7 @@ def run(
             "extra_x_m": outx[:, 0], "extra_y_m": outx[:, 1], "extra_yaw_rad": outx[:, 2],
             "extra_speed_mps": outx[:, 3], "extra_accel_mps2": outx[:, 4],
             "extra_active": outxb[:, 0].astype(bool), "extra_hit": outxb[:, 1].astype(bool),
+            **(cars or {}),
         }  # fmt: skip
     return {
         "series": series,

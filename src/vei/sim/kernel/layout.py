@@ -62,6 +62,24 @@ P_SFR = row("speed_from_recording")
 P_ARR = row("a_rider_n")
 P_BRR = row("b_rider_per_m")
 P_USERF = row("use_rider_force")
+# issue 24: the rider's decision (vei.models.decision_core)
+P_DECIDE = row("decide")
+P_TC = row("critical_gap_s")
+P_HORIZON = row("decision_horizon_s")
+P_YDEC = row("yield_decel_mps2")
+P_STOPM = row("stop_margin_m")
+P_CLEARM = row("clear_margin_m")
+# issue 24: reacting cars (vei.models.traffic_core)
+P_REACT = row("cars_react")
+P_CV0 = row("car_v0_mps")
+P_CT = row("car_headway_s")
+P_CS0 = row("car_min_gap_m")
+P_CA = row("car_accel_mps2")
+P_CB = row("car_decel_mps2")
+P_CDELTA = row("car_delta")
+P_CBMAX = row("car_max_decel_mps2")
+P_CREACT = row("car_reaction_s")
+P_CTRIG = row("car_trigger_mps2")
 
 # Rows of the float output O [N_OUT, T, B] (same order as vei.sim.result._RECORDED floats).
 O_S, O_X, O_Y, O_YAW, O_V, O_A, O_U, O_RX, O_RY, O_RYAW, O_RSP, O_RVX, O_RVY, O_RA = range(14)
@@ -72,6 +90,7 @@ FLOAT_FIELDS = (
     "ego_s_m", "ego_x_m", "ego_y_m", "ego_yaw_rad", "ego_v_mps", "ego_a_mps2", "ego_act_mps2", "ego_cmd",
     "pid_integral_m", "pid_prev_error_mps", "cap_state", "rider_x_m", "rider_y_m", "rider_yaw_rad",
     "rider_vx_mps", "rider_vy_mps", "rider_speed_mps", "rider_a_mps2", "rider_prog_m",
+    "rider_decision",
 )  # fmt: skip
 #: SimState bool fields in the order of B0 / FB rows.
 BOOL_FIELDS = ("rider_active", "rider_started", "collided", "rider_done")

@@ -33,6 +33,8 @@ from vei.metrics.fused_layout import (
     CH_RYAW,
     N_CH,
 )
+from vei.models import traffic_core
+from vei.sim.kernel.decision import capped_velocity, decide_step, reference_speed
 from vei.sim.kernel.ego import ego_consts, ego_step_c
 from vei.sim.kernel.layout import (
     N_OUT,
@@ -56,27 +58,41 @@ from vei.sim.kernel.layout import (
     P_AVEH,
     P_BRR,
     P_BVEH,
+    P_CLEARM,
+    P_DECIDE,
     P_DELAY,
     P_DMAX,
     P_FRONTB,
+    P_HORIZON,
     P_KDES,
     P_LOOK,
     P_MASS,
     P_MODE,
     P_PAPERV,
+    P_REACT,
     P_SFM,
     P_SFR,
     P_SHIFT,
     P_SIGMA,
+    P_STOPM,
+    P_TC,
     P_USERF,
     P_USEVF,
     P_V0,
     P_VD,
     P_VMAX,
+    P_YDEC,
 )
 from vei.sim.kernel.riders import extra_riders_step
 from vei.sim.kernel.scalar import idx, ped_forces, rforce, sat
-from vei.sim.kernel.sfm import drive_force, integrate, vehicle_force
+from vei.sim.kernel.sfm import (
+    destination_force,
+    drive_force,
+    goal_velocity,
+    integrate,
+    vehicle_force,
+)
+from vei.sim.kernel.traffic import contacts, traffic_final, traffic_state0, traffic_step
 
 __all__ = ["N_OUT", "kernel"]
 
@@ -95,13 +111,13 @@ def kernel(  # type: ignore[no-untyped-def]
     Le, We, Lr, Wr,
     oX, oY, oYAW, oACT, oL, oW,  # others [T, no], [no]
     P,  # params [N_PARAMS, B]
-    S0,  # initial float state [19, B] (layout of FS)
+    S0,  # initial float state [20, B] (layout of FS)
     B0,  # initial bool state [4, B] (active, started, collided, done) as uint8
     OUT,  # out float [B, N_OUT, T] (record) or [B, N_OUT, 1]
-    OB,  # out uint8 [B, 3, T]: cap_state, rider_active, collided
+    OB,  # out uint8 [B, 4, T]: cap_state, rider_active, collided, rider_decision
     OH,  # out uint8 [B, T, no]: hit_other latch
     H0,  # initial hit_other [B, no] uint8
-    FS,  # final float state [19, B]: s x y yaw v a_rep a_act u pid_i pid_e cap rx ry ryaw rvx rvy rsp racc prog
+    FS,  # final float state [20, B]: s x y yaw v a_rep a_act u pid_i pid_e cap rx ry ryaw rvx rvy rsp racc prog decision
     FB,  # final bool state [4, B]
     FH,  # final hist [4, hist_len, B]
     coll_t, min_d,  # [B]
@@ -114,6 +130,15 @@ def kernel(  # type: ignore[no-untyped-def]
     OX, OXB,  # out [B, 5, T, R] (x y yaw speed accel), [B, 2, T, R] uint8 (active, hit)
     XFS, XFB,  # final extra state [8, B, R], [4, B, R]
     metrics, t_m, dt_m, MCFG, M,  # fused metrics (vei.metrics.fused): on?, t [T], dt, cfg, out [B, N_FUSED]
+    cK, cexit, csr, cse, chzr, chze,  # the rider's conflicts [K] (vei.sim.decisions.Conflicts)
+    tC, tidx, tL, tW, tci,  # reacting cars (vei.sim.traffic): C, their other indices, sizes; [no] car of each other
+    tptab, tps0, tpds, tpn,  # their paths [C, 10, N], [C]
+    tsrec, tvrec, tarec, tact, tesrec, tevrec,  # recorded arc, speed, accel, active [T, C]; the ego's [T]
+    tmtab, tm0, tmn, tpair,  # leader maps [C + 1, C, 4, M], [C + 1], pairs [C + 1, C]
+    oSP, oVEH,  # the others' recorded speeds [T, no], vehicle category [no]
+    CS0, CM0, CH0, CW0, RH0, SEC0,  # initial car floats [6, B, C], mode [B, C], hit, with; rider hits [B, no]; sec [6, B]
+    OC, OCM,  # out [B, 4, T, C] (x y yaw speed), [B, T, C] mode
+    CFS, CFM, CFH, CFW, RFH, SECF,  # finals (as the initial ones)
 ):  # fmt: skip
     B = P.shape[1]
     n_p = path.shape[1]
@@ -161,6 +186,13 @@ def kernel(  # type: ignore[no-untyped-def]
         p_frontb, p_aveh, p_bveh = P[P_FRONTB, b] > 0.5, P[P_AVEH, b], P[P_BVEH, b]
         p_mass, p_amax, p_vmax = P[P_MASS, b], P[P_AMAX_R, b], P[P_VMAX, b]
         p_limits = math.isfinite(p_vmax) or math.isfinite(p_amax)
+        # the rider's yield / go decision (vei.sim.kernel.decision), its constants
+        dec_on = sfm and cK > 0 and P[P_DECIDE, b] > 0.5
+        conf = (cK, cexit, csr, cse, chzr, chze)
+        d_tc, d_hor, d_ydec = P[P_TC, b], P[P_HORIZON, b], P[P_YDEC, b]
+        d_stopm, d_clearm = P[P_STOPM, b], P[P_CLEARM, b]
+        d_vref = reference_speed(p_v0, p_look, p_sigma)
+        d_tau = p_mass / p_kdes
         p_arrive2 = P[P_ARRIVE, b] ** 2
         ec = ego_consts(P, b, dt, Lr, Wr)  # the ego's per-variant constants, once per variant
         # state
@@ -183,6 +215,7 @@ def kernel(  # type: ignore[no-untyped-def]
         rsp = S0[16, b]
         r_acc = S0[17, b]
         prog = S0[18, b]
+        rdec = int(S0[19, b])
         r_act = B0[0, b] > 0
         r_started = B0[1, b] > 0
         collided = B0[2, b] > 0
@@ -190,6 +223,34 @@ def kernel(  # type: ignore[no-untyped-def]
         hit = np.empty(no, dtype=np.bool_)
         for j in range(no):
             hit[j] = H0[b, j] > 0
+        # reacting cars and contacts (vei.sim.kernel.traffic)
+        react_on = tC > 0 and P[P_REACT, b] > 0.5
+        cfl, cmode, chit, chw, rhit, sec = traffic_state0(b, tC, no, CS0, CM0, CH0, CW0, RH0, SEC0)
+        hprev = np.empty(no, dtype=np.bool_)
+        xprev = np.empty(R, dtype=np.bool_)
+        xvk = (np.empty(R), np.empty(R))  # the extra riders' speed, yaw at step k
+        cv0, cyaw0, cm0 = np.empty(tC), np.empty(tC), np.empty(tC, dtype=np.int64)
+        scr = np.empty((4, tC))
+        cst = (
+            cfl[0],
+            cfl[1],
+            cfl[2],
+            cfl[3],
+            cfl[4],
+            cfl[5],
+            cmode,
+            scr[0],
+            scr[1],
+            scr[2],
+            scr[3],
+        )
+        tg = (tC, tL, tW, tmtab, tm0, tmn, tpair)
+        trec = (tsrec, tvrec, tarec, tact, tesrec, tevrec, oX, oY, oYAW, tidx)
+        tpath = (tptab, tps0, tpds, tpn)
+        cpos = (tci, cfl[3], cfl[4], cfl[5])
+        cvel = (tci, cv0, cyaw0, cm0)
+        oth = (oX, oY, oYAW, oSP, oACT, oL, oW, oVEH)
+        carg = (cmode, chit, chw, tidx, tL, tW)
         hx = np.zeros(hist_len)
         hy = np.zeros(hist_len)
         hyaw = np.zeros(hist_len)
@@ -262,10 +323,22 @@ def kernel(  # type: ignore[no-untyped-def]
                     r_act,
                 )
                 if r_act and r_started and not collided:
-                    fx, fy, pr = drive_force(
-                        rx, ry, rvx, rvy, prog, rpath, rp_s0, rp_ds, n_rp, rp_len,
-                        p_look, p_sigma, p_paperv, p_v0, p_kdes,
-                    )  # fmt: skip
+                    if dec_on:
+                        vdx, vdy, pr = goal_velocity(
+                            rx, ry, prog, rpath, rp_s0, rp_ds, n_rp, rp_len,
+                            p_look, p_sigma, p_paperv, p_v0,
+                        )  # fmt: skip
+                        rdec, vcap = decide_step(
+                            rdec, prog, pr, rsp, s, v, conf, d_tc, d_hor, d_ydec,
+                            d_stopm, d_clearm, d_vref, d_tau,
+                        )  # fmt: skip
+                        vdx, vdy = capped_velocity(vdx, vdy, vcap)
+                        fx, fy = destination_force(vdx, vdy, rvx, rvy, p_kdes)
+                    else:
+                        fx, fy, pr = drive_force(
+                            rx, ry, rvx, rvy, prog, rpath, rp_s0, rp_ds, n_rp, rp_len,
+                            p_look, p_sigma, p_paperv, p_v0, p_kdes,
+                        )  # fmt: skip
                     if p_usevf:
                         vfx, vfy = vehicle_force(
                             rx, ry, ex, ey, eyaw, Le, We, p_frontb, p_aveh, p_bveh
@@ -322,6 +395,9 @@ def kernel(  # type: ignore[no-untyped-def]
             if collided:
                 r_acc = 0.0
             # ---------------- extra riders (state at step k; ego contact at k + 1)
+            for j in range(R):
+                xprev[j] = xb[3, j]
+                xvk[0][j], xvk[1][j] = xs[5, j], xs[2, j]
             if R > 0:
                 extra_riders_step(
                     k, t_new, dt, P, b, sfm, use_rf, a_rr, b_rr,
@@ -340,7 +416,31 @@ def kernel(  # type: ignore[no-untyped-def]
                         a_rep_n = 0.0
                         nrvx = nrvy = nrsp = 0.0
                         r_acc = 0.0
+            for j in range(tC):
+                cv0[j], cyaw0[j], cm0[j] = cfl[1, j], cfl[5, j], cmode[j]
+            if react_on:
+                traffic_step(k, dt, P, b, react_on, tg, trec, tpath, cst, s, v, We)
             for j in range(no):
+                hprev[j] = hit[j]
+            for j in range(no):
+                if react_on and tci[j] >= 0 and oACT[k + 1, j] and not hit[j]:
+                    c = tci[j]
+                    ddx, ddy = cfl[3, c] - ex_n, cfl[4, c] - ey_n
+                    if ddx * ddx + ddy * ddy <= o_rr2[j]:
+                        if sat(
+                            ex_n,
+                            ey_n,
+                            eyaw_n,
+                            Le,
+                            We,
+                            cfl[3, c],
+                            cfl[4, c],
+                            cfl[5, c],
+                            oL[j],
+                            oW[j],
+                        ):
+                            hit[j] = True
+                    continue
                 if oACT[k + 1, j] and not hit[j]:
                     ddx, ddy = oX[k + 1, j] - ex_n, oY[k + 1, j] - ey_n
                     if ddx * ddx + ddy * ddy <= o_rr2[j]:
@@ -357,6 +457,15 @@ def kernel(  # type: ignore[no-untyped-def]
                             oW[j],
                         ):
                             hit[j] = True
+            # ---------------- contacts of any two road users, secondary collisions
+            contacts(
+                k + 1, t_new, oth, cpos, cvel, tC, (ex_n, ey_n, eyaw_n, v, eyaw),
+                (nrx, nry, nryaw, rsp * math.cos(ryaw), rsp * math.sin(ryaw), n_act),
+                (hprev, hit), xs, xvk, (xprev, xb[3]), rhit, carg, sec, (Lr, Wr, Le), react_on,
+            )  # fmt: skip
+            for j in range(tC):  # a car stopped by a contact stands
+                if cmode[j] == traffic_core.STOPPED:
+                    cfl[1, j] = 0.0
             # ---------------- commit
             s, ex, ey, eyaw, v, a_act, a_rep = s_new, ex_n, ey_n, eyaw_n, v_new, a_act_n, a_rep_n
             rx, ry, ryaw, rvx, rvy, rsp, prog, r_act = (
@@ -398,6 +507,7 @@ def kernel(  # type: ignore[no-untyped-def]
                 OB[b, 0, kk] = cap
                 OB[b, 1, kk] = 1 if r_act else 0
                 OB[b, 2, kk] = 1 if collided else 0
+                OB[b, 3, kk] = rdec
                 for j in range(no):
                     OH[b, kk, j] = 1 if hit[j] else 0
                 for j in range(R):
@@ -408,6 +518,12 @@ def kernel(  # type: ignore[no-untyped-def]
                     OX[b, 4, kk, j] = xs[6, j]
                     OXB[b, 0, kk, j] = 1 if xb[0, j] else 0
                     OXB[b, 1, kk, j] = 1 if xb[3, j] else 0
+                for j in range(tC):
+                    OC[b, 0, kk, j] = cfl[3, j]
+                    OC[b, 1, kk, j] = cfl[4, j]
+                    OC[b, 2, kk, j] = cfl[5, j]
+                    OC[b, 3, kk, j] = cfl[1, j]
+                    OCM[b, kk, j] = cmode[j]
         FS[0, b] = s
         FS[1, b] = ex
         FS[2, b] = ey
@@ -427,6 +543,7 @@ def kernel(  # type: ignore[no-untyped-def]
         FS[16, b] = rsp
         FS[17, b] = r_acc
         FS[18, b] = prog
+        FS[19, b] = rdec
         FB[0, b] = 1 if r_act else 0
         FB[1, b] = 1 if r_started else 0
         FB[2, b] = 1 if collided else 0
@@ -442,6 +559,7 @@ def kernel(  # type: ignore[no-untyped-def]
             run_metrics(t_m, dt_m, ch, Le, We, Lr, Wr, MCFG, P[P_MASS, b], P[P_DMAX, b], M[b])
         for j in range(no):
             H0[b, j] = 1 if hit[j] else 0
+        traffic_final(b, cfl, cmode, chit, chw, rhit, sec, CFS, CFM, CFH, CFW, RFH, SECF)
         for j in range(R):
             for f in range(8):
                 XFS[f, b, j] = xs[f, j]

@@ -41,6 +41,16 @@ def drive_force(x0, y0, vx0, vy0, prog0, rpath, ps0, pds, pn, plen, look, sigma,
     of 1/sqrt(q)); v0 [m/s] the desired speed; kdes [N s/m] the relaxation gain.
     Returns (fx, fy, pr): the force [N] and the new progress [m] (never backwards).
     """
+    vdx, vdy, pr = goal_velocity(x0, y0, prog0, rpath, ps0, pds, pn, plen, look, sigma, paperv, v0)
+    fx, fy = destination_force(vdx, vdy, vx0, vy0, kdes)
+    return fx, fy, pr
+
+
+@numba.njit(cache=True, inline="always")
+def goal_velocity(x0, y0, prog0, rpath, ps0, pds, pn, plen, look, sigma, paperv, v0):  # type: ignore[no-untyped-def]
+    """The desired velocity of a rider following its path (the first half of
+    :func:`drive_force`; arguments alike). Returns (vdx, vdy, pr): the desired velocity
+    [m/s] and the new progress [m]."""
     i, w = idx(ps0, pds, pn, prog0)
     qx = rpath[0, i] + w * rpath[5, i]
     qy = rpath[1, i] + w * rpath[6, i]
@@ -51,8 +61,7 @@ def drive_force(x0, y0, vx0, vy0, prog0, rpath, ps0, pds, pn, plen, look, sigma,
     gx = rpath[0, i] + w * rpath[5, i]
     gy = rpath[1, i] + w * rpath[6, i]
     vdx, vdy = desired_velocity(x0, y0, gx, gy, v0, sigma, paperv)
-    fx, fy = destination_force(vdx, vdy, vx0, vy0, kdes)
-    return fx, fy, pr
+    return vdx, vdy, pr
 
 
 @numba.njit(cache=True, inline="always")
