@@ -10,7 +10,11 @@ DEMO_OUT ?= demo-out
 # CommonRoad (vei export commonroad; docs/commonroad.md), without their protobuf pin.
 COMMONROAD := 'commonroad-io==2024.3' 'commonroad-vehicle-models==3.0.2' 'commonroad-drivability-checker==2025.4.0'
 
-.PHONY: demo test bench lint format venv qc-tools clean
+# Test workers (pytest-xdist): one per core; `make test PYTEST_WORKERS=0` runs in one process.
+PYTEST_WORKERS ?= auto
+PYTEST := MPLBACKEND=Agg VEI_QC_BIN=$(CURDIR)/$(QC_VENV)/bin $(VENV)/bin/pytest -q -n $(PYTEST_WORKERS)
+
+.PHONY: demo test test-slow test-all bench lint format venv qc-tools clean
 
 $(STAMP): pyproject.toml Makefile
 	$(PYTHON) -m venv $(VENV)
@@ -32,8 +36,17 @@ qc-tools: $(QC_STAMP)
 demo: $(STAMP)
 	MPLBACKEND=Agg $(VENV)/bin/vei demo --out $(DEMO_OUT)
 
+# The fast tier (docs/testing.md): everything not marked slow.
 test: $(STAMP) $(QC_STAMP)
-	MPLBACKEND=Agg VEI_QC_BIN=$(CURDIR)/$(QC_VENV)/bin $(VENV)/bin/pytest -q
+	$(PYTEST) -m "not slow"
+
+# The slow tier alone: whole-dataset, Ray, README-command, esmini and browser tests.
+test-slow: $(STAMP) $(QC_STAMP)
+	$(PYTEST) -m slow
+
+# Both tiers: the whole suite (what .ci/run calls).
+test-all: $(STAMP) $(QC_STAMP)
+	$(PYTEST)
 
 bench: $(STAMP)
 	MPLBACKEND=Agg $(PY) -m benchmarks

@@ -35,10 +35,10 @@ def main() -> None:
     from vei.config import PAPER_CASES, SimConfig
     from vei.experiments.casestudy import run_casestudy, write_casestudy
     from vei.experiments.demo_data import demo_interaction
-    from vei.experiments.timeshift import find_time_shift
     from vei.metrics import summarize
     from vei.recon.pipeline import reconstruct
     from vei.sim.engine import run_cases
+    from vei.sim.timeshift import find_time_shift
 
     scenario = reconstruct(demo_interaction())
     sim = SimConfig()

@@ -79,9 +79,9 @@ POLICY_BATCHES = (1_000, 10_000)
 def _scene():
     from vei.config import SimConfig
     from vei.experiments.demo_data import demo_interaction
-    from vei.experiments.timeshift import find_time_shift
     from vei.recon.pipeline import reconstruct
     from vei.sim.state import prepare_scenario
+    from vei.sim.timeshift import find_time_shift
 
     scenario = reconstruct(demo_interaction())
     arrays = prepare_scenario(scenario, SimConfig())

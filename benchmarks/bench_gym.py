@@ -134,10 +134,10 @@ def _single_rate(folder: Path, steps: int = 500) -> float:
 
 def _engine_rate(folder: Path, b: int = 10_000) -> float:
     from vei.config import case_preset
-    from vei.experiments.timeshift import find_time_shift
     from vei.io.scenario import read_scenario
     from vei.sim.engine import simulate
     from vei.sim.state import VariantParams, prepare_scenario
+    from vei.sim.timeshift import find_time_shift
 
     scen = read_scenario(folder)
     arrays = prepare_scenario(scen)

@@ -176,10 +176,10 @@ def _child(scen: str, out: str, workers: int, side: int) -> None:
     import scipy.interpolate  # noqa: F401
 
     import vei.cli.main  # noqa: F401
-    import vei.experiments.timeshift  # noqa: F401
     import vei.io.scenario  # noqa: F401
     import vei.sim.engine  # noqa: F401
     import vei.sim.state  # noqa: F401
+    import vei.sim.timeshift  # noqa: F401
     from vei.sweep.run import run_sweep
 
     spec = _spec(side)

@@ -153,7 +153,15 @@ FORBIDDEN: tuple[tuple[str, tuple[str, ...], str], ...] = (
     ("vei.metrics", ("vei.models", "vei.sim", "vei.experiments"), "metrics score any backend"),
     ("vei.models", ("vei.sim", "vei.metrics", "vei.experiments"), "models never know the engine"),
     ("vei.export", ("vei.sim",), "export knows no backend"),
-)
+    # issue 33: the studies sit above the sweep, the sweep above the engine
+    ("vei.sim", ("vei.sweep", "vei.experiments", "vei.risk", "vei.catalogue", "vei.gym"),
+     "the engine knows no study"),
+    ("vei.sweep", ("vei.experiments", "vei.risk", "vei.catalogue", "vei.gym"),
+     "sweeps sit below the studies"),
+    ("vei.experiments", ("vei.risk", "vei.catalogue", "vei.gym"), "experiments sit below risk"),
+    ("vei.risk", ("vei.experiments", "vei.catalogue", "vei.gym"),
+     "risk uses the sweep and the engine, not the paper's experiments"),
+)  # fmt: skip
 
 #: The bottom floor (DESIGN.md: box geometry, types, errors, atomic writes): imports no vei
 #: module but vei.errors and vei.types.
@@ -190,7 +198,9 @@ def _direction_violations(graph: dict[str, set[str]]) -> list[str]:
 
 def test_imports_point_down_the_layers():
     """DESIGN.md: metrics never import models/sim/experiments; models never sim/metrics/
-    experiments; export never sim; nothing below vei.cli imports vei.cli; the bottom floor
+    experiments; export never sim; the engine (vei.sim) no sweep or study, the sweep no
+    study (experiments, risk, catalogue, gym), experiments and risk not each other or
+    the catalogue / gym; nothing below vei.cli imports vei.cli; the bottom floor
     (vei.boxes, vei.types, vei.errors, vei.io.atomic) imports nothing of vei but
     vei.errors/vei.types.
     Imports anywhere in a file count (inside functions and under TYPE_CHECKING too)."""
@@ -208,6 +218,7 @@ def test_direction_rules_catch_each_kind_of_violation():
         "vei.models.sfm": {"vei.boxes", "vei.sim.engine"},
         "vei.export.openscenario": {"vei.io.atomic", "vei.sim"},
         "vei.sweep.run": {"vei.sim.engine", "vei.cli.main"},
+        "vei.sweep.riskmap": {"vei.sweep.lattice", "vei.experiments.boundary"},
         "vei.cli.main": {"vei.sweep.run", "vei.cli.run"},
         "vei.boxes": {"vei.errors", "vei.types", "vei.config"},
         "vei.types": {"vei.errors"},
@@ -217,6 +228,7 @@ def test_direction_rules_catch_each_kind_of_violation():
         "vei.metrics.ttc -> vei.models.geometry",
         "vei.models.sfm -> vei.sim.engine",
         "vei.export.openscenario -> vei.sim",
+        "vei.sweep.riskmap -> vei.experiments.boundary",
         "vei.sweep.run -> vei.cli.main",
         "vei.boxes -> vei.config",
     ]

@@ -13,6 +13,9 @@ import pytest
 
 from vei.cli.main import main
 
+# the slow tier (docs/testing.md): minutes of real data, players or browsers
+pytestmark = pytest.mark.slow
+
 REPO = Path(__file__).resolve().parents[1]
 README = REPO / "README.md"
 #: the recording the README names, replaced by each shared one

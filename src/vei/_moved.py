@@ -35,6 +35,8 @@ MOVED: dict[str, str] = {
     "vei.experiments.workers": "vei.sweep.workers",
     "vei.experiments.riskmap": "vei.sweep.riskmap",
     "vei.sim.kernel_layout": "vei.sim.kernel.layout",
+    # round 4 (issue 33): the time shift sits beside the engine it runs, below sweep
+    "vei.experiments.timeshift": "vei.sim.timeshift",
 }
 
 

@@ -14,6 +14,7 @@ def table(tm_scenes) -> ValidationTable:
     return validate_loso(tm_scenes, (3.0, 5.0))
 
 
+@pytest.mark.slow
 def test_calibrated_sfm_beats_cv_by_20_percent_and_the_paper(table) -> None:
     assert table.folds == (
         "audi_08_klinikum_rechtsabbiegen_02",

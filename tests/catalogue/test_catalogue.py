@@ -22,6 +22,9 @@ from vei.catalogue.store import done_encounters, encounter_dir
 from vei.errors import ConfigError
 from vei.types import AgentInfo, Scenario
 
+# the slow tier (docs/testing.md): minutes of real data, players or browsers
+pytestmark = pytest.mark.slow
+
 
 def _scenario() -> Scenario:
     """Ego along +x at 5 m/s (x = 5 t); rider A along +y at x = 20 m, y = 2 (t - 6):

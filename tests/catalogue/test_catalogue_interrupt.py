@@ -17,9 +17,12 @@ from vei.catalogue.store import done_encounters
 
 REPO = Path(__file__).resolve().parents[2]
 
-pytestmark = pytest.mark.skipif(
-    not sys.platform.startswith("linux"), reason="reads worker processes from /proc"
-)
+pytestmark = [
+    pytest.mark.skipif(
+        not sys.platform.startswith("linux"), reason="reads worker processes from /proc"
+    ),
+    pytest.mark.slow,  # the slow tier (docs/testing.md): a whole catalogue with workers
+]
 
 
 def test_sigint_says_how_to_resume_and_leaves_no_worker(tmp_path, trafficmonitoring_root):

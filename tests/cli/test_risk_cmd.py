@@ -47,6 +47,7 @@ def assessed(demo, tmp_path_factory) -> tuple[Path, str]:
     return out, text
 
 
+@pytest.mark.slow
 def test_figures_with_intervals_and_the_comparison(assessed):
     out, text = assessed
     doc = json.loads((out / "risk.json").read_text())

@@ -76,6 +76,7 @@ def test_mid_scene_rider_joins_its_recording(scenarios) -> None:
     assert rep["agents"]["cyclist_60"]["run_in"]["length_m"] >= d - 0.25
 
 
+@pytest.mark.slow
 def test_mid_scene_rider_enters_from_beyond_reach(scenarios) -> None:
     """Replay runs over every time shift in which the rider *enters* during the run (its
     run-in starts after t = 0): at its first present step the box gap to the car is more

@@ -93,6 +93,7 @@ class _Copy:
 
 @settings(max_examples=200, **SETTINGS)
 @given(which=st.integers(0, 2), ops=st.lists(_mutation, min_size=1, max_size=4))
+@pytest.mark.slow
 def test_byte_mutations(mini, which, ops):
     with _Copy(mini) as root:
         path = _files(root)[which]
@@ -102,6 +103,7 @@ def test_byte_mutations(mini, which, ops):
 
 @settings(max_examples=200, **SETTINGS)
 @given(which=st.integers(0, 2), row=st.integers(0, 400), col=st.integers(0, 20), cell=_cell)
+@pytest.mark.slow
 def test_csv_cells(mini, which, row, col, cell):
     with _Copy(mini) as root:
         path = _files(root)[which]

@@ -39,6 +39,7 @@ def _check(cmp):
     assert (t["others_max_dev_m"] < 1e-3).all()
 
 
+@pytest.mark.slow
 def test_demo_on_esmini_agrees_with_the_builtin_engine(esmini, monkeypatch, capsys):
     monkeypatch.setenv("VEI_ESMINI", str(esmini.root))
     cmp = compare_backends(reconstruct(demo_interaction()))

@@ -149,6 +149,7 @@ def demo_scenario(tmp_path_factory):
     return folder
 
 
+@pytest.mark.slow
 def test_search_boundary_on_the_demo_scenario(demo_scenario, tmp_path):
     import json
 

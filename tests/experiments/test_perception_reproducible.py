@@ -95,6 +95,7 @@ def test_single_runs_equal_one_batch_with_noise_and_missed_detections(prepared) 
     assert not np.array_equal(other.ego_speed_mps[0], batch.ego_speed_mps[2])
 
 
+@pytest.mark.slow
 def test_vei_run_of_each_noisy_variant_equals_the_sweep_row(demo_scenario, tmp_path):
     # The spec's perception section switches the noisy sensor on for every variant.
     assert CASE_PRESETS["normal-cap"] == replace(NOISY_CAP, name="normal-cap", perception=None)

@@ -78,6 +78,7 @@ def timing_path_runs(shared_scenarios, tmp_path_factory) -> dict[str, tuple[int,
 
 
 @pytest.mark.parametrize("name", SCENARIOS_WITH_RIDER)
+@pytest.mark.slow
 def test_timing_plus_path_makes_every_recording_collide_and_prints_the_change(
     name, timing_path_runs
 ) -> None:

@@ -7,9 +7,9 @@ import pytest
 
 from vei.config import CaseConfig, EgoConfig, SimConfig
 from vei.errors import InputError
-from vei.experiments.timeshift import find_time_shift, parse_time_shift
 from vei.sim.engine import run_cases
 from vei.sim.testing import crossing_scenario
+from vei.sim.timeshift import find_time_shift, parse_time_shift
 
 
 def test_finds_the_meeting_on_the_default_crossing() -> None:
@@ -107,7 +107,7 @@ def test_run_up_moves_the_meeting_later() -> None:
 
 
 def test_a_given_shift_is_evaluated_and_one_that_keeps_the_rider_out_is_refused() -> None:
-    from vei.experiments.timeshift import evaluate_time_shift
+    from vei.sim.timeshift import evaluate_time_shift
 
     sc = crossing_scenario()
     auto = find_time_shift(sc)

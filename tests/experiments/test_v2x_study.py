@@ -80,6 +80,7 @@ def test_perception_alone_collides_and_v2x_at_the_default_channel_does_not(array
     assert not collisions(arrays, None, perception=False).any()
 
 
+@pytest.mark.slow
 def test_the_outcome_degrades_as_latency_grows_and_delivery_falls(arrays):
     base = V2XConfig(enabled=True, position_error_std_m=study.PPP_GNSS_STD_M)
     by_latency = [collisions(arrays, replace(base, latency_s=x)).mean()
@@ -93,6 +94,7 @@ def test_the_outcome_degrades_as_latency_grows_and_delivery_falls(arrays):
     np.testing.assert_array_equal(none, collisions(arrays, None))
 
 
+@pytest.mark.slow
 def test_vei_v2x_study_quick_writes_figures_summary_and_reproducible_sweeps(tmp_path):
     from tests.experiments.rerun import assert_runs_equal_sweep
     from vei.sweep.run import read_results, write_variant_configs

@@ -31,6 +31,9 @@ from vei.export.openscenario import export_openscenario, timeseries_to_trajector
 from vei.export.playback import MAX_DEVIATION_M, MAX_MEDIAN_DEVIATION_M, play_xosc
 from vei.types import EGO_CATEGORY
 
+# the slow tier (docs/testing.md): minutes of real data, players or browsers
+pytestmark = pytest.mark.slow
+
 SCENARIOS = ("demo", *REAL_WITH_RIDER)
 RUNS = ("recorded", *PAPER_CASES)
 VERSIONS = ("1.2", "1.0")

@@ -63,28 +63,31 @@ def test_note_is_literal():
 
 
 def test_the_kernel_says_when_it_compiles(tmp_path):
-    """A missing compile stamp means a cold kernel: the first run announces the compilation
-    (off a terminal: a line when it starts and one when it ends), then writes the stamp;
-    the next run is warm and says nothing about it."""
+    """A missing compile stamp means a cold feature set: the first run announces the
+    compilation (off a terminal: a line when it starts and one when it ends), then writes
+    the stamp; the next run is warm and says nothing about it."""
     pytest.importorskip("numba")
     from vei.sim import kernel
+    from vei.sim.kernel import cache
 
-    kernel._build()
-    stamp = kernel._compiled_stamp(kernel._KERNEL)
+    base = kernel.Features()
+    stamp = cache.stamp_path(kernel._cache_dir(), base.name)
     assert stamp is not None
     stamp.unlink(missing_ok=True)
     code = (
         "from vei.sim import kernel\n"
-        "print('cold', kernel.is_cold(), flush=True)\n"
+        "f = kernel.Features()\n"
+        "print('cold', kernel.is_cold(f), flush=True)\n"
         "from vei.sim.warmup import ensure_compiled\n"
-        "print('compiled', ensure_compiled(), flush=True)\n"
-        "print('cold', kernel.is_cold(), flush=True)\n"
+        "print('compiled', ensure_compiled(f), flush=True)\n"
+        "print('cold', kernel.is_cold(f), flush=True)\n"
     )
     first = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert first.returncode == 0, first.stderr
     assert first.stdout.split() == ["cold", "True", "compiled", "True", "cold", "False"]
-    assert f"{kernel.COMPILE_MESSAGE} ..." in first.stderr
-    assert f"{kernel.COMPILE_MESSAGE}: done in" in first.stderr
+    assert f"{kernel.compile_message(base)} ..." in first.stderr
+    assert f"{kernel.compile_message(base)}: done in" in first.stderr
+    assert "(base;" in kernel.compile_message(base)
     assert stamp.is_file()
     second = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert second.stdout.split() == ["cold", "False", "compiled", "False", "cold", "False"]
@@ -95,15 +98,43 @@ def test_a_stamp_without_machine_code_is_cold(tmp_path, monkeypatch):
     """A stamp left behind in a cleared cache (numba's index files gone) is no warm kernel:
     the first run must still announce its compilation."""
     from vei.sim import kernel
+    from vei.sim.kernel import cache
 
-    monkeypatch.setattr(kernel, "_WARM", False)
+    monkeypatch.setattr(kernel, "_WARM", set())
     monkeypatch.setattr(kernel, "available", lambda: True)
-    monkeypatch.setattr(kernel, "_build", lambda: None)
-    stamp = tmp_path / "loop.compiled"
-    monkeypatch.setattr(kernel, "_compiled_stamp", lambda _k: stamp)
-    stamp.write_text(kernel._compile_key() + "\n")
-    assert kernel.is_cold()  # no index file of the kernel's machine code
-    (tmp_path / "loop.kernel-87.py311.nbi").write_bytes(b"index")
-    assert not kernel.is_cold()
-    stamp.write_text("another machine\n")
-    assert kernel.is_cold()
+    monkeypatch.setattr(kernel, "_cache_dir", lambda: tmp_path)
+    base = kernel.Features()
+    cache.mark_compiled(tmp_path, base.name)
+    assert kernel.is_cold(base)  # no index file of the kernel's machine code
+    for f in ("kernel", "variant"):
+        (tmp_path / f"loop.{f}-87.py311.nbi").write_bytes(b"index")
+    assert not kernel.is_cold(base)
+    (tmp_path / "loop.compiled.base").write_text("another machine\n")
+    assert kernel.is_cold(base)
+
+
+def test_a_nested_activity_is_part_of_the_outer_line():
+    """One heartbeat (issue 33): the compilation inside a step says when it starts and
+    ends, and the step's own line names it while it runs; no second stream of lines."""
+    buf = io.StringIO()
+    with activity("step 3/3", stream=buf, interval_s=0.1):
+        time.sleep(0.05)
+        with activity("compiling", stream=buf, interval_s=0.1):
+            time.sleep(0.45)
+    lines = _lines(buf)
+    ticks = [line for line in lines if "still running" in line]
+    assert lines[0] == "step 3/3 ..." and lines[1] == "compiling ..."
+    assert 2 <= len(ticks) <= 5
+    assert all(t.startswith("step 3/3: still running (") for t in ticks)
+    assert re.search(r"; compiling: 0\.\d s\)$", ticks[-1])
+    assert lines[-2].startswith("compiling: done in")
+    assert lines[-1].startswith("step 3/3: done in")
+    # a count inside: its line names the compilation, which has no ticker of its own
+    buf2 = io.StringIO()
+    with progress("sweep", 4, stream=buf2, interval_s=0.1) as p:
+        with activity("compiling", stream=buf2, interval_s=0.1):
+            time.sleep(0.35)
+        p.advance(4)
+    lines2 = _lines(buf2)
+    assert not any(line.startswith("compiling: still") for line in lines2)
+    assert any(line.startswith("sweep: 0/4") and "; compiling:" in line for line in lines2)

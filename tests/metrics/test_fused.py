@@ -59,8 +59,8 @@ def _params_of(params: VariantParams) -> dict[str, np.ndarray]:
 @pytest.fixture(scope="module")
 def demo():
     from vei.experiments.demo_data import demo_interaction
-    from vei.experiments.timeshift import find_time_shift
     from vei.recon.pipeline import reconstruct
+    from vei.sim.timeshift import find_time_shift
 
     scenario = reconstruct(demo_interaction())
     # without continuations (the rider appears at its first recorded sample): the grid
@@ -251,10 +251,10 @@ def test_real_recording_stadtmitte_12(trafficmonitoring_root, tmp_path_factory) 
     engine's trace and the trace read back from its long time series (what vei run
     scores) both equal summarize."""
     from vei.datasets.trafficmonitoring import import_scenario
-    from vei.experiments.timeshift import find_time_shift
     from vei.io.interaction import read_interaction
     from vei.metrics import trace_from_timeseries
     from vei.recon.pipeline import reconstruct
+    from vei.sim.timeshift import find_time_shift
 
     out = tmp_path_factory.mktemp("stadtmitte") / "i"
     import_scenario(trafficmonitoring_root, "stadtmitte_12_audi_geradeaus_03", out, rate_hz=1.0)

@@ -144,6 +144,7 @@ def test_spec_reconstruction_samples():
             spec_from_dict({**raw, "reconstruction": bad})
 
 
+@pytest.mark.slow
 def test_sweep_over_reconstruction_samples_of_a_real_recording(probabilistic, tmp_path):
     # The must-show runs 200 samples (docs/reconstruction.md); here 6 samples of the same
     # recording near its collision boundary (replayed rider, no avoidance).

@@ -16,6 +16,9 @@ import pytest
 
 from tests.catalogue.helpers import build_small_catalogue
 
+# the slow tier (docs/testing.md): minutes of real data, players or browsers
+pytestmark = pytest.mark.slow
+
 CHROMIUM_CANDIDATES = ("/usr/bin/chromium", "/usr/bin/chromium-browser")
 DRIVER = "/usr/bin/chromedriver"
 

@@ -17,6 +17,9 @@ import pytest
 
 from tests.report.test_html_browser import browser  # noqa: F401 - the shared fixture
 
+# the slow tier (docs/testing.md): minutes of real data, players or browsers
+pytestmark = pytest.mark.slow
+
 LAYERS = (
     "drivable lanes (map)",
     "sidewalks, bike lanes (map)",

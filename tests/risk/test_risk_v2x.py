@@ -36,6 +36,7 @@ def test_the_risk_spec_takes_a_v2x_section():
         parse_variation({**SPEC, "v2x": {"enabled": True, "latency": 1}})
 
 
+@pytest.mark.slow
 def test_vei_risk_with_v2x_on_the_occluded_crossing(tmp_path):
     runner = CliRunner()
     sc = tmp_path / "occluded"

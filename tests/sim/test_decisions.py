@@ -15,7 +15,7 @@ from vei.sim.engine import simulate
 from vei.sim.state import VariantParams, prepare_scenario
 from vei.sim.testing import crossing_scenario
 
-KERNELS = ["numpy", pytest.param("numba", marks=pytest.mark.slow)]
+KERNELS = ["numpy", "numba"]
 # the crossing scene at 4 m/s: the e-scooter (1.2 x 0.6 m) crosses the ego's lane at
 # x = 60 m, its centre there 13.41 s into the run; the sedan (4.7 x 1.85 m) at 4 m/s. Its
 # recording starts 30 m before the lane (not 15 m): a social-force rider takes over at its

@@ -43,8 +43,8 @@ def assert_rows_equal(got: pd.DataFrame, ref: pd.DataFrame) -> None:
 @pytest.fixture(scope="module")
 def demo():
     from vei.experiments.demo_data import demo_interaction
-    from vei.experiments.timeshift import find_time_shift
     from vei.recon.pipeline import reconstruct
+    from vei.sim.timeshift import find_time_shift
 
     scenario = reconstruct(demo_interaction())
     return prepare_scenario(scenario, SimConfig()), float(find_time_shift(scenario))

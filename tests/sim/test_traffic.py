@@ -71,7 +71,7 @@ def test_the_follower_is_a_reacting_car(arrays) -> None:
     np.testing.assert_allclose(tr.v_rec_mps[5:-5, 0], V, atol=1e-6)
 
 
-@pytest.mark.parametrize("kernel", ["numpy", pytest.param("numba", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("kernel", ["numpy", "numba"])
 def test_replay_equivalence_without_deviation(arrays, kernel) -> None:
     """The ego replaying its recorded speed: the reacting car reproduces its recording."""
     case = dataclasses.replace(case_preset("replay-speed"), traffic=TrafficConfig(cars_react=True))
@@ -131,7 +131,7 @@ def _independent(reaction_s: float = 1.0, trigger: float = 0.5):
     return None, vf, xe - xf - 4.7
 
 
-@pytest.mark.parametrize("kernel", ["numpy", pytest.param("numba", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("kernel", ["numpy", "numba"])
 def test_rear_end_by_hand(arrays, kernel) -> None:
     """The ego brakes at 8 m/s^2 in front of a follower at a 1 s headway: the follower
     reacts after 1 s and brakes as hard as it can, but touches the ego at the time and

@@ -183,6 +183,7 @@ def test_swept_v0_over_the_calibrated_default_is_the_riders_speed(demo_scenario)
                 assert getattr(batch, f.name)[i] == pytest.approx(getattr(one, f.name)[0]), f.name
 
 
+@pytest.mark.slow
 def test_results_do_not_depend_on_chunking_or_workers(demo_scenario, tmp_path):
     spec = spec_from_dict(
         {
@@ -202,6 +203,7 @@ def test_results_do_not_depend_on_chunking_or_workers(demo_scenario, tmp_path):
     pd.testing.assert_frame_equal(read_results(tmp_path / "a"), read_results(tmp_path / "b"))
 
 
+@pytest.mark.slow
 def test_resume_after_partial_run_neither_loses_nor_duplicates(demo_scenario, tmp_path):
     spec = spec_from_dict(_plane_spec(6, 4, time_shift_reference="zero"))
     out = tmp_path / "out"

@@ -69,6 +69,7 @@ def test_perception_section_errors_name_the_file_and_key(tmp_path, section, mess
     assert str(path) in str(exc.value) and message in str(exc.value)
 
 
+@pytest.mark.slow
 def test_perception_changes_the_sweep_and_is_written_into_variant_configs(
     demo_scenario, tmp_path
 ) -> None:

@@ -44,6 +44,7 @@ def demo_scenario(tmp_path_factory) -> Path:
     ],
     ids=["cap", "aeb"],
 )
+@pytest.mark.slow
 def test_vei_run_of_each_variant_equals_the_sweep_row(demo_scenario, tmp_path, controller):
     spec = spec_from_dict(
         {

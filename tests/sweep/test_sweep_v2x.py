@@ -88,6 +88,7 @@ def test_swept_values_outside_their_bounds_are_refused(param, value, message):
         spec_from_dict(raw)
 
 
+@pytest.mark.slow
 def test_vei_run_of_each_v2x_variant_equals_the_sweep_row(occluded, tmp_path):
     spec = spec_from_dict(SPEC)
     run_sweep(occluded, spec, tmp_path / "sweep", chunk_size=5, progress=False,

@@ -195,6 +195,7 @@ def _start_and_wait_for_parts(cmd: list[str], out: Path, n_parts: int) -> tuple:
     return proc, workers, sorted(set(workers) | set(children(proc.pid)))
 
 
+@pytest.mark.slow
 def test_vei_sweep_killed_leaves_no_worker_and_resumes(demo_scenario, spec_path, tmp_path):
     from vei.sweep.run import done_ids, read_results, run_sweep
     from vei.sweep.spec import load_spec
@@ -228,6 +229,7 @@ def test_vei_sweep_killed_leaves_no_worker_and_resumes(demo_scenario, spec_path,
     pd.testing.assert_frame_equal(a, b)
 
 
+@pytest.mark.slow
 def test_vei_sweep_sigint_says_how_to_resume(demo_scenario, spec_path, tmp_path):
     from vei.sweep.run import done_ids
 

@@ -220,10 +220,6 @@ def run_catalogue(
 
     rec_docs: list[dict[str, Any]] = []
     enc_docs: list[dict[str, Any]] = []
-    if workers > 1 or engine == "ray":
-        from vei.sim.warmup import ensure_compiled
-
-        ensure_compiled()  # once here (announced), not in every worker at once
     with executor(engine, workers) as ex, _progress(progress) as update:
         calls = [(str(dataset), kind, n, str(out), config) for n in names]
         update("recordings", 0, len(calls))

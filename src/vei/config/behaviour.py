@@ -60,9 +60,11 @@ class DecisionConfig:
             [s]. 4 s: a rider at 4 m/s decides 16 m ahead, beyond the comfortable stopping
             distance at 2 m/s^2 (4 m).
         yield_decel_mps2: deceleration of a yielding rider's stop [m/s^2]: 2.0, the
-            comfortable yield deceleration of cyclists and e-scooter riders (below the
-            AASHTO wet-pavement bicycle design value 2.45 m/s^2; /work/research/behaviour.md
-            1.3); the rider's force cap (``sfm.max_accel_mps2``) still bounds it.
+            comfortable yield deceleration of cyclists and e-scooter riders (an
+            assumption below the bicycle design value for wet pavement: friction 0.25,
+            i.e. 0.25 g = 2.45 m/s^2, AASHTO 1999, Guide for the Development of Bicycle
+            Facilities, stopping sight distance); the rider's force cap
+            (``sfm.max_accel_mps2``) still bounds it.
         stop_margin_m: the yielding rider stops this far [m] short of the conflict zone.
         clear_margin_m: the car has left the zone once its rear is this far [m] beyond it.
     """
@@ -118,8 +120,9 @@ class TrafficConfig:
         idm_comfort_decel_mps2: IDM b [m/s^2] (1.5, city).
         idm_delta: IDM acceleration exponent delta (4).
         max_decel_mps2: the reacting car's hardest braking [m/s^2]: 8.0, the ego's full
-            brake (``ego.max_decel_mps2``), inside the 6.9 m/s^2 (friction 0.7) to
-            9 m/s^2 (MovSim's maximum_deceleration) range of behaviour.md 2.
+            brake (``ego.max_decel_mps2``), inside what tyres allow on dry asphalt: peak
+            road adhesion 0.8-0.9 (7.8-8.8 m/s^2; Wong 2008, Theory of Ground Vehicles,
+            4th ed., Table 1.3).
         reaction_time_s: the driver's reaction time [s]: 1.0 (Johansson & Rumar 1971,
             surprise-corrected brake reaction: median 0.9 s; Green 2000: 0.7-0.75 s
             expected, 1.25 s unexpected but common such as a lead car's brake lights).

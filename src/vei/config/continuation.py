@@ -68,9 +68,10 @@ class ContinuationConfig:
             is that of a road user at this speed over D. Default 0.5 m/s, the threshold
             of "moving" used for the ego's median moving speed.
         stop_decel_mps2: deceleration of a slow road user to standstill [m/s^2]; 2.0,
-            a comfortable yielding deceleration of a cyclist / e-scooter rider
-            (/work/research/behaviour.md 1.3: assumption within AASHTO's 2.45 m/s^2 wet
-            design friction).
+            a comfortable yielding deceleration of a cyclist / e-scooter rider (an
+            assumption below the bicycle design value for wet pavement: friction 0.25,
+            0.25 g = 2.45 m/s^2, AASHTO 1999, Guide for the Development of Bicycle
+            Facilities, stopping sight distance).
         curvature_decay_m: the curvature at the end decays as exp(-s / this) along the
             continuation [m]; 5 m (about one second of riding): a turn in progress is
             finished, never continued into a circle.

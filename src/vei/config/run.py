@@ -310,7 +310,7 @@ class RunConfig:
         case: the configuration.
         sim: engine settings.
         time_shift: the primary rider's time shift [s] (positive = the rider comes later),
-            or 'auto' (:func:`vei.experiments.timeshift.find_time_shift`).
+            or 'auto' (:func:`vei.sim.timeshift.find_time_shift`).
         rider: optional rider population: the run's SFM rider is replaced by N riders
             sampled from a profile (:func:`vei.calibrate.population.population_cases`);
             None = the case's own rider.

@@ -1,7 +1,7 @@
 """The paper's case study (Section IV): five configurations of one scenario, scored.
 
 ``run_casestudy`` takes a reconstructed scenario, fixes the primary rider's time shift
-(``'auto'``: :func:`vei.experiments.timeshift.find_time_shift`, computed under ``replay``'s
+(``'auto'``: :func:`vei.sim.timeshift.find_time_shift`, computed under ``replay``'s
 ego motion; or a number of seconds), runs the configurations through a *backend* and
 scores the runs with :mod:`vei.metrics`. Backends only have to return the long time
 series (:data:`vei.types.TIMESERIES_COLUMNS`), so the built-in engine and CARLA give the
@@ -238,8 +238,8 @@ def continuation_sim(sim: SimConfig, cases: Sequence[CaseConfig], scenario: Scen
 
 def parse_time_shift(value: str | float | None) -> float | str:
     """'auto' (or None) -> 'auto'; a number or numeric text -> float seconds
-    (:func:`vei.experiments.timeshift.parse_time_shift`; InputError otherwise)."""
-    from vei.experiments.timeshift import parse_time_shift as parse
+    (:func:`vei.sim.timeshift.parse_time_shift`; InputError otherwise)."""
+    from vei.sim.timeshift import parse_time_shift as parse
 
     return "auto" if value is None else parse(value)
 

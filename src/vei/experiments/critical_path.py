@@ -1,6 +1,6 @@
 """The spatial step of making a recording critical: ``--make-critical timing+path``.
 
-The paper makes a recording critical by timing alone (:mod:`vei.experiments.timeshift`).
+The paper makes a recording critical by timing alone (:mod:`vei.sim.timeshift`).
 On most real recordings the rider's path never comes near the car's, so no shift makes
 them meet. ``timing+path`` first applies the *smallest* change of the rider's recorded
 path that makes the paths meet, then the time shift on the changed path, and reports the
@@ -42,7 +42,7 @@ from scipy.spatial import cKDTree
 
 from vei.config import CaseConfig, SimConfig
 from vei.errors import InputError
-from vei.experiments.timeshift import EgoFront, TimeShiftResult, ego_front, find_time_shift
+from vei.sim.timeshift import EgoFront, TimeShiftResult, ego_front, find_time_shift
 from vei.types import Scenario
 
 #: Plausible lateral offset of a rider's route [m] (90 % quantile of real nearest-route
@@ -258,7 +258,7 @@ def find_path_perturbation(
 
     Args:
         scenario: the scenario (its primary threat is the rider changed).
-        sim, case: as :func:`vei.experiments.timeshift.find_time_shift`.
+        sim, case: as :func:`vei.sim.timeshift.find_time_shift`.
         search: search settings. front: a precomputed ego_front (optional).
     Returns:
         (perturbation, the changed scenario (unchanged for kinds 'none' / 'failed'), the
@@ -380,7 +380,7 @@ def make_critical(
         'perturbation' (dict or None), 'perturbation_message'}).
     """
     from vei.errors import ConfigError
-    from vei.experiments.timeshift import evaluate_time_shift, parse_time_shift
+    from vei.sim.timeshift import evaluate_time_shift, parse_time_shift
 
     if mode not in MAKE_CRITICAL_MODES:
         raise ConfigError(

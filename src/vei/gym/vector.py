@@ -63,8 +63,8 @@ class Packed:
 
     def __init__(self, world: World) -> None:
         from vei.models import ego_core
-        from vei.sim.kernel import _path_rows, _table_rows
         from vei.sim.kernel.layout import PARAM_FIELDS
+        from vei.sim.kernel.pack import path_rows, table_rows
 
         f = np.float64
         ws = world.scenarios
@@ -89,19 +89,19 @@ class Packed:
         self.DIM = np.array(
             [[a.ego_length_m, a.ego_width_m, a.rider_length_m, a.rider_width_m] for a in arrs], f
         )
-        self.EP = _pad([_path_rows(a.ego_path) for a in arrs], 1)
+        self.EP = _pad([path_rows(a.ego_path) for a in arrs], 1)
         self.ep_s0 = np.array([a.ego_path.s_start_m for a in arrs], f)
         self.ep_ds = np.array([a.ego_path.ds_m for a in arrs], f)
         self.ep_n = np.array([a.ego_path.x_m.shape[0] for a in arrs], np.int64)
         cols = ("x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps", "arc_m")
-        self.RT = _pad([_table_rows(a.rider_track, cols) for a in arrs], 1)
+        self.RT = _pad([table_rows(a.rider_track, cols) for a in arrs], 1)
         self.rt_t0 = np.array([a.rider_track.t0_s for a in arrs], f)
         self.rt_dt = np.array([a.rider_track.dt_s for a in arrs], f)
         self.rt_tend = np.array([a.rider_track.t_end_s for a in arrs], f)
         self.rt_n = np.array([a.rider_track.data.shape[0] for a in arrs], np.int64)
         # recording time from which an SFM rider is driven (vei.sim.riders.sfm_entry_s)
         self.rt_sfm0 = np.array([a.rider_sfm_entry_s for a in arrs], f)
-        self.RP = _pad([_path_rows(a.rider_path) for a in arrs], 1)
+        self.RP = _pad([path_rows(a.rider_path) for a in arrs], 1)
         rp = [a.rider_path for a in arrs]
         self.rp_s0 = np.array([p.s_start_m for p in rp], f)
         self.rp_ds = np.array([p.ds_m for p in rp], f)

@@ -195,8 +195,8 @@ def load_world(config: EnvConfig, seat: AgentSeat) -> World:
         InputError: a folder that is no scenario (or catalogue), a scenario without a map
             while ``road_features`` is on (naming the folder and the way out).
     """
-    from vei.experiments.timeshift import find_time_shift
     from vei.io.scenario import read_scenario
+    from vei.sim.timeshift import find_time_shift
 
     entries: list[tuple[str, Path | None, Scenario, float | None]] = []
     tmp: Path | None = None

@@ -11,6 +11,12 @@ least every 10 s when its output goes to a log or CI.
   current activity whenever nothing was written for ``interval_s``, so that no command is
   silent for longer whatever step it is in.
 
+One heartbeat: off a terminal, only the outermost running activity or progress keeps a
+ticker, and it writes only when nothing was written for ``interval_s``; an activity that
+runs inside another (the kernel's compilation inside a step) says when it starts and ends
+and is named in the outer one's line (``step 3/3: still running (90 s; compiling ...: 80
+s)``), never a second stream of lines.
+
 Every message is printed literally (no rich markup: user-provided names keep their
 brackets). Lines go to stderr, so that a command's results on stdout stay clean.
 """
@@ -29,7 +35,7 @@ from typing import IO, Any
 INTERVAL_S = 10.0
 
 _lock = threading.Lock()
-_current: list[str] = []  # the stack of running activities, innermost last
+_current: list[tuple[str, float]] = []  # running activities (label, start), innermost last
 _last_write = [time.monotonic()]
 
 
@@ -60,7 +66,45 @@ def note(message: str, *, stream: IO[str] | None = None) -> None:
 def current_activity() -> str | None:
     """The innermost running :func:`activity` / :func:`progress` label, if any."""
     with _lock:
-        return _current[-1] if _current else None
+        return _current[-1][0] if _current else None
+
+
+def _push(label: str) -> bool:
+    """Enter an activity; True when it is the outermost (it keeps the ticker)."""
+    with _lock:
+        _current.append((label, time.monotonic()))
+        return len(_current) == 1
+
+
+def _pop(label: str) -> None:
+    with _lock:
+        for i in range(len(_current) - 1, -1, -1):
+            if _current[i][0] == label:
+                del _current[i]
+                break
+
+
+def _inner_note() -> str:
+    """'; <innermost nested activity>: N s' when one runs inside the outermost, else ''."""
+    with _lock:
+        if len(_current) < 2:
+            return ""
+        label, t0 = _current[-1]
+    return f"; {label}: {_fmt_s(time.monotonic() - t0)}"
+
+
+def _beat(stream: IO[str], text: Any, interval_s: float) -> None:
+    """Write ``text()`` when nothing was written for ``interval_s`` (checked and written
+    under the lock: two tickers never both write for one silence)."""
+    if time.monotonic() - _last_write[0] < interval_s:
+        return
+    line = text()  # (takes the lock itself)
+    with _lock:
+        if time.monotonic() - _last_write[0] < interval_s:
+            return
+        stream.write(line + "\n")
+        stream.flush()
+        _last_write[0] = time.monotonic()
 
 
 class _Ticker:
@@ -104,8 +148,7 @@ def activity(
         return
     out = stream if stream is not None else sys.stderr
     t0 = time.monotonic()
-    with _lock:
-        _current.append(message)
+    outermost = _push(message)
     try:
         if _is_tty(out):
             from rich.console import Console
@@ -115,18 +158,22 @@ def activity(
                 yield
         else:
             _line(out, f"{message} ...")
-            tick = _Ticker(
-                lambda: _line(out, f"{message}: still running ({_fmt_s(time.monotonic() - t0)})"),
-                interval_s,
-            )
+            tick = None
+            if outermost:  # a nested activity is named in the outer one's line instead
+
+                def text() -> str:
+                    el = _fmt_s(time.monotonic() - t0)
+                    return f"{message}: still running ({el}{_inner_note()})"
+
+                tick = _Ticker(lambda: _beat(out, text, interval_s), interval_s / 4)
             try:
                 yield
             finally:
-                tick.stop()
+                if tick is not None:
+                    tick.stop()
         _line(out, f"{message}: done in {_fmt_s(time.monotonic() - t0)}")
     finally:
-        with _lock:
-            _current.remove(message)
+        _pop(message)
 
 
 class Progress:
@@ -170,6 +217,11 @@ class Progress:
         self._printed = time.monotonic()
         _line(self._out, self._text())
 
+    def line(self) -> str:
+        """The current count as text (what :meth:`print` writes); marks it printed."""
+        self._printed = time.monotonic()
+        return self._text()
+
 
 @contextlib.contextmanager
 def progress(
@@ -199,8 +251,7 @@ def progress(
         rep._silent = True
         yield rep
         return
-    with _lock:
-        _current.append(label)
+    outermost = _push(label)
     try:
         if _is_tty(out):
             from rich.console import Console
@@ -223,18 +274,20 @@ def progress(
                 yield rep
         else:
             rep.print()
-            tick = _Ticker(
-                lambda: rep.print() if time.monotonic() - rep._printed >= interval_s else None,
-                interval_s / 2,
-            )
+            tick = None
+            if outermost:  # inside another activity: counted lines only, no second ticker
+                tick = _Ticker(
+                    lambda: _beat(out, lambda: rep.line() + _inner_note(), interval_s),
+                    interval_s / 4,
+                )
             try:
                 yield rep
             finally:
-                tick.stop()
+                if tick is not None:
+                    tick.stop()
             rep.print()
     finally:
-        with _lock:
-            _current.remove(label)
+        _pop(label)
 
 
 class _Stamped:
@@ -267,13 +320,11 @@ def heartbeat(
     sys.stdout, sys.stderr = _Stamped(old_out), _Stamped(old_err)  # type: ignore[assignment]
     _last_write[0] = t0
 
-    def beat() -> None:
-        if time.monotonic() - _last_write[0] >= interval_s:
-            what = current_activity()
-            el = _fmt_s(time.monotonic() - t0)
-            _line(err, f"{command}: still working ({what + ', ' if what else ''}{el})")
+    def text() -> str:
+        what = current_activity()
+        return f"{command}: still working ({what + ', ' if what else ''}{_fmt_s(time.monotonic() - t0)})"
 
-    tick = _Ticker(beat, interval_s / 4)
+    tick = _Ticker(lambda: _beat(err, text, interval_s), interval_s / 4)
     try:
         yield
     finally:

@@ -5,7 +5,7 @@ NumPy's pairwise summation, and the oriented-box geometry of :mod:`vei.boxes` (b
 overlap, corners, corner-set overlap, time to contact) for one pair of boxes.
 
 numba-compiled (``cache=True``); imported only where numba is used. Compiled into the
-engine kernel too (``vei.sim.kernel._KERNEL_SOURCES``).
+engine kernel too (``vei.sim.kernel.cache.KERNEL_SOURCES``).
 """
 
 # ruff: noqa: N803, N806

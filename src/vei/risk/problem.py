@@ -94,8 +94,8 @@ class RiskProblem:
         """
         from vei.config import ContinuationConfig
         from vei.continuation.scenario import recorded_ego_speed_mps
-        from vei.experiments.timeshift import find_time_shift
         from vei.io.scenario import read_scenario
+        from vei.sim.timeshift import find_time_shift
         from vei.sweep.evaluator import EngineEvaluator
         from vei.sweep.params import PARAMETERS, POLICY_PARAM, reach_sim, resolve_policy
 

@@ -177,7 +177,7 @@ def search_boundary(
 ) -> SearchResult:
     """vei's critical-boundary search in the plane of the first two dimensions (the
     others at their medians), with coarse grid and levels chosen to stay within budget."""
-    from vei.experiments.boundary import adaptive_boundary
+    from vei.sweep.lattice import adaptive_boundary
 
     del seed  # deterministic
     t0 = time.perf_counter()

@@ -1,17 +1,40 @@
-"""Compile the engine kernel once, in this process, before a command starts its workers.
+"""Compile (or load) a feature set of the engine kernel now, on a small synthetic scene.
 
-A sweep or catalogue with N worker processes would otherwise have each worker compile the
-kernel at the same time (N x 1-3 minutes of CPU, silent). :func:`ensure_compiled` runs the
-kernel once on a small synthetic scene when :func:`vei.sim.kernel.is_cold` says that this
-machine and installation have no machine code of it yet (announced while it compiles);
-workers started afterwards load it from numba's cache in about a second.
+A run compiles the kernel's feature set on its first call anyway (announced, and one
+process at a time: :mod:`vei.sim.kernel.cache`); :func:`ensure_compiled` does it ahead of
+time, for a command that wants the compilation behind it before it starts its work, and
+for the benchmark of the compile time per feature set (``python -m benchmarks compile``).
 """
 
 from __future__ import annotations
 
+from typing import Any
 
-def ensure_compiled() -> bool:
-    """Compile (or load) the compiled kernel now when it is cold.
+
+def warmup_scene(features: Any) -> tuple[Any, Any, bool]:
+    """(arrays, params [1], scored) of a small synthetic scene whose kernel run uses
+    exactly ``features`` (a :class:`vei.sim.kernel.Features`)."""
+    import numpy as np
+
+    from vei.config import SimConfig, case_preset
+    from vei.sim.state import VariantParams, prepare_scenario
+    from vei.sim.testing import TrackSpec, crossing_scenario
+
+    others: tuple = ()
+    if features.others or features.traffic:  # a car following the ego on its path
+        t = np.arange(0, 401) / 20.0
+        car = TrackSpec("vehicle", t, -15.0 + 5.6 * t, np.zeros_like(t))
+        others = (("car_1", car),)
+    sim = SimConfig(kernel="numba", sfm_riders="all" if features.riders else "primary")
+    arrays = prepare_scenario(crossing_scenario(others=others), sim)
+    params = VariantParams.from_case(case_preset("normal-cap"), arrays, 1)
+    params = params.with_values(decide=bool(features.decisions), cars_react=bool(features.traffic))
+    return arrays, params, bool(features.metrics)
+
+
+def ensure_compiled(features: Any = None) -> bool:
+    """Compile (or load) ``features`` (default: every part) of the compiled kernel now
+    when it is cold.
 
     Returns:
         True when this call compiled it; False when it was cached already, or numba is not
@@ -19,14 +42,29 @@ def ensure_compiled() -> bool:
     """
     from vei.sim import kernel
 
-    if not kernel.is_cold():
+    feats = kernel.ALL_FEATURES if features is None else features
+    if not kernel.is_cold(feats):
         return False
-    from vei.config import SimConfig, case_preset
-    from vei.sim.engine import simulate_metrics
-    from vei.sim.state import VariantParams, prepare_scenario
-    from vei.sim.testing import crossing_scenario
-
-    arrays = prepare_scenario(crossing_scenario(), SimConfig(kernel="numba"))
-    one = VariantParams.from_case(case_preset("normal-cap"), arrays, 1)
-    simulate_metrics(arrays, one, names=("collision",), kernel="numba")
+    run_features(feats)
     return True
+
+
+def run_features(features: Any) -> Any:
+    """Run one variant of :func:`warmup_scene` through the compiled kernel (compiling
+    ``features`` when cold); returns the features the run used (checked equal)."""
+    from vei.errors import ConfigError
+    from vei.metrics.config import MetricsConfig
+    from vei.metrics.fused_layout import config_vector
+    from vei.sim import kernel
+    from vei.sim.batch import batch_flags
+    from vei.sim.step import initial_state
+
+    arrays, params, scored = warmup_scene(features)
+    used = kernel.features_of(arrays, params, scored)
+    if used != features:
+        raise ConfigError(f"the warm-up scene uses {used.name}, not {features.name}")
+    fl = batch_flags(params, arrays.dt_s)
+    state = initial_state(arrays, params, fl)
+    cfg = config_vector(MetricsConfig()) if scored else None
+    kernel.run(arrays, params, state, fl.hist_len, False, cfg)
+    return used

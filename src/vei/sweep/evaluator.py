@@ -257,7 +257,7 @@ class EngineEvaluator:
         arrays = prepare_scenario(scenario, self.sim)
         auto = None
         if self.time_shift_reference == "auto":
-            from vei.experiments.timeshift import find_time_shift
+            from vei.sim.timeshift import find_time_shift
 
             auto = float(find_time_shift(scenario, sim=self.sim).time_shift_s)
         sample_arrays: tuple = ()
@@ -300,14 +300,6 @@ class EngineEvaluator:
         }
         return summarize(trace, names=self.metrics, params=run_params)
 
-    @property
-    def uses_kernel(self) -> bool:
-        """Whether this evaluator runs the compiled kernel (numba installed, kernel not
-        'numpy'): a sweep with workers then compiles it once before it starts them."""
-        from vei.sim import kernel
-
-        return self.sim.kernel != "numpy" and kernel.available()
-
     def warm_up(self, load_kernel: bool = False) -> None:
         """Import the modules :meth:`evaluate` and a part file's writer need (a sweep's
         pool workers call it while their parent prepares the scenario).
@@ -338,6 +330,8 @@ class EngineEvaluator:
 
             arrays = prepare_scenario(crossing_scenario(), self.sim)
             one = VariantParams.from_case(case_preset("normal-cap"), arrays, 1)
+            if kernel.is_cold(kernel.features_of(arrays, one, True)):
+                return  # never compile here: a run compiles what it uses, once
             simulate_metrics(arrays, one, names=self.metrics, kernel=self.sim.kernel)
 
     def scenario_id(self, prepared: PreparedScenario) -> str:

@@ -41,7 +41,7 @@ def default_bins(n_rows: int) -> int:
 def _binned(
     results: pd.DataFrame, spec: SweepSpec, x: str, y: str, value: str, bins: int | None
 ) -> dict[str, np.ndarray]:
-    from vei.experiments.boundary import binned_risk
+    from vei.sweep.lattice import binned_risk
 
     if bins is None:
         bins = default_bins(len(results))
@@ -80,15 +80,15 @@ def sweep_risk_map(
     variant per bin per other setting), other designs use ``bins`` equal bins per axis
     (default: about 10 variants per bin, 4 to 25 bins per axis). The heatmap is the mean
     safety index per bin, the boundary the 0.5 level of the collision share (marching
-    squares, linear interpolation; :func:`vei.experiments.boundary.share_boundary`).
+    squares, linear interpolation; :func:`vei.sweep.lattice.share_boundary`).
 
     Returns:
         None when there is no plane or results lack safety_index / collision; else
         {'x', 'y', 'binned', 'segments', 'crossings'} (what was drawn) after writing the
         PNG at ``path``.
     """
-    from vei.experiments.boundary import share_boundary
     from vei.report.riskmap import write_risk_map
+    from vei.sweep.lattice import share_boundary
 
     axes = plane_axes(results, spec, x, y)
     if axes is None or not {"safety_index", "collision"} <= set(results.columns):
@@ -137,8 +137,8 @@ def sweep_severity_map(
         None when there is no plane or results lack ``value`` / collision; else {'x', 'y',
         'value', 'binned', 'segments'} after writing the PNG at ``path``.
     """
-    from vei.experiments.boundary import share_boundary
     from vei.report.riskmap import write_risk_map
+    from vei.sweep.lattice import share_boundary
 
     axes = plane_axes(results, spec, x, y)
     if axes is None or not {value, "collision"} <= set(results.columns):

@@ -273,10 +273,6 @@ def run_sweep(
     parts_dir.mkdir(parents=True, exist_ok=True)
     _clean_temporaries(parts_dir)
 
-    if (workers > 1 or engine == "ray") and getattr(evaluator, "uses_kernel", False):
-        from vei.sim.warmup import ensure_compiled
-
-        ensure_compiled()  # once here (announced), not in every worker at once
     timings: dict[str, float] = {}
     t_start = time.perf_counter()
     with _runner(engine, workers, evaluator) as runner:

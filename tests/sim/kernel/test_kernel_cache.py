@@ -1,11 +1,15 @@
-"""The compiled kernel's on-disk cache is dropped when a module compiled into it changes."""
+"""The compiled kernel's on-disk cache: dropped when a module compiled into it changes,
+stamped per feature set, and compiled by one process at a time."""
 
 from __future__ import annotations
 
+import multiprocessing
+import time
 from pathlib import Path
 from types import SimpleNamespace
 
 from vei.sim import kernel
+from vei.sim.kernel import cache
 
 
 class _Cache:
@@ -18,24 +22,25 @@ class _Cache:
 
 
 def test_stale_cache_flushed_once_per_source_change(tmp_path) -> None:
-    cache = _Cache(tmp_path / "cache")
-    fake = SimpleNamespace(_cache=cache)
-    kernel._drop_stale_cache(fake)  # no stamp yet: flush, write the digest
+    caches = [_Cache(tmp_path / "cache"), _Cache(tmp_path / "cache")]
+    fakes = [SimpleNamespace(_cache=c) for c in caches]
+    cache.drop_stale(*fakes)  # no stamp yet: flush both, write the digest
     stamp = tmp_path / "cache" / "loop.sources.sha256"
-    assert cache.flushes == 1 and stamp.is_file()
+    assert [c.flushes for c in caches] == [1, 1] and stamp.is_file()
     digest = stamp.read_text().strip()
     assert len(digest) == 64
-    kernel._drop_stale_cache(fake)  # sources unchanged: the cache is kept
-    assert cache.flushes == 1
+    cache.drop_stale(*fakes)  # sources unchanged: the cache is kept
+    assert [c.flushes for c in caches] == [1, 1]
     stamp.write_text("0" * 64 + "\n")  # as if a helper module had been edited
-    kernel._drop_stale_cache(fake)
-    assert cache.flushes == 2 and stamp.read_text().strip() == digest
+    cache.drop_stale(*fakes)
+    assert [c.flushes for c in caches] == [2, 2] and stamp.read_text().strip() == digest
     assert not list(stamp.parent.glob("*.tmp"))
 
 
 def test_every_kernel_module_is_in_the_digest() -> None:
     here = Path(kernel.__file__).parent
-    compiled = {p.name for p in here.glob("*.py")} - {"__init__.py"}
+    # the packing, the cache's bookkeeping and the package are plain Python (not compiled)
+    compiled = {p.name for p in here.glob("*.py")} - {"__init__.py", "pack.py", "cache.py"}
     # vei.boxes (the bottom floor) gives the kernel its box-overlap test, vei.config.settings
     # the order of the parameter rows (layout's P_* constants), vei.metrics.fused the
     # per-variant metrics of simulate_metrics, vei.models.ego_core / sfm_core the ego's and
@@ -45,5 +50,47 @@ def test_every_kernel_module_is_in_the_digest() -> None:
     extra |= {"../../models/ego_core.py", "../../models/sfm_core.py"}
     extra |= {"../../models/decision_core.py"}  # the rider's decision (issue 24)
     extra |= {"../../models/traffic_core.py"}  # reacting cars (issue 24)
-    assert compiled | extra == set(kernel._KERNEL_SOURCES)
-    assert all((here / n).is_file() for n in kernel._KERNEL_SOURCES)
+    assert compiled | extra == set(cache.KERNEL_SOURCES)
+    assert all((here / n).is_file() for n in cache.KERNEL_SOURCES)
+
+
+def test_feature_sets_have_their_own_stamps(tmp_path) -> None:
+    """A compiled feature set says nothing about another: each has its stamp, and both
+    need numba's index files of the kernel and its per-variant function."""
+    base, full = kernel.Features(), kernel.ALL_FEATURES
+    assert base.name == "base" and full.name == "others+riders+decisions+traffic+metrics"
+    assert kernel.Features(others=True, metrics=True).name == "others+metrics"
+    cache.mark_compiled(tmp_path, base.name)
+    assert cache.is_cold(tmp_path, base.name)  # no machine code (index files) yet
+    for f in ("kernel", "variant"):
+        (tmp_path / f"loop.{f}-120.py311.nbi").write_bytes(b"index")
+    assert not cache.is_cold(tmp_path, base.name)
+    assert cache.is_cold(tmp_path, full.name)  # never compiled
+    (tmp_path / f"loop.compiled.{base.name}").write_text("another machine\n")
+    assert cache.is_cold(tmp_path, base.name)
+
+
+def _hold(folder: str, started, held_s: float) -> None:
+    with cache.compiling(Path(folder), "base"):
+        started.set()
+        time.sleep(held_s)
+
+
+def test_one_process_compiles_a_feature_set_at_a_time(tmp_path) -> None:
+    """While one process holds a feature set's lock, another waits for it (the workers of a
+    sweep compile it once, then load it); another feature set is not held up."""
+    ctx = multiprocessing.get_context("spawn")
+    started = ctx.Event()
+    proc = ctx.Process(target=_hold, args=(str(tmp_path), started, 1.5))
+    proc.start()
+    try:
+        assert started.wait(60)
+        t0 = time.monotonic()
+        with cache.compiling(tmp_path, "others"):
+            other = time.monotonic() - t0
+        with cache.compiling(tmp_path, "base"):
+            waited = time.monotonic() - t0
+    finally:
+        proc.join(60)
+    assert other < 0.5
+    assert waited > 0.5

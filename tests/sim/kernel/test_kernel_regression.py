@@ -129,8 +129,8 @@ def _mixed(arrays, base: float) -> VariantParams:
 
 def _scenes(continued: bool):
     from vei.experiments.demo_data import demo_interaction
-    from vei.experiments.timeshift import find_time_shift
     from vei.recon.pipeline import reconstruct
+    from vei.sim.timeshift import find_time_shift
 
     cont = ContinuationConfig(enabled=continued)
     sim = SimConfig(continuation=cont)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 
 import numba
+import numpy as np
 
 from vei.sim.kernel.layout import (
     P_AMAX_R,
@@ -25,8 +26,11 @@ from vei.sim.kernel.layout import (
     P_LOOK,
     P_MASS,
     P_PAPERV,
+    P_SFR,
     P_SIGMA,
     P_USEVF,
+    P_V0,
+    P_VMAX,
 )
 from vei.sim.kernel.scalar import idx, ped_forces, rforce, sat
 from vei.sim.kernel.sfm import drive_force, integrate, vehicle_force
@@ -52,7 +56,7 @@ def track_pose(xs, j, xtab, i, w, with_prog):  # type: ignore[no-untyped-def]
 @numba.njit(cache=True, inline="always")
 def extra_riders_step(  # type: ignore[no-untyped-def]
     k, t_new, dt, P, b, sfm, use_rf, a_rr, b_rr,
-    xst, xtrk, xpth, xgeo, rx, ry, r_act, prad, peds,
+    xst, xtrk, xpth, xgeo, rx, ry, r_act, prad, others, ped_idx, ped_rad,
     ex, ey, eyaw, Le, We, ex_n, ey_n, eyaw_n,
 ):  # fmt: skip
     """Advance the R extra riders of variant b from step k to k + 1 (time t_new [s]), in place.
@@ -64,15 +68,15 @@ def extra_riders_step(  # type: ignore[no-untyped-def]
     [R, 14, M] with start, step and end times [s], lengths and SFM entry times [s]; xpth = (xpath, xps0, xpds,
     xpn, xplen, xpex, xpey) their paths [R, 10, N] (arc grid, length, end point [m]);
     xgeo = (xL, xW, xrad) footprints and radii [R] [m]; the primary rider's position, active
-    flag and radius prad [m] at step k; peds = (ped_idx, ped_rad, oX, oY, oACT) the
-    pedestrians among the others [T, no]; the ego at step k (ex, ey, eyaw: repulsion) and
+    flag and radius prad [m] at step k; others None (no other road users) or the kernel's
+    others group (oX, oY, oYAW, oSP, oACT [T, no], ...), ped_idx [n] the pedestrians among
+    them and ped_rad [n] their radii [m]; the ego at step k (ex, ey, eyaw: repulsion) and
     k + 1 (ex_n, ey_n, eyaw_n: contact), Le x We [m].
     """
     xs, xb, nxs, nxb, xv0, xvmax = xst
     xtab, xt0, xdt, xtend, xnr, xsfm0 = xtrk
     xpath, xps0, xpds, xpn, xplen, xpex, xpey = xpth
     xL, xW, xrad = xgeo
-    ped_idx, ped_rad, oX, oY, oACT = peds
     R = xs.shape[1]
     for j in range(R):
         for f in range(8):
@@ -124,9 +128,11 @@ def extra_riders_step(  # type: ignore[no-untyped-def]
                             )
                             sx += hx_
                             sy += hy_
-                    sx, sy = ped_forces(
-                        sx, sy, x0, y0, xrad[j], k, ped_idx, ped_rad, oX, oY, oACT, a_rr, b_rr
-                    )
+                    if others is not None:
+                        sx, sy = ped_forces(
+                            sx, sy, x0, y0, xrad[j], k, ped_idx, ped_rad,
+                            others[0], others[1], others[4], a_rr, b_rr,
+                        )  # fmt: skip
                     fx = fx + sx
                     fy = fy + sy
                 x2, y2, vx2, vy2, sp2 = integrate(
@@ -169,3 +175,55 @@ def extra_riders_step(  # type: ignore[no-untyped-def]
             xs[f, j] = nxs[f, j]
         for f in range(4):
             xb[f, j] = nxb[f, j]
+
+
+@numba.njit(cache=True, inline="always")
+def riders_state0(b, P, R, XS0, XB0, xmed, xp99):  # type: ignore[no-untyped-def]
+    """Variant b's R extra riders at k = 0: (xs [8, R], xb [4, R], their scratch for the
+    next step, desired speeds xv0 [R], speed limits xvmax [R] [m/s]: from each rider's own
+    recording (median moving speed, 99th percentile) where the variant's
+    speed_from_recording is on and the recording has one, else the variant's v0 / vmax)."""
+    xs = np.empty((8, R))
+    xb = np.empty((4, R), dtype=np.bool_)
+    nxs = np.empty((8, R))
+    nxb = np.empty((4, R), dtype=np.bool_)
+    xv0 = np.empty(R)
+    xvmax = np.empty(R)
+    for j in range(R):
+        for f in range(8):
+            xs[f, j] = XS0[f, b, j]
+        for f in range(4):
+            xb[f, j] = XB0[f, b, j] > 0
+        med = xmed[j]
+        if P[P_SFR, b] > 0.5 and math.isfinite(med):
+            lk = P[P_LOOK, b]
+            xv0[j] = med * math.hypot(lk, P[P_SIGMA, b]) / lk
+            xvmax[j] = max(xp99[j], med)
+        else:
+            xv0[j] = P[P_V0, b]
+            xvmax[j] = P[P_VMAX, b]
+    return xs, xb, nxs, nxb, xv0, xvmax
+
+
+@numba.njit(cache=True, inline="always")
+def riders_record(b, kk, xs, xb, OX, OXB):  # type: ignore[no-untyped-def]
+    """Step kk of variant b's extra-rider series: OX [B, 5, T, R] (x, y, yaw, speed,
+    accel), OXB [B, 2, T, R] (active, hit)."""
+    for j in range(xs.shape[1]):
+        OX[b, 0, kk, j] = xs[0, j]
+        OX[b, 1, kk, j] = xs[1, j]
+        OX[b, 2, kk, j] = xs[2, j]
+        OX[b, 3, kk, j] = xs[5, j]
+        OX[b, 4, kk, j] = xs[6, j]
+        OXB[b, 0, kk, j] = 1 if xb[0, j] else 0
+        OXB[b, 1, kk, j] = 1 if xb[3, j] else 0
+
+
+@numba.njit(cache=True, inline="always")
+def riders_final(b, xs, xb, XFS, XFB):  # type: ignore[no-untyped-def]
+    """Variant b's final extra-rider state into XFS [8, B, R] and XFB [4, B, R]."""
+    for j in range(xs.shape[1]):
+        for f in range(8):
+            XFS[f, b, j] = xs[f, j]
+        for f in range(4):
+            XFB[f, b, j] = 1 if xb[f, j] else 0
