@@ -53,6 +53,22 @@ def _export(folder, scen, frame, out, config="replay"):
     return traj, xodr, path
 
 
+def test_commonroads_usual_reader_reads_the_export(demo_world, tmp_path):
+    """CommonRoad's usual entry point imports beside Ray (protobuf 3.20.3: commonroad-io's
+    generated protobuf modules fail on protobuf 4 and later with "Descriptors cannot be
+    created directly") and reads vei's file as vei's own reader does."""
+    import ray  # noqa: F401  (the distributed extra is in the same environment)
+    from commonroad.common.file_reader import CommonRoadFileReader
+
+    folder, scen, frame = demo_world
+    _, _, path = _export(folder, scen, frame, tmp_path)
+    usual, usual_problems = CommonRoadFileReader(str(path)).open()
+    read, _ = read_commonroad(path)
+    assert {o.obstacle_id for o in usual.obstacles} == {o.obstacle_id for o in read.obstacles}
+    assert len(usual.lanelet_network.lanelets) == len(read.lanelet_network.lanelets) > 0
+    assert len(usual_problems.planning_problem_dict) == 1
+
+
 def test_round_trip_equal(demo_world, tmp_path):
     folder, scen, frame = demo_world
     traj, xodr, path = _export(folder, scen, frame, tmp_path)
