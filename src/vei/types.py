@@ -204,6 +204,9 @@ class Trace:
         secondary: the run's secondary collisions (every contact but ego / this road
             user: vei.metrics.secondary.secondary_record, a mapping of [B] arrays), or
             None where the source reports none.
+        where: where the runs' contacts happened (vei.continuation.where.run_where:
+            {'contact': [B], 'secondary': [B]} labels 'recorded', 'run-in', 'run-out',
+            ''), or None where the source reports none.
     """
 
     t_s: object
@@ -222,6 +225,7 @@ class Trace:
     other_length_m: float
     other_width_m: float
     secondary: object = None
+    where: object = None
 
     @property
     def dt_s(self) -> float:

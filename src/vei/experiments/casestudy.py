@@ -319,6 +319,7 @@ def run_casestudy(
     mcfg = MetricsConfig() if metrics_config is None else metrics_config
     from vei.continuation import strip_continuations, with_continuations
     from vei.continuation.flags import mark_frame
+    from vei.continuation.where import where_from_timeseries
     from vei.experiments.critical_path import make_critical as _make_critical
     from vei.recon.threat import with_threat
 
@@ -360,9 +361,13 @@ def run_casestudy(
     # secondary collisions (issue 24): every contact but the ego's with the rider
     dims = {a.agent_id: (a.length_m, a.width_m) for a in scenario.agents}
     dims.update({EGO_ID: ego_dims, other.agent_id: other_dims})
-    trace = dataclasses.replace(
-        trace, secondary=secondary_from_timeseries(frame, runs, dims, other.agent_id)
-    )
+    sec = secondary_from_timeseries(frame, runs, dims, other.agent_id)
+    # where the contacts happened (issue 31): recorded behaviour, run-in or run-out
+    where = where_from_timeseries(
+        frame, runs, scenario, rider_id=other.agent_id, time_shift_s=shift_s,
+        sfm_configs={c.name for c in case_objs if c.rider == "sfm"}, secondary=sec,
+    )  # fmt: skip
+    trace = dataclasses.replace(trace, secondary=sec, where=where)
     names = [c for c, _ in runs]
     order = [c.name for c in case_objs]
     if names != order:

@@ -21,6 +21,7 @@ import vei.metrics.secondary as secondary
 import vei.metrics.seen as seen
 import vei.metrics.severity as severity
 import vei.metrics.ttc as ttc
+import vei.metrics.where as where
 from vei.errors import ConfigError
 from vei.metrics._trace import TraceArrays, arrays
 from vei.metrics.config import MetricsConfig
@@ -326,6 +327,30 @@ _ALL: tuple[Metric, ...] = (
         "bool",
         "a vehicle hit the ego from behind (the cost of hard braking)",
         lambda a, c: secondary.secondary_metric("rear_end_collision", a),
+    ),
+    # ---- issue 31: where the contacts happened (recorded behaviour, run-in, run-out)
+    Metric(
+        "contact_where",
+        "scalar",
+        "label",
+        "where the rider was at its first contact with the ego: 'recorded', 'run-in', "
+        "'run-out' of its continued track ('' if none; vei.continuation.where)",
+        lambda a, c: where.where_metric("contact_where", a),
+    ),
+    Metric(
+        "secondary_where",
+        "scalar",
+        "label",
+        "where the other road user of the first secondary collision was: 'recorded', "
+        "'run-in', 'run-out' ('' if none)",
+        lambda a, c: where.where_metric("secondary_where", a),
+    ),
+    Metric(
+        "collision_recorded",
+        "scalar",
+        "bool",
+        "the ego hit the rider while the rider was on its recorded behaviour",
+        lambda a, c: where.where_metric("collision_recorded", a),
     ),
     Metric("ttc_s", "series", "s", "paper TTC per step", lambda a, c: ttc.paper_ttc(a, c)),
     Metric(

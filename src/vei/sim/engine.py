@@ -203,6 +203,7 @@ def simulate(
         extra_width_m=arrays.riders.width_m,
         car_ids=tuple(arrays.other_ids[j] for j in arrays.traffic.idx),
         ped_ids=tuple(arrays.other_ids[j] for j in arrays.peds.idx),
+        routes=arrays.routes,
         **{name: (xbufs[name].transpose(1, 0, 2) if name in xbufs else None) for name in _XNAMES},
         **series,
     )
@@ -390,8 +391,10 @@ def simulate_metrics(
         rows = np.empty_like(out["metrics"])
         rows[perm] = out["metrics"]
         frame = metrics_frame(rows, [n for n in names if n in FUSED_METRICS], cfg)
-        if len(frame.columns) < len(names):  # the secondary collisions, from the kernel's state
-            frame = _with_secondary(frame, names, arrays, out["final"], perm)
+        if len(frame.columns) < len(names):  # secondary collisions, where: the kernel's state
+            frame = _with_state_metrics(
+                frame, names, arrays, sub, out["final"], out["collision_time_s"], perm
+            )
         parts.append((idx, frame))
     rest = np.flatnonzero(~fused)
     for start in range(0, rest.size, full_batch):
@@ -414,26 +417,33 @@ def simulate_metrics(
 
 def kernel_metrics() -> tuple[str, ...]:
     """The scalar metrics :func:`simulate_metrics` scores inside the compiled kernel's pass:
-    the fused ones (vei.metrics.fused_layout.FUSED_METRICS) and the secondary collisions
-    (vei.metrics.secondary: the kernel's own contact latches)."""
+    the fused ones (vei.metrics.fused_layout.FUSED_METRICS), the secondary collisions
+    (vei.metrics.secondary: the kernel's own contact latches) and where the contacts
+    happened (vei.metrics.where: from the kernel's final state)."""
     from vei.metrics.fused_layout import FUSED_METRICS
     from vei.metrics.secondary import SECONDARY_METRICS
+    from vei.metrics.where import WHERE_METRICS
 
-    return FUSED_METRICS + SECONDARY_METRICS
+    return FUSED_METRICS + SECONDARY_METRICS + WHERE_METRICS
 
 
-def _with_secondary(
+def _with_state_metrics(
     frame: pd.DataFrame,
     names: Sequence[str],
     arrays: ScenarioArrays,
+    params: VariantParams,
     final: dict[str, np.ndarray],
+    collision_time_s: np.ndarray,
     perm: npt.NDArray[np.intp],
 ) -> pd.DataFrame:
-    """``frame`` with the requested secondary-collision columns from the kernel's final
-    state (sorted by ``perm``), in ``names`` order."""
+    """``frame`` with the requested secondary-collision and where columns from the
+    kernel's final state and [B] collision times (its variants sorted by ``perm`` from
+    ``params``' order), in ``names`` order."""
     import pandas as pd
 
+    from vei.continuation.where import run_where
     from vei.metrics.secondary import secondary_column, secondary_record
+    from vei.metrics.where import WHERE_METRICS, where_column
     from vei.sim.contacts import agent_name
 
     def back(a: np.ndarray) -> np.ndarray:
@@ -449,7 +459,22 @@ def _with_secondary(
         back(final["sec_max_speed_mps"]), back(final["rear_end"]),
     )  # fmt: skip
     b = perm.size
-    cols = {n: frame[n] if n in frame.columns else secondary_column(n, rec, b) for n in names}
+    labels = run_where(
+        dict(arrays.routes), arrays.rider_id,
+        collision_time_s=back(np.asarray(collision_time_s)),
+        time_shift_s=params.time_shift_s,
+        rider_xy_m=np.stack([back(final["rider_x_m"]), back(final["rider_y_m"])], axis=-1),
+        rider_sfm=params.rider_sfm, secondary_time_s=rec["first_t_s"],
+        secondary_striker=list(rec["striker"]), secondary_struck=list(rec["struck"]),
+    )  # fmt: skip
+    cols = {}
+    for n in names:
+        if n in frame.columns:
+            cols[n] = frame[n]
+        elif n in WHERE_METRICS:
+            cols[n] = where_column(n, labels, b)
+        else:
+            cols[n] = secondary_column(n, rec, b)
     return pd.DataFrame(cols)
 
 

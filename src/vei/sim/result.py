@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
+from vei.continuation.where import Route
 from vei.errors import ConfigError
 from vei.sim.state import EGO_CAP, SimState, VariantParams
 from vei.types import EGO_CATEGORY, EGO_ID, TIMESERIES_COLUMNS, Trace
@@ -67,6 +68,8 @@ class SimResult:
         ped_ids: the recorded pedestrians (vei.sim.pedestrians). ped_x_m, ped_y_m,
             ped_vx_mps, ped_vy_mps: [B, T, P] their engine poses and velocities where
             ``peds_sfm`` (NumPy step; None from the compiled kernel).
+        routes: the scenario's labelled routes (ScenarioArrays.routes): where each run's
+            contacts happened (:meth:`where`).
     """
 
     t_s: FloatArray
@@ -132,6 +135,7 @@ class SimResult:
     ped_y_m: FloatArray | None = None
     ped_vx_mps: FloatArray | None = None
     ped_vy_mps: FloatArray | None = None
+    routes: Mapping[str, Route] | None = None
 
     @property
     def secondary_count(self) -> npt.NDArray[np.int32]:
@@ -190,6 +194,7 @@ class SimResult:
             other_length_m=self.rider_length_m,
             other_width_m=self.rider_width_m,
             secondary=self.secondary(sel),
+            where=self.where(sel),
         )
 
     def secondary(self, sel: slice | npt.NDArray[np.intp] = slice(None)) -> dict[str, np.ndarray]:
@@ -208,6 +213,26 @@ class SimResult:
             np.asarray(fs.sec_count)[sel], np.asarray(fs.sec_first_t_s)[sel],
             names(fs.sec_striker), names(fs.sec_struck),
             np.asarray(fs.sec_max_speed_mps)[sel], np.asarray(fs.rear_end)[sel],
+        )  # fmt: skip
+
+    def where(self, sel: slice | npt.NDArray[np.intp] = slice(None)) -> dict[str, np.ndarray]:
+        """Where the contacts of the variants ``sel`` happened
+        (vei.continuation.where.run_where: 'contact' the primary rider at its first contact
+        with the ego, 'secondary' the other road user of the first secondary contact; each
+        'recorded', 'run-in', 'run-out' or ''), from the state at the end of the run (a
+        collided rider stands where it touched)."""
+        from vei.continuation.where import run_where
+
+        sec = self.secondary(sel)
+        fs = self.final_state
+        xy = np.stack([np.asarray(fs.rider_x_m)[sel], np.asarray(fs.rider_y_m)[sel]], axis=-1)
+        return run_where(
+            dict(self.routes or {}), self.rider_id,
+            collision_time_s=self.collision_time_s[sel],
+            time_shift_s=np.asarray(self.params.time_shift_s)[sel],
+            rider_xy_m=xy, rider_sfm=np.asarray(self.params.rider_sfm, dtype=bool)[sel],
+            secondary_time_s=sec["first_t_s"], secondary_striker=list(sec["striker"]),
+            secondary_struck=list(sec["struck"]),
         )  # fmt: skip
 
     def to_frame(

@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -19,6 +20,7 @@ import numpy.typing as npt
 
 from vei.config import SimConfig
 from vei.continuation import recorded_rows, recorded_span_s, with_continuations
+from vei.continuation.where import Route, route_of
 from vei.errors import InputError
 from vei.models.drivable_path import (
     PATH_SPEED_MARGIN,
@@ -105,6 +107,9 @@ class ScenarioArrays:
             vehicles on or across the ego's path; they react where ``cars_react``).
         peds: the recorded pedestrians (vei.sim.pedestrians; social-force driven where
             ``peds_sfm``).
+        routes: agent id -> its labelled continued track (vei.continuation.where.Route)
+            for every road user but the ego: where a run's contacts happened (on the
+            recorded behaviour, a run-in or a run-out: SimResult.where).
     """
 
     scenario_id: str
@@ -140,6 +145,7 @@ class ScenarioArrays:
     rider_moving_speeds_mps: FloatArray | None = None
     traffic: Traffic = field(default_factory=Traffic)
     peds: Pedestrians = field(default_factory=Pedestrians)
+    routes: Mapping[str, Route] = field(default_factory=dict)
 
     @property
     def n_steps(self) -> int:
@@ -301,6 +307,11 @@ def prepare_scenario(
             scenario, others, t_s, ego_path, ego_track, ego_len, ego_wid, where
         ),
         peds=prepare_pedestrians(scenario, others, t_s, where),
+        routes={
+            a.agent_id: route_of(scenario, a.agent_id)
+            for a in scenario.agents
+            if a.agent_id != EGO_ID
+        },
     )
 
 

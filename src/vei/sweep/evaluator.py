@@ -70,6 +70,11 @@ DEFAULT_METRICS: tuple[str, ...] = (
     "first_seen_ttc_s",
     "seen_too_late",
     "safety_index_rel",
+    # issue 31: where the contacts happened (the rider's recorded behaviour or vei's run-in
+    # / run-out of it: vei.metrics.where)
+    "contact_where",
+    "secondary_where",
+    "collision_recorded",
 )
 
 
