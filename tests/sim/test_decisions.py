@@ -21,7 +21,9 @@ KERNELS = ["numpy", "numba"]
 # recording starts 30 m before the lane (not 15 m): a social-force rider takes over at its
 # first recorded sample (vei.sim.riders.sfm_entry_s), and it must do so before the
 # decision horizon (4 s, 17.6 m at 4.4 m/s) so that the decision falls at the horizon.
-HZ_R = 0.925 + 0.6  # the zone along the rider's path (perpendicular crossing)
+# the zone along the rider's path (perpendicular crossing): half the car's width, half the
+# rider's length, and the corridor's margin (vei.sim.decisions.CORRIDOR_MARGIN_M)
+HZ_R = 0.925 + 0.6 + 0.3
 HZ_E = 0.3 + 2.35  # along the ego's
 SHIFT_S = 8.0 - 15.0 / 4.4  # as a 15 m recording's 8 s shift
 
@@ -84,6 +86,9 @@ def test_a_yielding_rider_stops_short_of_the_zone_and_goes_after_the_car(arrays,
     assert stop.size  # it stops ...
     assert (y[stop] < -HZ_R).all()  # ... short of the zone
     assert y[stop].max() > -HZ_R - 0.5 - 0.5  # within half a metre of its stop point
+    # where the car cannot reach it: its box (across the car's path: half its length,
+    # 0.6 m) is outside the strip the car sweeps (half its width, 0.925 m) by the margin
+    assert (np.abs(y[stop]) - 0.6 - 0.925 >= 0.3 - 1e-9).all()
     enter = int(np.flatnonzero(y > -HZ_R)[0])
     assert ex[enter] > 60.0 + HZ_E  # it enters the zone once the car has left it
     assert stop[0] < enter and r.rider_decision[0, enter] == core.FREE
@@ -110,3 +115,69 @@ def test_decisions_off_change_nothing(arrays) -> None:
         v = getattr(a, name)
         assert v[0].tobytes() == v[1].tobytes(), name
     assert not a.rider_decision.any()
+
+
+def test_on_the_demo_a_cautious_rider_collides_no_more_often_and_no_harder():
+    """Issue 32's grid: 41 time shifts of the demo (the rider rides ahead of the car in its
+    lane, then crosses), decisions on, critical gap -3 s (always goes) or +3 s (always
+    yields). The rider shares the car's lane before it crosses, so the conflict zone starts
+    where the rider already is: it does not brake to a stop in the lane; the cautious
+    riders collide no more often, and no harder, than the bold ones (before: 41 of 41 at
+    3.5 m/s against 35 of 41 at 1.8 m/s)."""
+    from vei.experiments.demo_data import demo_interaction
+    from vei.recon.pipeline import reconstruct
+    from vei.sim.engine import simulate_metrics
+    from vei.sim.timeshift import find_time_shift
+
+    scen = reconstruct(demo_interaction())
+    arrays = prepare_scenario(scen, SimConfig())
+    assert arrays.conflicts.n == 1
+    # the zone begins before the rider's recorded path does (arc 0, where a social-force
+    # rider takes over): it rides in the car's lane from its first recorded sample
+    assert arrays.conflicts.s_rider_m[0] - arrays.conflicts.hz_rider_m[0] <= 0.0
+    auto = find_time_shift(scen).time_shift_s
+    shifts = auto + np.linspace(-2.0, 2.0, 41)
+    rows = {}
+    for t_c in (-3.0, 3.0):
+        case = dataclasses.replace(
+            case_preset("normal"), decision=DecisionConfig(enabled=True, critical_gap_s=t_c)
+        )
+        p = VariantParams.from_case(case, arrays, shifts.size, time_shift_s=shifts)
+        rows[t_c] = simulate_metrics(
+            arrays, p, names=("collision", "impact_speed_mps"), kernel="numpy"
+        )
+    bold, cautious = rows[-3.0], rows[3.0]
+    assert cautious["collision"].sum() <= bold["collision"].sum()
+    hit_c, hit_b = cautious["collision"].to_numpy(), bold["collision"].to_numpy()
+    if hit_c.any():
+        assert cautious["impact_speed_mps"][hit_c].mean() <= bold["impact_speed_mps"][hit_b].mean()
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_the_extra_social_force_riders_decide_too(kernel) -> None:
+    """Issue 32: with ``--sfm-riders`` every social-force rider decides at its own
+    conflicts with the car. In the four-rider scene (e2 and e3 cross the car's lane at
+    x = 45 m and 75 m) a cautious population (t_c = 6 s) changes the extra riders' tracks
+    against decisions off, at least one of them yields, and both kernels agree."""
+    from vei.sim.testing import four_rider_scenario
+
+    arrays = prepare_scenario(four_rider_scenario(), SimConfig(sfm_riders="all"))
+    assert arrays.riders.n == 3
+    assert [c.n for c in arrays.riders.conflicts][:2] == [1, 1]  # e2, e3 cross the lane
+    case = case_preset("paper-normal")
+    on = dataclasses.replace(case, decision=DecisionConfig(enabled=True, critical_gap_s=6.0))
+    shifts = np.array([0.0, 1.0, 2.0])
+    p = VariantParams.concat(
+        [VariantParams.from_case(c, arrays, 3, time_shift_s=shifts) for c in (case, on)]
+    )
+    r = simulate(arrays, p, kernel=kernel)
+    moved = np.abs(r.extra_y_m[3:] - r.extra_y_m[:3])  # decisions on against off
+    assert moved[:, :, :2].max() > 0.5
+    # a yielding extra rider waits short of the car's corridor while the car passes
+    waits = (r.extra_speed_mps[3:, :, :2] < 0.1) & r.extra_active[3:, :, :2]
+    assert waits.any()
+    assert (np.abs(r.extra_y_m[3:, :, :2][waits]) > 0.925 + 0.6).all()
+    if kernel == "numba":
+        ref = simulate(arrays, p, kernel="numpy")
+        np.testing.assert_allclose(r.extra_y_m, ref.extra_y_m, atol=1e-7)
+        assert np.array_equal(r.final_state.extra_decision, ref.final_state.extra_decision)

@@ -106,6 +106,22 @@ class SFMConfig:
             e-fold every 0.5 m (2.0 1/m; 18 N at a 2 m gap), so two paper riders meeting
             head-on stop 0.35 m apart (where it balances f_des = k_des v0 = 500 N).
         use_rider_force: include the rider-rider / rider-pedestrian repulsion.
+        obstacle_braking: the rider brakes for a standing or slow car in its way (issue 32:
+            the paper's forces alone let a rider ride into a car that stands in its path,
+            its repulsion being ~3 N at 1 m against the ~400 N that keep it riding). Where
+            the ray along its desired velocity meets the car's box, widened by the rider's
+            half-diagonal, within braking reach, its desired speed is capped at
+            ``sqrt(2 a (d - margin - v m / k_des))`` (the stop it needs, less what it rides
+            in its relaxation time m / k_des). Off in the paper's riders (forces only) and
+            the aggressive ones (non-cooperative by choice); on in the calibrated Normal
+            rider. Only for a car slower than ``obstacle_speed_mps``.
+        obstacle_decel_mps2: the deceleration a [m/s^2] of that stop: 2.0, the comfortable
+            yielding deceleration of cyclists and e-scooter riders (docs/riders.md; an
+            assumption below the 2.45 m/s^2 wet-pavement design value of AASHTO's 1999 Guide
+            for the Development of Bicycle Facilities); the rider's force cap still bounds it.
+        obstacle_margin_m: it stops this far [m] short of the car's widened box (0.5 m).
+        obstacle_speed_mps: a car slower than this [m/s] is an obstacle (2.0: standing,
+            creeping or stopping; a faster car is the repulsion's and the decision's matter).
     """
 
     k_des_nspm: float = 100.0
@@ -126,6 +142,10 @@ class SFMConfig:
     a_rider_n: float = 1000.0
     b_rider_per_m: float = 2.0
     use_rider_force: bool = True
+    obstacle_braking: bool = False
+    obstacle_decel_mps2: float = 2.0
+    obstacle_margin_m: float = 0.5
+    obstacle_speed_mps: float = 2.0
 
     def __post_init__(self) -> None:
         check_section(self, "sfm")  # the declared settings (vei.config.settings)
@@ -160,6 +180,7 @@ CALIBRATED_SFM = SFMConfig(
     max_speed_mps=4.72,
     max_accel_mps2=5.9,
     speed_from_recording=True,
+    obstacle_braking=True,
 )
 
 #: Named riders. 'normal' / 'aggressive' are the riders of the case-study configurations
@@ -170,7 +191,10 @@ CALIBRATED_SFM = SFMConfig(
 SFM_PRESETS: dict[str, SFMConfig] = {
     "normal": CALIBRATED_SFM,
     "aggressive": replace(
-        CALIBRATED_SFM, use_vehicle_force=False, k_des_factor=AGGRESSIVE_K_DES_FACTOR
+        CALIBRATED_SFM,
+        use_vehicle_force=False,
+        k_des_factor=AGGRESSIVE_K_DES_FACTOR,
+        obstacle_braking=False,
     ),
     "paper": PAPER_SFM,
     "paper-aggressive": replace(
@@ -178,7 +202,10 @@ SFM_PRESETS: dict[str, SFMConfig] = {
     ),
     "calibrated": CALIBRATED_SFM,
     "calibrated-aggressive": replace(
-        CALIBRATED_SFM, use_vehicle_force=False, k_des_factor=AGGRESSIVE_K_DES_FACTOR
+        CALIBRATED_SFM,
+        use_vehicle_force=False,
+        k_des_factor=AGGRESSIVE_K_DES_FACTOR,
+        obstacle_braking=False,
     ),
 }
 

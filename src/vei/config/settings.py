@@ -245,6 +245,15 @@ SETTINGS: tuple[Setting, ...] = (
     _f("b_rider_per_m", "sfm.b_rider_per_m", "1/m", "rider-rider repulsion decay rate",
        **_NONNEG),
     _b("use_rider_force", "sfm.use_rider_force", "apply the rider-rider repulsion"),
+    # issue 32: riders brake for a standing or slow car in their way
+    _b("obstacle_braking", "sfm.obstacle_braking", "the rider brakes for a standing or "
+       "slow car in its way", sweep=True),
+    _f("obstacle_decel_mps2", "sfm.obstacle_decel_mps2", "m/s^2", "deceleration of the "
+       "rider's stop for a car in its way", sweep=True, **_POS),
+    _f("obstacle_margin_m", "sfm.obstacle_margin_m", "m", "the rider stops this far short "
+       "of a car in its way", **_NONNEG),
+    _f("obstacle_speed_mps", "sfm.obstacle_speed_mps", "m/s", "a car slower than this is "
+       "an obstacle the rider brakes for", **_NONNEG),
     Setting("policy", "ego.policy", "object", "ego policy (vei.policy): none = PID cruise, "
             "paper-cap = PID + CAP, aeb, idm, or a user policy 'package.module:Class' / "
             "'path/file.py:Class' (docs/policy.md)", kind="object", kernel=False, sweep=True,

@@ -282,6 +282,7 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         for name in ("extra_x_m", "extra_y_m", "extra_yaw_rad", "extra_vx_mps", "extra_vy_mps",
                      "extra_speed_mps", "extra_a_mps2", "extra_prog_m"):  # fmt: skip
             fields[name] = np.zeros((n, 0))
+        fields["extra_decision"] = np.zeros((n, 0), np.int8)
         for name in ("extra_active", "extra_started", "extra_done", "extra_hit"):
             fields[name] = np.zeros((n, 0), bool)
         # issue 24's state (the env's rider never decides, its cars replay, no pedestrians

@@ -105,6 +105,7 @@ from vei.metrics.fused_ops import (
     pairwise_sum,
     time_to_contact,
 )
+from vei.metrics.severity import STANDING_MPS as STANDING
 from vei.types import Trace
 
 __all__ = [
@@ -487,7 +488,7 @@ def _severity(ch, hit, first, Le, We, cfg, mass_kg, out):  # type: ignore[no-unt
     if not approach or math.isnan(car):
         out[M_STRIKE] = -1.0
     else:
-        out[M_STRIKE] = 0.0 if car >= rider else 1.0
+        out[M_STRIKE] = 0.0 if car >= rider else (2.0 if pv < STANDING else 1.0)
 
 
 @numba.njit(cache=True, error_model="numpy", parallel=True)

@@ -191,7 +191,7 @@ _ALL: tuple[Metric, ...] = (
         "striking",
         "scalar",
         "label",
-        "car-hits-rider / rider-hits-car ('' if no collision)",
+        "car-hits-rider / rider-hits-car / rider-hits-standing-car ('' if no collision)",
         lambda a, c: severity.striking(a, c),
     ),
     Metric(

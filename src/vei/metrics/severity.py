@@ -36,8 +36,10 @@ Definitions (one value per run; NaN / '' when the run has no collision):
 - **Who hit whom**: along the outward normal n of the hit face (front: ego heading,
   left: ego left, ...), the car's contribution to the closing speed is v_ego . n and
   the rider's -v_rider . n. 'car-hits-rider' when the car's contribution is at least the
-  rider's, 'rider-hits-car' otherwise (e.g. a rider riding into a standing car, or into
-  the side of a moving one, whose motion has no component along a side face's normal).
+  rider's, 'rider-hits-car' otherwise (e.g. a rider riding into the side of a moving car,
+  whose motion has no component along a side face's normal), and
+  'rider-hits-standing-car' where the rider hits a car slower than :data:`STANDING_MPS`
+  (a rider riding into a car that stands: rare unless the rider model is aggressive).
   The face normal is used rather than the line of centres because the car is 4.7 m
   long: a rider touching the left side near the front corner lies 30 degrees off the
   car's axis, and the line of centres would credit the car's forward motion with a
@@ -77,7 +79,10 @@ FloatArray = npt.NDArray[np.float64]
 ObjArray = npt.NDArray[np.object_]
 
 SIDES: tuple[str, ...] = ("front", "rear", "left", "right")
-STRIKING: tuple[str, ...] = ("car-hits-rider", "rider-hits-car")
+STRIKING: tuple[str, ...] = ("car-hits-rider", "rider-hits-car", "rider-hits-standing-car")
+#: A car slower than this [m/s] on the step before a rider hits it stands (issue 32: a
+#: rider that rides into a standing car is a failure of the rider model, said apart).
+STANDING_MPS = 0.5
 VERDICTS: tuple[str, ...] = ("avoided", "mitigated", "not-mitigated")
 KMH_PER_MPS = 3.6
 
@@ -196,10 +201,15 @@ def closing_contributions(trace: Trace | TraceArrays) -> tuple[FloatArray, Float
 
 
 def striking(trace: Trace | TraceArrays, cfg: MetricsConfig | None = None) -> ObjArray:
-    """[B] 'car-hits-rider' or 'rider-hits-car' (see module docstring); '' without collision
-    or without an approach."""
+    """[B] 'car-hits-rider', 'rider-hits-car' or 'rider-hits-standing-car' (see module
+    docstring); '' without collision or without an approach."""
     car, rider = closing_contributions(trace)
-    out = np.where(car >= rider, STRIKING[0], STRIKING[1]).astype(object)
+    a = arrays(trace)
+    _, _, pre, _ = _contact(a)
+    standing = a.ego_speed[np.arange(pre.size), pre] < STANDING_MPS
+    out = np.where(car >= rider, STRIKING[0], np.where(standing, STRIKING[2], STRIKING[1])).astype(
+        object
+    )
     out[np.isnan(car)] = ""
     return out
 

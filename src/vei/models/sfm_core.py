@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from vei.boxes import closest_point_core
-from vei.models.ego_core import select
+from vei.models.ego_core import maximum, minimum, select
 
 #: Distance below which a direction is undefined [m] (the rider on the influential point,
 #: or on the ego's centre, or two riders' centres).
@@ -145,3 +145,60 @@ def rider_repulsion_core(dc_m: Any, gap_m: Any, a_n: Any, b_per_m: Any) -> Any:
     [N] where :func:`rider_gap_core` says it acts (dc > 0 there; not clipped where the discs
     overlap)."""
     return a_n * np.exp(-b_per_m * gap_m) / dc_m
+
+
+def ray_box_distance_core(  # type: ignore[no-untyped-def]
+    px_m, py_m, ux, uy, ex_m, ey_m, cos_yaw, sin_yaw, half_length_m, half_width_m
+):
+    """Distance [m] from p along the unit direction u to an oriented box (centre e,
+    heading (cos, sin), half length / width): 0 where p is inside, +inf where the ray
+    misses it (the slab test in the box's frame). Not annotated: numba compiles it from
+    its own source where a compiled core calls it (vei.sim.kernel.scalar's overload,
+    whose signature must equal this one)."""
+    rx = px_m - ex_m
+    ry = py_m - ey_m
+    lx = rx * cos_yaw + ry * sin_yaw
+    ly = -rx * sin_yaw + ry * cos_yaw
+    dx = ux * cos_yaw + uy * sin_yaw
+    dy = -ux * sin_yaw + uy * cos_yaw
+    flat_x = np.abs(dx) < 1e-12
+    flat_y = np.abs(dy) < 1e-12
+    sdx = select(flat_x, 1.0, dx)
+    sdy = select(flat_y, 1.0, dy)
+    ax = (-half_length_m - lx) / sdx
+    bx = (half_length_m - lx) / sdx
+    ay = (-half_width_m - ly) / sdy
+    by = (half_width_m - ly) / sdy
+    in_x = np.abs(lx) <= half_length_m
+    in_y = np.abs(ly) <= half_width_m
+    lo_x = select(flat_x, select(in_x, -np.inf, np.inf), minimum(ax, bx))
+    hi_x = select(flat_x, select(in_x, np.inf, -np.inf), maximum(ax, bx))
+    lo_y = select(flat_y, select(in_y, -np.inf, np.inf), minimum(ay, by))
+    hi_y = select(flat_y, select(in_y, np.inf, -np.inf), maximum(ay, by))
+    t_in = maximum(lo_x, lo_y)
+    t_out = minimum(hi_x, hi_y)
+    hit = np.logical_and(t_in <= t_out, t_out >= 0.0)
+    return select(hit, maximum(t_in, 0.0), np.inf)
+
+
+def obstacle_speed_core(
+    px_m: Any, py_m: Any, vdx_mps: Any, vdy_mps: Any, speed_mps: Any,
+    ex_m: Any, ey_m: Any, cos_yaw: Any, sin_yaw: Any, half_length_m: Any, half_width_m: Any,
+    rider_radius_m: Any, margin_m: Any, decel_mps2: Any, tau_s: Any,
+) -> Any:  # fmt: skip
+    """The speed cap [m/s] of a rider at p riding towards its desired velocity vd, for a
+    car's box (centre e, heading, half length / width [m]) in its way: the box is widened
+    by the rider's radius (half its diagonal), d is the distance along vd to it
+    (:func:`ray_box_distance_core`), and the cap ``sqrt(2 a max(d - margin - v tau, 0))``
+    lets it stop ``margin_m`` short (a = ``decel_mps2``, tau the relaxation time m / k_des
+    over which it follows a new desired speed). +inf where vd misses the box or is 0."""
+    vd = np.sqrt(vdx_mps * vdx_mps + vdy_mps * vdy_mps)
+    moving = vd > TINY_M
+    safe = select(moving, vd, 1.0)
+    d = ray_box_distance_core(
+        px_m, py_m, vdx_mps / safe, vdy_mps / safe, ex_m, ey_m, cos_yaw, sin_yaw,
+        half_length_m + rider_radius_m, half_width_m + rider_radius_m,
+    )  # fmt: skip
+    room = d - margin_m - speed_mps * tau_s
+    cap = np.sqrt(2.0 * decel_mps2 * maximum(room, 0.0))
+    return select(moving, cap, np.inf)

@@ -44,6 +44,8 @@ class Block:
         perception: the block's enabled PerceptionConfig, else None.
         decide: the rider's yield / go decision (VariantParams.decide): True / False if
             uniform in the block (False for replay blocks), else the [b] mask.
+        obstacle: the rider brakes for a standing or slow car in its way
+            (VariantParams.obstacle_braking), alike.
         traffic: the recorded cars react (VariantParams.cars_react): True / False if
             uniform in the block, else the [b] mask. peds: the recorded pedestrians walk by
             the social force (VariantParams.peds_sfm), alike.
@@ -64,6 +66,7 @@ class Block:
     policy: Any = None
     perception: Any = None
     decide: bool | npt.NDArray[np.bool_] = False
+    obstacle: bool | npt.NDArray[np.bool_] = False
     traffic: bool | npt.NDArray[np.bool_] = False
     peds: bool | npt.NDArray[np.bool_] = False
     v2x: Any = None
@@ -147,6 +150,7 @@ def batch_flags(params: VariantParams, dt_s: float) -> BatchFlags:
                 policy=bp.policy[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
                 perception=bp.perception[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,
                 decide=_switch(bp.decide) if sfm else False,
+                obstacle=_switch(bp.obstacle_braking) if sfm else False,
                 traffic=_switch(bp.cars_react),
                 peds=_switch(bp.peds_sfm),
                 v2x=bp.v2x[0] if int(bp.ego_mode[0]) == EGO_POLICY else None,

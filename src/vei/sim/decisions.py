@@ -1,8 +1,8 @@
 """The rider's conflicts with the ego and its yield / go decision in the NumPy step.
 
 :func:`find_conflicts` (once per scenario, :func:`vei.sim.state.prepare_scenario`) finds
-where the rider's path crosses the ego's path (both PathTables, extensions included) and
-the conflict zones' extents (:func:`vei.models.decision_core.zone_half_lengths_core`);
+where the rider's path comes within the car's swept corridor (both PathTables, extensions
+included: :func:`vei.models.crossings.corridor_zones`) and the conflict zones' extents;
 :func:`decision_step` is one step of the decision of B social-force riders (the laws of
 :mod:`vei.models.decision_core`; the compiled kernel runs the same on scalars,
 :mod:`vei.sim.kernel.decision`).
@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from vei.models import decision_core as core
-from vei.models.crossings import path_crossings
+from vei.models.crossings import corridor_zones
 from vei.models.ego import PathTable
 
 FloatArray = npt.NDArray[np.float64]
@@ -51,6 +51,11 @@ class Conflicts:
         return int(self.s_rider_m.shape[0])
 
 
+#: Clearance [m] the car's corridor adds on each side (the conflict zones': a yielding
+#: rider stops this far, plus ``decision.stop_margin_m``, outside the strip the car sweeps).
+CORRIDOR_MARGIN_M = 0.3
+
+
 def find_conflicts(
     ego_path: PathTable,
     rider_path: PathTable,
@@ -60,28 +65,26 @@ def find_conflicts(
     rider_width_m: float,
 ) -> Conflicts:
     """The rider's conflicts with the ego (:class:`Conflicts`), sorted along the rider's
-    path; crossings closer than a zone to the previous one along both paths are one."""
-    s_r, s_e, sin_abs = path_crossings(rider_path, ego_path)
-    if s_r.size == 0:
+    path: every stretch of the rider's path inside the car's swept corridor (its path,
+    its width, the rider's extent and :data:`CORRIDOR_MARGIN_M`;
+    :func:`vei.models.crossings.corridor_zones`): crossings, a stretch shared with the
+    car's lane, and passes within reach without crossing (a rider beside the car's path at
+    a turn). A zone is entered at ``s_rider_m - hz_rider_m`` and left at ``exit_m`` along
+    the rider's path; the car occupies it while its centre is within ``s_ego_m +-
+    hz_ego_m`` along its own."""
+    s_in, s_out, e_in, e_out = corridor_zones(
+        rider_path, ego_path, ego_length_m, ego_width_m, rider_length_m, rider_width_m,
+        CORRIDOR_MARGIN_M,
+    )  # fmt: skip
+    if s_in.size == 0:
         return Conflicts()
-    order = np.argsort(s_r, kind="stable")
-    s_r, s_e, sin_abs = s_r[order], s_e[order], sin_abs[order]
-    sin_c = np.maximum(sin_abs, np.sin(core.MIN_CROSSING_RAD))
-    cos_c = np.sqrt(np.maximum(1.0 - sin_c * sin_c, 0.0))
-    hz_r, hz_e = core.zone_half_lengths_core(
-        sin_c, cos_c, ego_length_m, ego_width_m, rider_length_m, rider_width_m
+    return Conflicts(
+        0.5 * (s_in + s_out),
+        0.5 * (e_in + e_out),
+        0.5 * (s_out - s_in),
+        0.5 * (e_out - e_in),
+        s_out,
     )
-    keep = [0]
-    for k in range(1, s_r.size):
-        j = keep[-1]
-        if s_r[k] - s_r[j] < hz_r[j] and abs(s_e[k] - s_e[j]) < hz_e[j]:
-            continue  # the same crossing, found twice (a vertex on the other path)
-        keep.append(k)
-    kk = np.asarray(keep)
-    exit_m = s_r[kk] + hz_r[kk]
-    o = np.argsort(exit_m, kind="stable")
-    kk = kk[o]
-    return Conflicts(s_r[kk], s_e[kk], hz_r[kk], hz_e[kk], exit_m[o])
 
 
 def current_conflict(conf: Conflicts, prog_m: FloatArray) -> npt.NDArray[np.intp]:

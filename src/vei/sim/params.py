@@ -123,6 +123,10 @@ class VariantParams:
     a_rider_n: FloatArray
     b_rider_per_m: FloatArray
     use_rider_force: BoolArray
+    obstacle_braking: BoolArray
+    obstacle_decel_mps2: FloatArray
+    obstacle_margin_m: FloatArray
+    obstacle_speed_mps: FloatArray
     policy: npt.NDArray[np.object_]
     perception: npt.NDArray[np.object_]
     v2x: npt.NDArray[np.object_]

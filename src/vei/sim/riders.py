@@ -26,8 +26,11 @@ from vei.boxes import boxes_overlap
 from vei.continuation import recorded_span_s
 from vei.errors import InputError
 from vei.models import sfm as sfm_model
+from vei.models.decision_core import capped_velocity_core, reference_speed_core
 from vei.models.drivable_path import decimate_standstill, jitter_mask, recorded_arc_length
 from vei.models.ego import PathTable, build_path
+from vei.models.sfm_core import obstacle_speed_core
+from vei.sim.decisions import Conflicts, decision_step
 from vei.sim.tables import TimeTable, _uniform_track, recorded_column
 from vei.types import EGO_ID, RIDER_CATEGORIES, Scenario
 
@@ -39,8 +42,10 @@ RIDER_COLUMNS = ("x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps", "arc_
 #: SimState fields of the extra riders ([B, R]), floats then bools.
 EXTRA_FLOAT_FIELDS = (
     "extra_x_m", "extra_y_m", "extra_yaw_rad", "extra_vx_mps", "extra_vy_mps",
-    "extra_speed_mps", "extra_a_mps2", "extra_prog_m",
+    "extra_speed_mps", "extra_a_mps2", "extra_prog_m", "extra_decision",
 )  # fmt: skip
+#: The one int8 field among them (decision states, vei.models.decision_core).
+EXTRA_INT_FIELDS = ("extra_decision",)
 EXTRA_BOOL_FIELDS = ("extra_active", "extra_started", "extra_done", "extra_hit")
 _SPAN_EPS = 1e-9
 #: Spacing [m] of the points of the SFM riders' paths in the several-rider mode
@@ -145,6 +150,8 @@ class ExtraRiders:
         sfm_entry_s: [R] recording time [s] from which the social force drives each rider
             in SFM variants (:func:`sfm_entry_s`); before it a present rider is replayed
             (a standing run-in).
+        conflicts: [R] each rider's conflicts with the ego (vei.sim.decisions.Conflicts):
+            a social-force extra rider decides to yield or go there as the primary does.
     """
 
     enabled: bool = False
@@ -161,6 +168,7 @@ class ExtraRiders:
     ped_idx: npt.NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     ped_radius_m: FloatArray = field(default_factory=lambda: np.zeros(0))
     sfm_entry_s: FloatArray = field(default_factory=lambda: np.zeros(0))
+    conflicts: tuple[Conflicts, ...] = ()
 
     @property
     def n(self) -> int:
@@ -285,6 +293,8 @@ def initial_extra_state(
     unless the variant is SFM (``sfm`` [B]) and t = 0 lies before the rider's SFM entry."""
     r = ex.n
     out: dict[str, np.ndarray] = {f: np.zeros((b, r)) for f in EXTRA_FLOAT_FIELDS}
+    for f in EXTRA_INT_FIELDS:
+        out[f] = np.zeros((b, r), dtype=np.int8)
     for f in EXTRA_BOOL_FIELDS:
         out[f] = np.zeros((b, r), dtype=bool)
     for j, tr in enumerate(ex.tracks):
@@ -476,8 +486,28 @@ def _sfm_extra(
     gx, gy = rp.values_at(i, w, "x", "y")
     v0, vmax = extra_speeds(ex, ps, j)
     vdx, vdy = sfm_model.desired_velocity(x0, y0, gx, gy, v0, ps.sigma_m, ps.paper_vdes)
-    fx, fy = sfm_model.destination_force(vdx, vdy, vx0, vy0, ps.k_des_nspm)
+    conf = ex.conflicts[j] if ex.conflicts else None
+    if conf is not None and conf.n and ps.decide.any():  # its yield / go decision
+        old = st.extra_decision[sel, j]
+        new_dec, cap = decision_step(
+            conf, old, prog0, prog, st.extra_speed_mps[sel, j], st.ego_s_m[sel],
+            st.ego_v_mps[sel], ps, reference_speed_core(v0, ps.lookahead_m, ps.sigma_m),
+            ps.mass_kg / ps.k_des_nspm,
+        )  # fmt: skip
+        new_dec = np.where(ps.decide, new_dec, old).astype(np.int8)
+        vdx, vdy = capped_velocity_core(vdx, vdy, np.where(ps.decide, cap, np.inf))
+        out["extra_decision"][sel, j] = new_dec
     ego_x, ego_y, ego_yaw = st.ego_x_m[sel], st.ego_y_m[sel], st.ego_yaw_rad[sel]
+    on = ps.obstacle_braking & (st.ego_v_mps[sel] < ps.obstacle_speed_mps)
+    if on.any():  # braking for a standing or slow car in its way (vei.sim.obstacles)
+        cap = obstacle_speed_core(
+            x0, y0, vdx, vdy, st.extra_speed_mps[sel, j], ego_x, ego_y, np.cos(ego_yaw),
+            np.sin(ego_yaw), 0.5 * arrays.ego_length_m, 0.5 * arrays.ego_width_m,
+            0.5 * np.hypot(ex.length_m[j], ex.width_m[j]), ps.obstacle_margin_m,
+            ps.obstacle_decel_mps2, ps.mass_kg / ps.k_des_nspm,
+        )  # fmt: skip
+        vdx, vdy = capped_velocity_core(vdx, vdy, np.where(on, cap, np.inf))
+    fx, fy = sfm_model.destination_force(vdx, vdy, vx0, vy0, ps.k_des_nspm)
     bx, by = sfm_model.influential_point(
         x0, y0, ego_x, ego_y, ego_yaw, arrays.ego_length_m, arrays.ego_width_m, ps.front_bumper
     )

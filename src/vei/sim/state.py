@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -290,15 +291,20 @@ def prepare_scenario(
         other_speed_mps=osp,
         other_active=oact,
         ego_path_info=ego_path_info,
-        riders=prepare_extra_riders(
-            scenario,
-            extra_ids,
-            enabled=several,
-            primary_length_m=rider_len,
-            primary_width_m=rider_wid,
-            others=others,
-            where=where,
-        ),
+        riders=_with_conflicts(
+            prepare_extra_riders(
+                scenario,
+                extra_ids,
+                enabled=several,
+                primary_length_m=rider_len,
+                primary_width_m=rider_wid,
+                others=others,
+                where=where,
+            ),
+            ego_path,
+            ego_len,
+            ego_wid,
+        ),  # fmt: skip
         rider_recorded_span_s=rec_span,
         rider_sfm_entry_s=sfm_entry_s(scenario, rid, r_track),
         conflicts=find_conflicts(ego_path, rider_path, ego_len, ego_wid, rider_len, rider_wid),
@@ -313,6 +319,20 @@ def prepare_scenario(
             if a.agent_id != EGO_ID
         },
     )
+
+
+def _with_conflicts(
+    riders: ExtraRiders, ego_path: PathTable, ego_length_m: float, ego_width_m: float
+) -> ExtraRiders:
+    """The extra riders with each one's conflicts with the ego (they decide too)."""
+    if not riders.n:
+        return riders
+    conf = tuple(
+        find_conflicts(ego_path, riders.paths[j], ego_length_m, ego_width_m,
+                       float(riders.length_m[j]), float(riders.width_m[j]))
+        for j in range(riders.n)
+    )  # fmt: skip
+    return dataclasses.replace(riders, conflicts=conf)
 
 
 def _conflict_arc_m(
@@ -351,6 +371,8 @@ class SimState(NamedTuple):
         extra_x_m, extra_y_m, extra_yaw_rad, extra_vx_mps, extra_vy_mps,
             extra_speed_mps, extra_a_mps2, extra_prog_m: [B, R] the extra riders
             (vei.sim.riders; R = 0 in the one-rider engine), like the rider_* fields.
+        extra_decision: [B, R] int8, each extra social-force rider's decision at its own
+            current conflict with the ego (as rider_decision).
         extra_active, extra_started, extra_done: [B, R] bool, like the rider's.
         extra_hit: [B, R] bool latch, the ego touched extra rider j (nothing stops).
         rider_decision: [B] int8, the social-force rider's decision at its current
@@ -402,6 +424,7 @@ class SimState(NamedTuple):
     extra_speed_mps: FloatArray
     extra_a_mps2: FloatArray
     extra_prog_m: FloatArray
+    extra_decision: npt.NDArray[np.int8]
     extra_active: BoolArray
     extra_started: BoolArray
     extra_done: BoolArray

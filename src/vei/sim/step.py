@@ -22,13 +22,21 @@ from vei.sim.contacts import (
 )
 from vei.sim.decisions import decide_block
 from vei.sim.observe import Demand
+from vei.sim.obstacles import obstacle_block
 from vei.sim.pedestrians import (
     PED_FIELDS,
     initial_pedestrian_state,
     pedestrian_step,
     rider_from_pedestrians,
 )
-from vei.sim.riders import initial_extra_state, pedestrian_sources, repulsion, step_extras
+from vei.sim.riders import (
+    EXTRA_BOOL_FIELDS,
+    EXTRA_FLOAT_FIELDS,
+    initial_extra_state,
+    pedestrian_sources,
+    repulsion,
+    step_extras,
+)
 from vei.sim.state import (
     EGO_CAP,
     EGO_POLICY,
@@ -41,10 +49,7 @@ from vei.sim.traffic import CAR_FLOAT_FIELDS, initial_traffic_state, traffic_ste
 
 FloatArray = npt.NDArray[np.float64]
 _CAR_FIELDS = (*CAR_FLOAT_FIELDS, "car_mode")
-_EXTRA_FIELDS = (
-    "extra_x_m", "extra_y_m", "extra_yaw_rad", "extra_vx_mps", "extra_vy_mps", "extra_speed_mps",
-    "extra_a_mps2", "extra_prog_m", "extra_active", "extra_started", "extra_done", "extra_hit",
-)  # fmt: skip
+_EXTRA_FIELDS = EXTRA_FLOAT_FIELDS + EXTRA_BOOL_FIELDS
 
 # --------------------------------------------------------------------------------------
 # Initial state and step
@@ -519,6 +524,8 @@ def _social_force_update(
     )
     if blk.decide is not False and arrays.conflicts.n:
         vdx, vdy = decide_block(st, arrays, blk, sel, prog0, prog, vdx, vdy, out[8])
+    if blk.obstacle is not False:  # braking for a standing or slow car in its way
+        vdx, vdy = obstacle_block(st, arrays, blk, sel, x0, y0, vdx, vdy)
     fx, fy = sfm_model.destination_force(vdx, vdy, vx0, vy0, g(p.k_des_nspm, sel))
     vf = blk.vehicle_force
     if vf is not False:

@@ -47,7 +47,7 @@ from vei.sim.kernel.pack import (
     state_group,
     traffic_group,
 )
-from vei.sim.riders import EXTRA_BOOL_FIELDS, EXTRA_FLOAT_FIELDS
+from vei.sim.riders import EXTRA_BOOL_FIELDS, EXTRA_FLOAT_FIELDS, EXTRA_INT_FIELDS
 
 __all__ = [
     "ALL_FEATURES", "Features", "available", "compile_message", "features_of", "is_cold",
@@ -200,7 +200,7 @@ def _unpack(
         final["rider_hit_other"] = others[11].astype(bool)
     if xr is not None:
         for j, f in enumerate(EXTRA_FLOAT_FIELDS):
-            final[f] = xr[-2][j].copy()
+            final[f] = xr[-2][j].astype(np.int8) if f in EXTRA_INT_FIELDS else xr[-2][j].copy()
         for j, f in enumerate(EXTRA_BOOL_FIELDS):
             final[f] = xr[-1][j].astype(bool)
     secondary_final(secf, final)

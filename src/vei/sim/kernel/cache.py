@@ -33,6 +33,7 @@ KERNEL_SOURCES = (
     "../../boxes.py", "../../config/settings.py", "../../metrics/fused.py",
     "../../metrics/fused_layout.py", "../../metrics/fused_ops.py",
     "../../models/ego_core.py", "../../models/sfm_core.py", "../../models/decision_core.py",
+    "../../metrics/severity.py",
 )  # fmt: skip
 #: Names of the compiled functions whose caches hold the kernel's machine code.
 _FUNCTIONS = ("kernel", "variant")

@@ -82,6 +82,10 @@ from vei.sim.kernel.layout import (
     P_LOOK,
     P_MASS,
     P_MODE,
+    P_OBST,
+    P_OBSTA,
+    P_OBSTM,
+    P_OBSTV,
     P_PAPERV,
     P_REACT,
     P_SFM,
@@ -100,9 +104,9 @@ from vei.sim.kernel.riders import extra_riders_step, riders_final, riders_record
 from vei.sim.kernel.scalar import idx, ped_forces, rforce, sat
 from vei.sim.kernel.sfm import (
     destination_force,
-    drive_force,
     goal_velocity,
     integrate,
+    obstacle_velocity,
     vehicle_force,
 )
 from vei.sim.kernel.traffic import traffic_final, traffic_state0, traffic_step
@@ -171,6 +175,9 @@ def variant(
     p_frontb, p_aveh, p_bveh = P[P_FRONTB, b] > 0.5, P[P_AVEH, b], P[P_BVEH, b]
     p_mass, p_amax, p_vmax = P[P_MASS, b], P[P_AMAX_R, b], P[P_VMAX, b]
     p_limits = math.isfinite(p_vmax) or math.isfinite(p_amax)
+    p_obst, p_obstv = P[P_OBST, b] > 0.5, P[P_OBSTV, b]
+    p_obsta, p_obstm, p_tau = P[P_OBSTA, b], P[P_OBSTM, b], p_mass / p_kdes
+    r_rad = 0.5 * math.hypot(Lr, Wr)
     p_arrive2 = P[P_ARRIVE, b] ** 2
     ec = ego_consts(P, b, dt, Lr, Wr)  # the ego's per-variant constants, once per variant
     # state
@@ -339,25 +346,22 @@ def variant(
                 r_act,
             )
             if r_act and r_started and not collided:
-                driven = False
+                vdx, vdy, pr = goal_velocity(
+                    rx, ry, prog, rpath, rp_s0, rp_ds, n_rp, rp_len,
+                    p_look, p_sigma, p_paperv, p_v0,
+                )  # fmt: skip
                 if dec is not None:
                     if dec_on:
-                        vdx, vdy, pr = goal_velocity(
-                            rx, ry, prog, rpath, rp_s0, rp_ds, n_rp, rp_len,
-                            p_look, p_sigma, p_paperv, p_v0,
-                        )  # fmt: skip
                         rdec, vcap = decide_step(
-                            rdec, prog, pr, rsp, s, v, dec, d_tc, d_hor, d_ydec,
+                            rdec, prog, pr, rsp, s, v, dec[:6], d_tc, d_hor, d_ydec,
                             d_stopm, d_clearm, d_vref, d_tau,
                         )  # fmt: skip
                         vdx, vdy = capped_velocity(vdx, vdy, vcap)
-                        fx, fy = destination_force(vdx, vdy, rvx, rvy, p_kdes)
-                        driven = True
-                if not driven:
-                    fx, fy, pr = drive_force(
-                        rx, ry, rvx, rvy, prog, rpath, rp_s0, rp_ds, n_rp, rp_len,
-                        p_look, p_sigma, p_paperv, p_v0, p_kdes,
+                if p_obst and v < p_obstv:  # a standing or slow car in its way
+                    vdx, vdy = obstacle_velocity(
+                        rx, ry, vdx, vdy, rsp, ex, ey, eyaw, Le, We, r_rad, p_obstm, p_obsta, p_tau,
                     )  # fmt: skip
+                fx, fy = destination_force(vdx, vdy, rvx, rvy, p_kdes)
                 if p_usevf:
                     vfx, vfy = vehicle_force(rx, ry, ex, ey, eyaw, Le, We, p_frontb, p_aveh, p_bveh)
                     fx = fx + vfx
@@ -422,7 +426,7 @@ def variant(
                 extra_riders_step(
                     k, t_new, dt, P, b, sfm, use_rf, a_rr, b_rr,
                     xst, xtrk, xpth, xgeo, rx, ry, r_act, prad, others, ped_idx, ped_rad,
-                    ex, ey, eyaw, Le, We, ex_n, ey_n, eyaw_n,
+                    (ex, ey, eyaw, v, s), Le, We, (ex_n, ey_n, eyaw_n), dec,
                 )  # fmt: skip
         # ---------------- collision
         if n_act and not collided:

@@ -54,7 +54,8 @@ def features_of(arrays: Any, params: Any, scored: bool) -> Features:
     others = len(arrays.other_ids) > 0
     riders = arrays.riders.n > 0 or bool(arrays.riders.enabled)
     decide = np.asarray(params.decide, dtype=bool) & np.asarray(params.rider_sfm, dtype=bool)
-    decisions = arrays.conflicts.n > 0 and bool(decide.any())
+    any_conflict = arrays.conflicts.n > 0 or any(c.n for c in arrays.riders.conflicts)
+    decisions = any_conflict and bool(decide.any())
     react = np.asarray(params.cars_react, dtype=bool)
     traffic = others and arrays.traffic.n > 0 and bool(react.any())
     return Features(others, riders, decisions, traffic, bool(scored))
@@ -122,7 +123,7 @@ def others_group(arrays: Any, state0: Any, b: int, tt: int) -> tuple[Any, ...]:
 def riders_group(arrays: Any, state0: Any, b: int, tt: int, record: bool) -> tuple[Any, ...]:
     """The extra riders (vei.sim.riders): R, tables padded to the longest [R, 14, M], their
     times, paths [R, 10, N], footprints, radii, recorded speeds, the primary's radius,
-    the repulsion mode, the pedestrians' indices and radii, the state in [8, B, R] /
+    the repulsion mode, the pedestrians' indices and radii, the state in [9, B, R] /
     [4, B, R], the series buffers [B, 5, tt, R] / [B, 2, tt, R] and the finals."""
     xr = arrays.riders
     n_x = xr.n
@@ -135,9 +136,10 @@ def riders_group(arrays: Any, state0: Any, b: int, tt: int, record: bool) -> tup
         xtab[j, :, : rows.shape[1]] = rows
         prow = path_rows(xr.paths[j])
         xpath[j, :, : prow.shape[1]] = prow
+    nf = len(EXTRA_FLOAT_FIELDS)
     xs0 = np.ascontiguousarray(
         np.stack([getattr(state0, f) for f in EXTRA_FLOAT_FIELDS]).astype(_F)
-    ).reshape(8, b, n_x)
+    ).reshape(nf, b, n_x)
     xb0 = np.ascontiguousarray(
         np.stack([getattr(state0, f) for f in EXTRA_BOOL_FIELDS]).astype(np.uint8)
     ).reshape(4, b, n_x)
@@ -165,18 +167,29 @@ def riders_group(arrays: Any, state0: Any, b: int, tt: int, record: bool) -> tup
         np.ascontiguousarray(xr.radius_m, _F), np.ascontiguousarray(xr.median_speed_mps, _F),
         np.ascontiguousarray(xr.p99_speed_mps, _F), float(xr.primary_radius_m), bool(xr.enabled),
         np.ascontiguousarray(xr.ped_idx, np.int64), np.ascontiguousarray(xr.ped_radius_m, _F),
-        xs0, xb0, outx, outxb, np.empty((8, b, n_x)), np.empty((4, b, n_x), dtype=np.uint8),
+        xs0, xb0, outx, outxb, np.empty((nf, b, n_x)), np.empty((4, b, n_x), dtype=np.uint8),
     )  # fmt: skip
 
 
 def decisions_group(arrays: Any) -> tuple[Any, ...]:
-    """The rider's conflicts (vei.sim.decisions.Conflicts): K and its [K] arrays (zone
-    exit, crossing along the rider's and the ego's path, half-lengths) [m]."""
+    """The conflicts of the decisions (vei.sim.decisions.Conflicts): the primary rider's K
+    and its [K] arrays (zone exit, crossing along the rider's and the ego's path,
+    half-lengths) [m], then the extra riders' the same way: their K [R] and [R, K_max]
+    arrays padded with zeros (rows 6-11)."""
     c = arrays.conflicts
+    xc = arrays.riders.conflicts or ()
+    r = len(xc)
+    km = max([x.n for x in xc], default=1) or 1
+    pad = [np.zeros((r, km)) for _ in range(5)]
+    for j, x in enumerate(xc):
+        for a, src in zip(pad, (x.exit_m, x.s_rider_m, x.s_ego_m, x.hz_rider_m, x.hz_ego_m),
+                          strict=True):  # fmt: skip
+            a[j, : x.n] = src
     return (
         int(c.n), np.ascontiguousarray(c.exit_m, _F), np.ascontiguousarray(c.s_rider_m, _F),
         np.ascontiguousarray(c.s_ego_m, _F), np.ascontiguousarray(c.hz_rider_m, _F),
         np.ascontiguousarray(c.hz_ego_m, _F),
+        np.array([x.n for x in xc], dtype=np.int64), *pad,
     )  # fmt: skip
 
 

@@ -16,31 +16,49 @@ import math
 import numba
 import numpy as np
 
+from vei.sim.kernel.decision import capped_velocity, decide_step, reference_speed
 from vei.sim.kernel.layout import (
     P_AMAX_R,
     P_ARRIVE,
     P_AVEH,
     P_BVEH,
+    P_CLEARM,
+    P_DECIDE,
     P_FRONTB,
+    P_HORIZON,
     P_KDES,
     P_LOOK,
     P_MASS,
+    P_OBST,
+    P_OBSTA,
+    P_OBSTM,
+    P_OBSTV,
     P_PAPERV,
     P_SFR,
     P_SIGMA,
+    P_STOPM,
+    P_TC,
     P_USEVF,
     P_V0,
     P_VMAX,
+    P_YDEC,
 )
 from vei.sim.kernel.scalar import idx, ped_forces, rforce, sat
-from vei.sim.kernel.sfm import drive_force, integrate, vehicle_force
+from vei.sim.kernel.sfm import (
+    destination_force,
+    goal_velocity,
+    integrate,
+    obstacle_velocity,
+    vehicle_force,
+)
 
 
 @numba.njit(cache=True, inline="always")
 def track_pose(xs, j, xtab, i, w, with_prog):  # type: ignore[no-untyped-def]
     """Set extra rider j's recorded pose in xs from its table xtab [R, 14, M] at cell (i, w).
 
-    Rows of xs [8, R]: x, y, yaw [m, rad], vx, vy [m/s], speed [m/s], accel, progress [m]
+    Rows of xs [9, R]: x, y, yaw [m, rad], vx, vy [m/s], speed [m/s], accel, progress [m],
+    decision
     (progress only when ``with_prog``).
     """
     xs[0, j] = xtab[j, 0, i] + w * xtab[j, 7, i]
@@ -57,12 +75,12 @@ def track_pose(xs, j, xtab, i, w, with_prog):  # type: ignore[no-untyped-def]
 def extra_riders_step(  # type: ignore[no-untyped-def]
     k, t_new, dt, P, b, sfm, use_rf, a_rr, b_rr,
     xst, xtrk, xpth, xgeo, rx, ry, r_act, prad, others, ped_idx, ped_rad,
-    ex, ey, eyaw, Le, We, ex_n, ey_n, eyaw_n,
+    ego, Le, We, ego_n, dec,
 ):  # fmt: skip
     """Advance the R extra riders of variant b from step k to k + 1 (time t_new [s]), in place.
 
-    Args: xst = (xs, xb, nxs, nxb, xv0, xvmax): xs [8, R] floats (x, y, yaw, vx, vy,
-    speed, accel, progress) and xb [4, R] bools (active, started, done, hit) of step k,
+    Args: xst = (xs, xb, nxs, nxb, xv0, xvmax): xs [9, R] floats (x, y, yaw, vx, vy,
+    speed, accel, progress, decision) and xb [4, R] bools (active, started, done, hit) of step k,
     updated to k + 1 (nxs, nxb scratch of the same shapes), xv0, xvmax [R] desired and
     maximum speeds [m/s]; xtrk = (xtab, xt0, xdt, xtend, xnr, xsfm0) their recorded tables
     [R, 14, M] with start, step and end times [s], lengths and SFM entry times [s]; xpth = (xpath, xps0, xpds,
@@ -70,16 +88,21 @@ def extra_riders_step(  # type: ignore[no-untyped-def]
     xgeo = (xL, xW, xrad) footprints and radii [R] [m]; the primary rider's position, active
     flag and radius prad [m] at step k; others None (no other road users) or the kernel's
     others group (oX, oY, oYAW, oSP, oACT [T, no], ...), ped_idx [n] the pedestrians among
-    them and ped_rad [n] their radii [m]; the ego at step k (ex, ey, eyaw: repulsion) and
-    k + 1 (ex_n, ey_n, eyaw_n: contact), Le x We [m].
+    them and ped_rad [n] their radii [m]; the ego at step k, ego = (x, y, yaw: repulsion;
+    speed [m/s]: obstacle braking and decisions; arc length [m]: decisions), and at k + 1,
+    ego_n = (x, y, yaw: contact), Le x We [m]; dec None, or the kernel's decision
+    group (its rows 6-11: each extra rider's conflicts, vei.sim.kernel.pack.decisions_group).
     """
     xs, xb, nxs, nxb, xv0, xvmax = xst
     xtab, xt0, xdt, xtend, xnr, xsfm0 = xtrk
     xpath, xps0, xpds, xpn, xplen, xpex, xpey = xpth
     xL, xW, xrad = xgeo
+    ex, ey, eyaw, ev, es = ego
+    ex_n, ey_n, eyaw_n = ego_n
     R = xs.shape[1]
+    nf = xs.shape[0]
     for j in range(R):
-        for f in range(8):
+        for f in range(nf):
             nxs[f, j] = xs[f, j]
         for f in range(4):
             nxb[f, j] = xb[f, j]
@@ -104,10 +127,28 @@ def extra_riders_step(  # type: ignore[no-untyped-def]
         else:
             if xb[0, j] and xb[1, j]:
                 x0, y0, vx0, vy0, prog0 = xs[0, j], xs[1, j], xs[3, j], xs[4, j], xs[7, j]
-                fx, fy, pr = drive_force(
-                    x0, y0, vx0, vy0, prog0, xpath[j], xps0[j], xpds[j], xpn[j], xplen[j],
-                    P[P_LOOK, b], P[P_SIGMA, b], P[P_PAPERV, b] > 0.5, xv0[j], P[P_KDES, b],
+                vdx, vdy, pr = goal_velocity(
+                    x0, y0, prog0, xpath[j], xps0[j], xpds[j], xpn[j], xplen[j],
+                    P[P_LOOK, b], P[P_SIGMA, b], P[P_PAPERV, b] > 0.5, xv0[j],
                 )  # fmt: skip
+                if dec is not None:  # its own yield / go decision at its conflicts
+                    if P[P_DECIDE, b] > 0.5 and dec[6][j] > 0:
+                        conf = (dec[6][j], dec[7][j], dec[8][j], dec[9][j], dec[10][j], dec[11][j])
+                        d_new, vcap = decide_step(
+                            int(xs[8, j]), prog0, pr, xs[5, j], es, ev, conf,
+                            P[P_TC, b], P[P_HORIZON, b], P[P_YDEC, b], P[P_STOPM, b],
+                            P[P_CLEARM, b], reference_speed(xv0[j], P[P_LOOK, b], P[P_SIGMA, b]),
+                            P[P_MASS, b] / P[P_KDES, b],
+                        )  # fmt: skip
+                        nxs[8, j] = d_new
+                        vdx, vdy = capped_velocity(vdx, vdy, vcap)
+                if P[P_OBST, b] > 0.5 and ev < P[P_OBSTV, b]:  # a standing / slow car ahead
+                    vdx, vdy = obstacle_velocity(
+                        x0, y0, vdx, vdy, xs[5, j], ex, ey, eyaw, Le, We,
+                        0.5 * math.hypot(xL[j], xW[j]), P[P_OBSTM, b], P[P_OBSTA, b],
+                        P[P_MASS, b] / P[P_KDES, b],
+                    )  # fmt: skip
+                fx, fy = destination_force(vdx, vdy, vx0, vy0, P[P_KDES, b])
                 if P[P_USEVF, b] > 0.5:
                     vfx, vfy = vehicle_force(
                         x0, y0, ex, ey, eyaw, Le, We, P[P_FRONTB, b] > 0.5, P[P_AVEH, b], P[P_BVEH, b]
@@ -171,7 +212,7 @@ def extra_riders_step(  # type: ignore[no-untyped-def]
                 if sat(ex_n, ey_n, eyaw_n, Le, We, nxs[0, j], nxs[1, j], nxs[2, j], xL[j], xW[j]):
                     nxb[3, j] = True
     for j in range(R):
-        for f in range(8):
+        for f in range(nf):
             xs[f, j] = nxs[f, j]
         for f in range(4):
             xb[f, j] = nxb[f, j]
@@ -179,18 +220,19 @@ def extra_riders_step(  # type: ignore[no-untyped-def]
 
 @numba.njit(cache=True, inline="always")
 def riders_state0(b, P, R, XS0, XB0, xmed, xp99):  # type: ignore[no-untyped-def]
-    """Variant b's R extra riders at k = 0: (xs [8, R], xb [4, R], their scratch for the
+    """Variant b's R extra riders at k = 0: (xs [9, R], xb [4, R], their scratch for the
     next step, desired speeds xv0 [R], speed limits xvmax [R] [m/s]: from each rider's own
     recording (median moving speed, 99th percentile) where the variant's
     speed_from_recording is on and the recording has one, else the variant's v0 / vmax)."""
-    xs = np.empty((8, R))
+    nf = XS0.shape[0]
+    xs = np.empty((nf, R))
     xb = np.empty((4, R), dtype=np.bool_)
-    nxs = np.empty((8, R))
+    nxs = np.empty((nf, R))
     nxb = np.empty((4, R), dtype=np.bool_)
     xv0 = np.empty(R)
     xvmax = np.empty(R)
     for j in range(R):
-        for f in range(8):
+        for f in range(nf):
             xs[f, j] = XS0[f, b, j]
         for f in range(4):
             xb[f, j] = XB0[f, b, j] > 0
@@ -221,9 +263,9 @@ def riders_record(b, kk, xs, xb, OX, OXB):  # type: ignore[no-untyped-def]
 
 @numba.njit(cache=True, inline="always")
 def riders_final(b, xs, xb, XFS, XFB):  # type: ignore[no-untyped-def]
-    """Variant b's final extra-rider state into XFS [8, B, R] and XFB [4, B, R]."""
+    """Variant b's final extra-rider state into XFS [9, B, R] and XFB [4, B, R]."""
     for j in range(xs.shape[1]):
-        for f in range(8):
+        for f in range(xs.shape[0]):
             XFS[f, b, j] = xs[f, j]
         for f in range(4):
             XFB[f, b, j] = 1 if xb[f, j] else 0

@@ -61,6 +61,18 @@ def _closest_point_scalar(px, py, cx, cy, c, s, hl, hw):  # type: ignore[no-unty
     return None
 
 
+@overload(sfm_core.ray_box_distance_core)
+def _ray_box_scalar(  # type: ignore[no-untyped-def]
+    px_m, py_m, ux, uy, ex_m, ey_m, cos_yaw, sin_yaw, half_length_m, half_width_m
+):
+    """numba: :func:`vei.models.sfm_core.ray_box_distance_core` on scalars, compiled from
+    its own source (the obstacle cap that calls it, obstacle_speed_core, then compiles)."""
+    args = (px_m, py_m, ux, uy, ex_m, ey_m, cos_yaw, sin_yaw, half_length_m, half_width_m)
+    if all(isinstance(t, types.Number) for t in args):
+        return sfm_core.ray_box_distance_core
+    return None
+
+
 _rider_gap = numba.njit(cache=True, inline="always")(sfm_core.rider_gap_core)
 _rider_repulsion = numba.njit(cache=True, inline="always")(sfm_core.rider_repulsion_core)
 

@@ -18,6 +18,7 @@ import math
 
 import numba
 
+from vei.models import decision_core as dcore
 from vei.models import sfm_core as core
 from vei.sim.kernel.scalar import idx  # also registers the cores' select on scalars
 
@@ -29,6 +30,8 @@ cap_factor = _inline(core.cap_factor_core)
 influential_point = _inline(core.influential_point_core)
 repulsion = _inline(core.repulsion_core)
 away_from_centre = _inline(core.away_from_centre_core)
+capped_velocity = _inline(dcore.capped_velocity_core)
+obstacle_speed = _inline(core.obstacle_speed_core)
 
 
 @numba.njit(cache=True, inline="always")
@@ -102,3 +105,18 @@ def integrate(x0, y0, vx0, vy0, fx, fy, m, amax, vmax, dt, limits):  # type: ign
         vx2, vy2, sp2 = vx2 * sc, vy2 * sc, sp2 * sc
         x2, y2 = x0 + vx2 * dt, y0 + vy2 * dt
     return x2, y2, vx2, vy2, sp2
+
+
+@numba.njit(cache=True, inline="always")
+def obstacle_velocity(x0, y0, vdx, vdy, sp, ex, ey, eyaw, Le, We, rad, margin, decel, tau):  # type: ignore[no-untyped-def]
+    """The desired velocity (vdx, vdy) [m/s] of a rider at (x0, y0) [m], speed sp [m/s],
+    capped for the ego's box (centre, yaw, Le x We [m]) in its way
+    (:func:`vei.models.sfm_core.obstacle_speed_core`: widened by the rider's radius rad
+    [m], a stop ``margin`` [m] short at ``decel`` [m/s^2], relaxation time tau [s])."""
+    cap = obstacle_speed(
+        x0, y0, vdx, vdy, sp, ex, ey, math.cos(eyaw), math.sin(eyaw), 0.5 * Le, 0.5 * We,
+        rad, margin, decel, tau,
+    )  # fmt: skip
+    if cap == math.inf:
+        return vdx, vdy
+    return capped_velocity(vdx, vdy, cap)
