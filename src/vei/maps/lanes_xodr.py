@@ -87,7 +87,7 @@ def _road_xml(road_id: int, lane: LanePolylines, step_m: float) -> str | None:
     name = escape(str(lane.lane_id), {'"': "&quot;"})
     return (
         f'<road name="lane {name}" length="{s:.6f}" id="{road_id}" junction="-1">'
-        f"<planView>{''.join(geoms)}</planView><elevationProfile/><lateralProfile/>"
+        f"<planView>{''.join(geoms)}</planView>"
         '<lanes><laneSection s="0"><center><lane id="0" type="none" level="false"/></center>'
         f'<right><lane id="-1" type="{lane.lane_type}" level="false">{"".join(widths)}'
         '<roadMark sOffset="0" type="solid" weight="standard" color="standard" width="0.13"/>'
