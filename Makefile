@@ -9,6 +9,8 @@ QC_STAMP := $(QC_VENV)/.installed-stamp
 DEMO_OUT ?= demo-out
 # CommonRoad (vei export commonroad; docs/commonroad.md), without their protobuf pin.
 COMMONROAD := 'commonroad-io==2024.3' 'commonroad-vehicle-models==3.0.2' 'commonroad-drivability-checker==2025.4.0'
+# Argoverse 2 (vei import tracks --format av2; docs/datasets.md), without torch & co.
+AV2 := 'av2==0.3.6'
 
 # Test workers (pytest-xdist): one per core; `make test PYTEST_WORKERS=0` runs in one process.
 PYTEST_WORKERS ?= auto
@@ -21,6 +23,7 @@ $(STAMP): pyproject.toml Makefile
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[all,bench,dev]'
 	$(PY) -m pip install --quiet --no-deps $(COMMONROAD)
+	$(PY) -m pip install --quiet --no-deps $(AV2)
 	touch $(STAMP)
 
 venv: $(STAMP)

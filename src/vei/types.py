@@ -23,6 +23,10 @@ EGO_CATEGORY = "ego"
 EGO_ID = "ego"
 
 YAxis = Literal["left", "right"]
+#: Frames of an interaction's annotations: 'ego' (ego-relative offsets, the paper's data) or
+#: 'world' (each road user's own latitude/longitude, as drone and infrastructure datasets
+#: record them; docs/interaction-format.md).
+AnnotationFrame = Literal["ego", "world"]
 
 #: Default footprints per category [m] (length, width): sedan, e-scooter with rider, ...
 DEFAULT_DIMENSIONS_M: dict[str, tuple[float, float]] = {
@@ -45,6 +49,11 @@ class InteractionMeta:
         y_axis: which way the annotations' lateral axis points ('left' = ISO 8855).
         annotation_rate_hz: nominal annotation rate [Hz], if declared.
         notes: free text.
+        frame: 'ego' (annotations are ego-relative x_m / y_m) or 'world' (annotations are
+            lat_deg / lon_deg world positions; y_axis then plays no part).
+        origin_lat_deg, origin_lon_deg: 'world' only, optional: origin [deg] of the local
+            plane the reconstruction must use (so that a map written for that plane by an
+            importer is used unchanged); None = the centre of the data's bounds.
     """
 
     id: str
@@ -53,6 +62,9 @@ class InteractionMeta:
     y_axis: YAxis = "left"
     annotation_rate_hz: float | None = None
     notes: str = ""
+    frame: AnnotationFrame = "ego"
+    origin_lat_deg: float | None = None
+    origin_lon_deg: float | None = None
 
 
 @dataclass(frozen=True)
@@ -64,10 +76,12 @@ class Interaction:
         ego: ego GPS track, one row per fix, sorted by t_s. Columns: t_s [s], lat_deg,
             lon_deg, heading_deg [deg clockwise from true north, NaN if absent],
             speed_mps [m/s, NaN if absent].
-        annotations: ego-relative detections, sorted by (track_id, t_s). Columns: t_s,
+        annotations: detections, sorted by (track_id, t_s). meta.frame 'ego': columns t_s,
             track_id (str), category, x_m (forward), y_m (lateral per meta.y_axis),
             yaw_deg (relative to the ego heading, positive towards +y; NaN if absent),
-            length_m, width_m (NaN if absent).
+            length_m, width_m (NaN if absent). meta.frame 'world': columns t_s, track_id,
+            category, lat_deg, lon_deg, heading_deg (the road user's true heading, deg
+            clockwise from north; NaN if absent), length_m, width_m.
         ground_truth: optional world tracks at full rate. Columns: t_s, track_id (str),
             category, lat_deg, lon_deg.
         root: folder it was read from, if any.

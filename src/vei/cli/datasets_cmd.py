@@ -6,6 +6,9 @@
   the car's own camera track agrees with its INS); ``--list`` lists the scenarios of a root.
 - ``vei datasets download trafficmonitoring [--dest DIR] [--scenario NAME ...]``
   fetches only the files the importer needs (resumable).
+- ``vei import tracks --format ind|sind|av2 --root DIR --out DIR [--ego all|ID]`` writes
+  world-frame interaction folders from drone / infrastructure / fleet track datasets, any
+  car as the ego (docs/datasets.md).
 """
 
 from __future__ import annotations
@@ -127,6 +130,145 @@ def _import_trafficmonitoring(
         typer.echo(f"warning: {warning}", err=True)
 
 
+def _import_tracks(
+    format_: Annotated[
+        str,
+        typer.Option(
+            "--format",
+            help="'ind' (inD, rounD, uniD, exiD: XX_tracks.csv, XX_tracksMeta.csv, "
+            "XX_recordingMeta.csv), 'sind' (Veh_smoothed_tracks.csv, Ped_smoothed_tracks.csv) or "
+            "'av2' (Argoverse 2 scenario_<id>.parquet + log_map_archive_<id>.json).",
+        ),
+    ],
+    root: Annotated[
+        Path,
+        typer.Option(
+            "--root",
+            help="The dataset folder: inD-family data folder, SinD record folder (or a folder of "
+            "them), Argoverse 2 scenario folder (or a folder of them).",
+        ),
+    ],
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            help="Folder to write one interaction folder per ego into (<recording>__ego<ID>; "
+            "a catalogue dataset as it is).",
+        ),
+    ] = None,
+    recording: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--recording",
+            help="Recording to import (repeatable): inD-family 'XX', SinD record folder, AV2 "
+            "scenario id; default: every recording under --root (see --list).",
+        ),
+    ] = None,
+    ego: Annotated[
+        str,
+        typer.Option(
+            "--ego",
+            help="'all': one interaction per car that comes within reach of a rider "
+            "(docs/datasets.md); or one car's track id (av2: 'AV' is the autonomous vehicle).",
+        ),
+    ] = "all",
+    road_users: Annotated[
+        str,
+        typer.Option(
+            "--road-users",
+            help="'riders' (e-scooters, bicycles, motorcycles, tricycles: docs/datasets.md) or "
+            "'all' (also vehicles and pedestrians).",
+        ),
+    ] = "riders",
+    rate_hz: Annotated[
+        float | None,
+        typer.Option(
+            "--rate-hz",
+            help="Annotation rate in Hz (default: every sample of the dataset); with a rate the "
+            "full-rate tracks are written as ground truth.",
+        ),
+    ] = None,
+    reach_m: Annotated[
+        float,
+        typer.Option(
+            "--reach-m", help="Same-time car-rider distance that puts a rider in reach [m]."
+        ),
+    ] = 30.0,
+    origin: Annotated[
+        str | None,
+        typer.Option(
+            "--origin",
+            help="sind only: LAT,LON [deg] to place the (not geo-referenced) ground frame at; "
+            "default 0,0 (a placeholder).",
+        ),
+    ] = None,
+    list_: Annotated[
+        bool, typer.Option("--list", help="List the recordings under --root and exit.")
+    ] = False,
+) -> None:
+    """Import world-frame tracks (inD family, SinD, Argoverse 2): any car as the ego."""
+    from vei.datasets import av2, ind, sind
+    from vei.datasets.world_import import import_tracks
+    from vei.datasets.world_tracks import Reach
+    from vei.errors import InputError
+
+    formats = {"ind": ind, "sind": sind, "av2": av2}
+    if format_ not in formats:
+        raise InputError(
+            f"--format must be one of {', '.join(formats)}, got {format_!r}", field="--format"
+        )
+    module = formats[format_]
+    names = module.list_recordings(root)
+    if list_:
+        for name in names:
+            typer.echo(name)
+        return
+    if out is None:
+        raise InputError("--out is required (or use --list)", field="--out")
+    if origin is not None and format_ != "sind":
+        raise InputError("--origin applies to --format sind only", field="--origin")
+    chosen = recording or names
+    unknown = [r for r in chosen if r not in names]
+    if unknown:
+        raise InputError(
+            f"unknown recording {unknown[0]!r} (see --list)", path=root, field="--recording"
+        )
+    reach = Reach(gap_m=reach_m)
+    total = 0
+    for name in chosen:
+        if format_ == "sind":
+            rec = sind.read_recording(
+                root, name, origin_deg=_latlon(origin) if origin else (0.0, 0.0)
+            )
+        else:
+            rec = module.read_recording(root, name)
+        written = import_tracks(
+            rec, out, ego=ego, road_users=road_users, rate_hz=rate_hz, reach=reach
+        )
+        total += len(written)
+        typer.echo(
+            f"{rec.recording}: {rec.tracks['track_id'].nunique()} tracks at {rec.rate_hz:g} Hz, "
+            f"{len(written)} interaction(s)"
+        )
+        for w in written:
+            riders = ", ".join(f"{n} {c}" for c, n in w.riders.items() if n)
+            gap = "" if w.min_gap_m == float("inf") else f", closest rider {w.min_gap_m:.1f} m"
+            typer.echo(f"  {w.folder.name}: ego {w.ego_id}, {w.duration_s:.1f} s, {riders}{gap}")
+    typer.echo(f"wrote {total} interaction folder(s) under {out}")
+
+
+def _latlon(text: str) -> tuple[float, float]:
+    from vei.errors import InputError
+
+    try:
+        lat, lon = (float(v) for v in text.split(","))
+    except ValueError:
+        raise InputError(f"expected LAT,LON in degrees, got {text!r}", field="--origin") from None
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+        raise InputError(f"LAT,LON out of range: {text!r}", field="--origin")
+    return lat, lon
+
+
 def _download_trafficmonitoring(
     dest: Annotated[
         Path,
@@ -196,6 +338,7 @@ def register(app: typer.Typer) -> None:
         help="Import public datasets as interaction folders.", no_args_is_help=True
     )
     import_app.command("trafficmonitoring")(_import_trafficmonitoring)
+    import_app.command("tracks")(_import_tracks)
     datasets_app = typer.Typer(help="Fetch public datasets.", no_args_is_help=True)
     download_app = typer.Typer(help="Download a public dataset.", no_args_is_help=True)
     download_app.command("trafficmonitoring")(_download_trafficmonitoring)

@@ -5,6 +5,7 @@ An interaction is a folder (spec: ``docs/interaction-format.md``)::
     interaction.json     format, id, source, start_time_utc, y_axis, [annotation_rate_hz, notes]
     ego.csv              t_s | timestamp_utc, lat_deg, lon_deg, [heading_deg, speed_mps]
     annotations.csv      t_s | timestamp_utc, track_id, category, x_m, y_m, [yaw_deg, length_m, width_m]
+                         (frame 'world': lat_deg, lon_deg, [heading_deg] instead of x_m, y_m, [yaw_deg])
     ground_truth.csv     optional: t_s | timestamp_utc, track_id, category, lat_deg, lon_deg
 
 :func:`read_interaction` validates everything and raises :class:`vei.errors.InputError`
@@ -62,10 +63,23 @@ ANNOTATION_COLUMNS: tuple[str, ...] = (
     "length_m",
     "width_m",
 )
+#: Columns of the returned annotations of a world-frame interaction (``frame = world``).
+WORLD_ANNOTATION_COLUMNS: tuple[str, ...] = (
+    "t_s",
+    "track_id",
+    "category",
+    "lat_deg",
+    "lon_deg",
+    "heading_deg",
+    "length_m",
+    "width_m",
+)
 GROUND_TRUTH_COLUMNS: tuple[str, ...] = ("t_s", "track_id", "category", "lat_deg", "lon_deg")
+#: Values of interaction.json's optional ``frame`` key.
+FRAMES: tuple[str, ...] = ("ego", "world")
 
 _META_REQUIRED = ("format", "id", "source", "start_time_utc", "y_axis")
-_META_OPTIONAL = ("annotation_rate_hz", "notes")
+_META_OPTIONAL = ("annotation_rate_hz", "notes", "frame", "origin_lat_deg", "origin_lon_deg")
 
 #: Times closer than this are "equal" when checking annotations against the GPS span [s].
 TIME_TOLERANCE_S = 1e-6
@@ -170,6 +184,14 @@ def _read_meta(path: Path) -> InteractionMeta:
         notes = ""
     if not isinstance(notes, str):
         raise InputError(f"expected a string, got {type(notes).__name__}", path=path, field="notes")
+    frame = raw.get("frame", "ego")
+    if frame not in FRAMES:
+        raise InputError(
+            f"expected one of {', '.join(map(repr, FRAMES))}, got {frame!r}",
+            path=path,
+            field="frame",
+        )
+    origin = _read_origin(raw, path, frame)
     return InteractionMeta(
         id=raw["id"],
         source=raw["source"],
@@ -177,7 +199,45 @@ def _read_meta(path: Path) -> InteractionMeta:
         y_axis=raw["y_axis"],
         annotation_rate_hz=rate,
         notes=notes,
+        frame=frame,
+        origin_lat_deg=origin[0],
+        origin_lon_deg=origin[1],
     )
+
+
+def _read_origin(raw: dict, path: Path, frame: str) -> tuple[float | None, float | None]:
+    """The optional plane origin of a world-frame interaction (both keys or neither)."""
+    keys = ("origin_lat_deg", "origin_lon_deg")
+    given = [k in raw and raw[k] is not None for k in keys]
+    if not any(given):
+        return None, None
+    if frame != "world":
+        key = keys[given.index(True)]
+        raise InputError(
+            'a plane origin is only allowed with "frame": "world"', path=path, field=key
+        )
+    if not all(given):
+        raise InputError(
+            "give both origin_lat_deg and origin_lon_deg, or neither",
+            path=path,
+            field=keys[given.index(False)],
+        )
+    out = []
+    for key, limit in zip(keys, (90.0, 180.0), strict=True):
+        v = raw[key]
+        if (
+            isinstance(v, bool)
+            or not isinstance(v, int | float)
+            or not math.isfinite(v)
+            or abs(v) > limit
+        ):
+            raise InputError(
+                f"expected a number in [-{limit:g}, {limit:g}] [deg], got {v!r}",
+                path=path,
+                field=key,
+            )
+        out.append(float(v))
+    return out[0], out[1]
 
 
 # ----------------------------------------------------------------------------- tables
@@ -221,30 +281,10 @@ def _read_annotations(path: Path, start: datetime, ego_t: np.ndarray) -> pd.Data
     x = _numeric(df, path, "x_m", required=True, unit=" [m]")
     y = _numeric(df, path, "y_m", required=True, unit=" [m]")
     yaw = _numeric(df, path, "yaw_deg", required=False, lo=-360.0, hi=360.0, unit=" [deg]")
-    length = _numeric(df, path, "length_m", required=False, lo=0.0, unit=" [m]")
-    width = _numeric(df, path, "width_m", required=False, lo=0.0, unit=" [m]")
-    for name, v in (("length_m", length), ("width_m", width)):
-        zero = v == 0
-        if zero.any():
-            i = int(np.flatnonzero(zero)[0])
-            raise InputError(
-                "expected a positive size [m] (or an empty cell for unknown)",
-                path=path,
-                row=i + 1,
-                field=name,
-            )
+    length = _positive_size(df, path, "length_m")
+    width = _positive_size(df, path, "width_m")
     _check_tracks(track, cat, t, path)
-    lo, hi = float(ego_t[0]), float(ego_t[-1])
-    outside = (t < lo - TIME_TOLERANCE_S) | (t > hi + TIME_TOLERANCE_S)
-    if outside.any():
-        i = int(np.flatnonzero(outside)[0])
-        raise InputError(
-            f"t_s = {float(t[i])!r} lies outside the GPS time span [{lo!r}, {hi!r}] s of {EGO_FILE}; "
-            "annotations need the ego position at their time",
-            path=path,
-            row=i + 1,
-            field="t_s",
-        )
+    _check_inside_ego_span(t, ego_t, path)
     out = pd.DataFrame(
         {
             "t_s": t,
@@ -258,6 +298,70 @@ def _read_annotations(path: Path, start: datetime, ego_t: np.ndarray) -> pd.Data
         }
     )
     return out.sort_values(["track_id", "t_s"], kind="stable").reset_index(drop=True)
+
+
+def _read_world_annotations(path: Path, start: datetime, ego_t: np.ndarray) -> pd.DataFrame:
+    """annotations.csv of a world-frame interaction: lat_deg / lon_deg / heading_deg per row."""
+    df = _read_csv(path)
+    _require(df, path, ("track_id", "category", "lat_deg", "lon_deg"))
+    t = _times(df, path, start)
+    if len(df) == 0:
+        raise InputError(
+            "no annotations: expected at least one annotated road user (one data row)",
+            path=path,
+            field="track_id",
+        )
+    track = _strings(df, path, "track_id", what="a track id")
+    cat = _categories(df, path)
+    lat = _numeric(df, path, "lat_deg", required=True, unit=" [deg]")
+    lon = _numeric(df, path, "lon_deg", required=True, unit=" [deg]")
+    _check_latlon(lat, lon, path)
+    heading = _numeric(df, path, "heading_deg", required=False, lo=-360.0, hi=360.0, unit=" [deg]")
+    sizes = {
+        name: _positive_size(df, path, name) for name in ("length_m", "width_m")
+    }  # fmt: skip
+    _check_tracks(track, cat, t, path)
+    _check_inside_ego_span(t, ego_t, path)
+    out = pd.DataFrame(
+        {
+            "t_s": t,
+            "track_id": pd.Series(track, dtype=object),
+            "category": pd.Series(cat, dtype=object),
+            "lat_deg": lat,
+            "lon_deg": lon,
+            "heading_deg": heading,
+            "length_m": sizes["length_m"],
+            "width_m": sizes["width_m"],
+        }
+    )
+    return out.sort_values(["track_id", "t_s"], kind="stable").reset_index(drop=True)
+
+
+def _positive_size(df: pd.DataFrame, path: Path, name: str) -> np.ndarray:
+    v = _numeric(df, path, name, required=False, lo=0.0, unit=" [m]")
+    zero = v == 0
+    if zero.any():
+        raise InputError(
+            "expected a positive size [m] (or an empty cell for unknown)",
+            path=path,
+            row=int(np.flatnonzero(zero)[0]) + 1,
+            field=name,
+        )
+    return v
+
+
+def _check_inside_ego_span(t: np.ndarray, ego_t: np.ndarray, path: Path) -> None:
+    lo, hi = float(ego_t[0]), float(ego_t[-1])
+    outside = (t < lo - TIME_TOLERANCE_S) | (t > hi + TIME_TOLERANCE_S)
+    if outside.any():
+        i = int(np.flatnonzero(outside)[0])
+        raise InputError(
+            f"t_s = {float(t[i])!r} lies outside the GPS time span [{lo!r}, {hi!r}] s of {EGO_FILE}; "
+            "annotations need the ego position at their time",
+            path=path,
+            row=i + 1,
+            field="t_s",
+        )
 
 
 def _read_ground_truth(path: Path, start: datetime) -> pd.DataFrame:
@@ -298,6 +402,8 @@ def read_interaction(folder: str | Path) -> Interaction:
       north], speed_mps [m/s]; sorted by t_s.
     - ``annotations`` [N_ann rows]: t_s, track_id (str), category, x_m, y_m [m, y per
       meta.y_axis], yaw_deg [deg], length_m, width_m [m]; sorted by (track_id, t_s).
+      With ``meta.frame == 'world'``: t_s, track_id, category, lat_deg, lon_deg,
+      heading_deg [deg, true, clockwise from north], length_m, width_m.
     - ``ground_truth`` [N_gt rows] or None: t_s, track_id (str), category, lat_deg, lon_deg.
 
     Times given as ``timestamp_utc`` (ISO 8601 with timezone) are converted to t_s, seconds
@@ -314,9 +420,8 @@ def read_interaction(folder: str | Path) -> Interaction:
         )
     meta = _read_meta(root / META_FILE)
     ego = _read_ego(root / EGO_FILE, meta.start_time_utc)
-    annotations = _read_annotations(
-        root / ANNOTATIONS_FILE, meta.start_time_utc, ego["t_s"].to_numpy()
-    )
+    read_ann = _read_world_annotations if meta.frame == "world" else _read_annotations
+    annotations = read_ann(root / ANNOTATIONS_FILE, meta.start_time_utc, ego["t_s"].to_numpy())
     gt_path = root / GROUND_TRUTH_FILE
     ground_truth = _read_ground_truth(gt_path, meta.start_time_utc) if gt_path.exists() else None
     return Interaction(
@@ -376,11 +481,17 @@ def write_interaction(
         doc["annotation_rate_hz"] = meta.annotation_rate_hz
     if meta.notes:
         doc["notes"] = meta.notes
+    if meta.frame != "ego":
+        doc["frame"] = meta.frame
+    if meta.origin_lat_deg is not None or meta.origin_lon_deg is not None:
+        doc["origin_lat_deg"] = meta.origin_lat_deg
+        doc["origin_lon_deg"] = meta.origin_lon_deg
     ego = _table_for_writing(interaction.ego, EGO_COLUMNS, ("t_s", "lat_deg", "lon_deg"), EGO_FILE)
+    world = meta.frame == "world"
     ann = _table_for_writing(
         interaction.annotations,
-        ANNOTATION_COLUMNS,
-        ("t_s", "track_id", "category", "x_m", "y_m"),
+        WORLD_ANNOTATION_COLUMNS if world else ANNOTATION_COLUMNS,
+        ("t_s", "track_id", "category") + (("lat_deg", "lon_deg") if world else ("x_m", "y_m")),
         ANNOTATIONS_FILE,
     )
     ann["track_id"] = ann["track_id"].astype(str)

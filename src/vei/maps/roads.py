@@ -87,6 +87,8 @@ class RoadGeometry:
         proj_string: the map's geoReference, or None.
         skipped_lanes: lanes without ``<width>`` records (not drawn, not drivable).
         source: the file read.
+        areas: [K, 2] drivable-area rings that are no lane (maps converted from lane
+            polylines, e.g. Argoverse 2: :mod:`vei.maps.lanes_xodr`); drivable, drawn.
     """
 
     lanes: tuple[Lane, ...]
@@ -94,6 +96,7 @@ class RoadGeometry:
     proj_string: str | None
     skipped_lanes: int = 0
     source: Path | None = None
+    areas: tuple[FloatArray, ...] = field(default=(), repr=False)
 
     @property
     def drivable_lanes(self) -> tuple[Lane, ...]:
@@ -102,8 +105,9 @@ class RoadGeometry:
 
     @property
     def drivable_polygons(self) -> list[Any]:
-        """One valid shapely polygon per drivable lane (plane metres); degenerate lanes dropped."""
-        return _polygons([lane.outline for lane in self.drivable_lanes])
+        """One valid shapely polygon per drivable lane and drivable area (plane metres);
+        degenerate ones dropped."""
+        return _polygons([lane.outline for lane in self.drivable_lanes] + list(self.areas))
 
     @property
     def drivable_area(self) -> Any:
@@ -129,7 +133,9 @@ class RoadGeometry:
     @property
     def bounds_xy(self) -> tuple[float, float, float, float]:
         """(min_x, min_y, max_x, max_y) of all lanes [m]."""
-        pts = np.vstack([np.vstack([lane.inner, lane.outer]) for lane in self.lanes])
+        pts = np.vstack(
+            [np.vstack([lane.inner, lane.outer]) for lane in self.lanes] + list(self.areas)
+        )
         return (
             float(pts[:, 0].min()),
             float(pts[:, 1].min()),
@@ -370,7 +376,9 @@ def load_roads(xodr_path: str | Path, *, step_m: float = DEFAULT_STEP_M) -> Road
                     t_in = t_out
     if not refs:
         raise InputError("OpenDRIVE file has no road", path=p)
-    return RoadGeometry(tuple(lanes), tuple(refs), proj, skipped, p)
+    from vei.maps.lanes_xodr import read_drivable_areas
+
+    return RoadGeometry(tuple(lanes), tuple(refs), proj, skipped, p, read_drivable_areas(root))
 
 
 def drivable_share(
@@ -415,7 +423,7 @@ def draw_roads(
 ) -> list[Any]:
     """Draw the map under everything else on a matplotlib Axes (plane metres, equal aspect not forced).
 
-    Drivable lanes are filled grey, other lanes (sidewalks, bike lanes, ...) light grey,
+    Drivable lanes and drivable areas are filled grey, other lanes (sidewalks, bike lanes, ...) light grey,
     lane borders drawn as thin white lines and kerbs (:attr:`RoadGeometry.kerbs`, where the
     map has sidewalks) as dark grey lines; all at ``zorder`` (below the default 1-3 of
     lines and markers) so trajectories stay on top. The axis limits are not changed
@@ -428,7 +436,7 @@ def draw_roads(
     """
     from matplotlib.collections import LineCollection, PolyCollection
 
-    drivable = [lane.outline for lane in roads.lanes if lane.drivable]
+    drivable = list(roads.areas) + [lane.outline for lane in roads.lanes if lane.drivable]
     other = [lane.outline for lane in roads.lanes if not lane.drivable]
     artists: list[Any] = []
     pc_other = PolyCollection(

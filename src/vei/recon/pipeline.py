@@ -7,7 +7,10 @@ The paper's Section III-B, steps 1 and 4-8 (steps 2-3, the map, are attached lat
    provisional plane around the ego's median position), grown by ``margin_m``.
    The **origin** of the local tmerc plane is the centre of these bounds.
 4. **Time sync** (:mod:`vei.recon.sync`): annotations inside the GPS span; active agents.
-5. **Ego-relative -> world** (:mod:`vei.recon.world`), honouring the declared y axis.
+5. **Ego-relative -> world** (:mod:`vei.recon.world`), honouring the declared y axis. A
+   world-frame interaction (``meta.frame == 'world'``) skips it: its annotations' own
+   latitude/longitude are projected into the plane directly, and a declared plane origin
+   (``meta.origin_lat_deg/_lon_deg``) replaces the centre of the bounds.
 6. **Keyframes** per track (:mod:`vei.recon.keyframes`).
 7. **Interpolation** to the grid k / rate_hz over each agent's own span (never past its
    first/last keyframe): positions by ``interp`` (:mod:`vei.recon.interpolate`), yaw by
@@ -230,7 +233,10 @@ def _bounds(interaction: Interaction, margin_m: float) -> Bounds:
     ego_lon = ego["lon_deg"].to_numpy(dtype=np.float64)
     ann = interaction.annotations
     lats, lons = [ego_lat], [ego_lon]
-    if len(ann):
+    if interaction.meta.frame == "world":
+        lats.append(ann["lat_deg"].to_numpy(dtype=np.float64))
+        lons.append(ann["lon_deg"].to_numpy(dtype=np.float64))
+    elif len(ann):
         t = ann["t_s"].to_numpy(dtype=np.float64)
         lat = np.interp(t, ego_t, ego_lat)
         lon = np.interp(t, ego_t, ego_lon)
@@ -280,8 +286,12 @@ def reconstruct(
 
     # 1. bounds of the ego and of every annotation, origin at their centre.
     bounds = _bounds(interaction, cfg.margin_m)
+    meta = interaction.meta
+    origin = (meta.origin_lat_deg, meta.origin_lon_deg)
+    if origin[0] is None or origin[1] is None:
+        origin = bounds.center
     # Rounded as the PROJ string writes it, so LocalFrame.from_proj_string gives this frame.
-    frame = LocalFrame(*(round(v, 10) for v in bounds.center))
+    frame = LocalFrame(*(round(float(v), 10) for v in origin))
 
     # 4-5. ego and annotations in the final plane.
     ego = ego_track(interaction, frame)
@@ -400,7 +410,17 @@ def reconstruct(
     extra: dict = {
         "reconstruction": {
             "config": cfg.as_dict(),
-            "origin_rule": "centre of the bounds of the ego GPS track and all annotated road users",
+            "origin_rule": (
+                "the interaction's declared plane origin"
+                if meta.origin_lat_deg is not None
+                else "centre of the bounds of the ego GPS track and all annotated road users"
+            ),
+            "annotation_frame": (
+                "world: each road user's own lat/lon projected into the plane directly (no "
+                "ego-relative step)"
+                if meta.frame == "world"
+                else "ego: ego-relative offsets laid out from the ego pose on the ellipsoid"
+            ),
             "sync": sync.as_dict(),
             "ego_heading_source": ego.heading_source,
             "y_axis": interaction.meta.y_axis,

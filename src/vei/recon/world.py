@@ -1,4 +1,4 @@
-"""Ego pose over time and ego-relative annotations -> world plane (paper Section III-B, step 5).
+"""Ego pose over time and annotations -> world plane (paper Section III-B, step 5).
 
 The ego's GPS fixes are projected into the local plane and interpolated there with a cubic
 spline (position); its heading comes from the GPS ``heading_deg`` field where given, else
@@ -7,6 +7,11 @@ interpolated on the circle (unwrapped, then linear). Annotations (x forward, lat
 ``interaction.meta.y_axis``; 'right' is negated to ISO 8855 'left' here, as is the relative
 yaw) are laid out from the ego's position along its *true* heading on the ellipsoid by
 :meth:`vei.geo.frame.LocalFrame.ego_relative_to_world`.
+
+A world-frame interaction (``meta.frame == 'world'``: drone and infrastructure datasets,
+every car of them a possible ego) already holds each road user's own latitude/longitude and
+true heading: those are projected into the plane directly (:func:`world_annotations`), with
+no ego-relative step in between.
 """
 
 from __future__ import annotations
@@ -215,6 +220,8 @@ def annotations_to_world(interaction: Interaction, ego: EgoTrack) -> pd.DataFram
         (plane [m]), yaw_rad (plane yaw from the annotation's relative yaw, NaN where it
         has none), length_m, width_m, ego_x_m, ego_y_m (ego position at that time).
     """
+    if interaction.meta.frame == "world":
+        return world_annotations(interaction, ego)
     ann = interaction.annotations.sort_values(["track_id", "t_s"], kind="stable").reset_index(
         drop=True
     )
@@ -247,6 +254,43 @@ def annotations_to_world(interaction: Interaction, ego: EgoTrack) -> pd.DataFram
         }
     )
     return out
+
+
+def world_annotations(interaction: Interaction, ego: EgoTrack) -> pd.DataFrame:
+    """The annotations of a world-frame interaction in the plane of ``ego.frame``.
+
+    Each row's own lat_deg / lon_deg is projected into the plane and its true heading
+    (heading_deg, NaN where absent) turned into a plane yaw at that point (meridian
+    convergence included); the ego is only sampled for ego_x_m / ego_y_m. Returns the same
+    columns as :func:`annotations_to_world`.
+    """
+    ann = interaction.annotations.sort_values(["track_id", "t_s"], kind="stable").reset_index(
+        drop=True
+    )
+    t = ann["t_s"].to_numpy(dtype=np.float64)
+    lat = ann["lat_deg"].to_numpy(dtype=np.float64)
+    lon = ann["lon_deg"].to_numpy(dtype=np.float64)
+    x, y = ego.frame.to_xy(lat, lon)
+    heading = _col(ann, "heading_deg")
+    yaw = np.full(t.size, np.nan)
+    ok = np.isfinite(heading)
+    if ok.any():
+        yaw[ok] = ego.frame.bearing_to_yaw(heading[ok], lat[ok], lon[ok])
+    ego_xy = ego.position(t)
+    return pd.DataFrame(
+        {
+            "t_s": t,
+            "track_id": ann["track_id"].astype(str).to_numpy(),
+            "category": ann["category"].astype(str).to_numpy(),
+            "x_m": np.asarray(x, dtype=np.float64).reshape(-1),
+            "y_m": np.asarray(y, dtype=np.float64).reshape(-1),
+            "yaw_rad": yaw,
+            "length_m": _col(ann, "length_m"),
+            "width_m": _col(ann, "width_m"),
+            "ego_x_m": ego_xy[:, 0],
+            "ego_y_m": ego_xy[:, 1],
+        }
+    )
 
 
 def _col(df: pd.DataFrame, name: str) -> FloatArray:
