@@ -6,7 +6,8 @@ the parts it uses. For each feature set below, a fresh process with an empty num
 (``NUMBA_CACHE_DIR`` a new folder: nothing compiled before, as on a fresh clone) runs one
 variant of :func:`vei.sim.warmup.warmup_scene` (cold: numba compiles), then a second fresh
 process with the same cache runs it again (warm: numba loads the machine code). Times are
-of the kernel call alone (imports excluded), wall and CPU of the process.
+of the kernel call alone (imports and the scene's preparation excluded), wall and CPU of
+the process.
 
 The demo's own run (``vei demo``: ego and one rider, no metrics in the kernel) uses
 ``base``; a sweep or ``vei risk`` of a recording with other road users
@@ -40,11 +41,21 @@ SETS: dict[str, dict[str, bool]] = {
 
 _CHILD = """
 import json, sys, time
-from vei.sim.kernel import Features
-from vei.sim.warmup import run_features
-f = Features(**json.loads(sys.argv[1]))
+from vei.metrics.config import MetricsConfig
+from vei.metrics.fused_layout import config_vector
+from vei.sim import kernel
+from vei.sim.batch import batch_flags
+from vei.sim.step import initial_state
+from vei.sim.warmup import warmup_scene
+f = kernel.Features(**json.loads(sys.argv[1]))
+arrays, params, scored = warmup_scene(f)
+fl = batch_flags(params, arrays.dt_s)
+state = initial_state(arrays, params, fl)
+cfg = config_vector(MetricsConfig()) if scored else None
+used = kernel.features_of(arrays, params, scored)
+assert used == f, (used, f)
 t0, c0 = time.perf_counter(), time.process_time()
-used = run_features(f)
+kernel.run(arrays, params, state, fl.hist_len, False, cfg)
 print(json.dumps({"name": used.name, "wall_s": time.perf_counter() - t0,
                   "cpu_s": time.process_time() - c0}))
 """

@@ -81,8 +81,21 @@ def _scored(frame: pd.DataFrame, scenario: Path, config: Path) -> dict:
         sim.rider_width_m or other.width_m,
     )
     sec = secondary_from_timeseries(frame, runs, dims, other.agent_id)
-    trace = dataclasses.replace(trace, secondary=sec)
-    case = load_config(config, RunConfig).case
+    run = load_config(config, RunConfig)
+    case = run.case
+    # where the contacts happened, as vei run labels them (on the continued scenario)
+    from vei.continuation import with_continuations
+    from vei.continuation.where import where_from_timeseries
+    from vei.sim.timeshift import parse_time_shift
+
+    shift = parse_time_shift(run.time_shift)
+    assert isinstance(shift, float)  # written as a number of seconds
+    where = where_from_timeseries(
+        frame, runs, with_continuations(scen, run.sim.continuation), rider_id=other.agent_id,
+        time_shift_s=shift, sfm_configs={runs[0][0]} if case.rider == "sfm" else set(),
+        secondary=sec,
+    )  # fmt: skip
+    trace = dataclasses.replace(trace, secondary=sec, where=where)
     summary = summarize(trace, names=DEFAULT_METRICS, params=run_params([case]))
     return {name: summary[name].iloc[0] for name in DEFAULT_METRICS}
 

@@ -150,9 +150,11 @@ def variant(
         others: None, or (oX, oY, oYAW, oSP [T, no], oACT [T, no], oL, oW [no], oVEH [no],
             H0 [B, no] the ego's hit latches in and out, OH [B, T or 1, no], RH0, RFH [B, no]
             the rider's hit latches in and out).
-        xr: None, or the extra riders (:func:`vei.sim.kernel._extra_args` order).
-        dec: None, or the rider's conflicts (K, exit, s_rider, s_ego, hz_rider, hz_ego).
-        traffic: None, or the reacting cars (:func:`vei.sim.kernel._traffic_args`).
+        xr: None, or the extra riders (:func:`vei.sim.kernel.pack.riders_group`).
+        dec: None, or the conflicts of the decisions: the primary rider's (K, exit,
+            s_rider, s_ego, hz_rider, hz_ego), then the extra riders' padded the same way
+            (:func:`vei.sim.kernel.pack.decisions_group`).
+        traffic: None, or the reacting cars (:func:`vei.sim.kernel.pack.traffic_group`).
         metrics: None, or (t [T], dt, cfg [N_CFG], M [B, N_FUSED]).
     """
     path, p_s0, p_ds, etab, e_t0, e_dt, Le, We = ego
@@ -245,7 +247,6 @@ def variant(
         d_tc, d_hor, d_ydec = P[P_TC, b], P[P_HORIZON, b], P[P_YDEC, b]
         d_stopm, d_clearm = P[P_STOPM, b], P[P_CLEARM, b]
         d_vref = reference_speed(p_v0, p_look, p_sigma)
-        d_tau = p_mass / p_kdes
     # reacting cars (vei.sim.kernel.traffic); they exist only beside the others
     if traffic is not None:
         (
@@ -256,19 +257,7 @@ def variant(
         cfl, cmode, chit, chw = traffic_state0(b, tC, CS0, CM0, CH0, CW0)
         cv0, cyaw0, cm0 = np.empty(tC), np.empty(tC), np.empty(tC, dtype=np.int64)
         scr = np.empty((4, tC))
-        cst = (
-            cfl[0],
-            cfl[1],
-            cfl[2],
-            cfl[3],
-            cfl[4],
-            cfl[5],
-            cmode,
-            scr[0],
-            scr[1],
-            scr[2],
-            scr[3],
-        )
+        cst = (cfl[0], cfl[1], cfl[2], cfl[3], cfl[4], cfl[5], cmode, scr[0], scr[1], scr[2], scr[3])  # fmt: skip
         tg = (tC, tL, tW, tmtab, tm0, tmn, tpair)
         trec = (tsrec, tvrec, tarec, tact, tesrec, tevrec, oX, oY, oYAW, tidx)
         tpath = (tptab, tps0, tpds, tpn)
@@ -354,7 +343,7 @@ def variant(
                     if dec_on:
                         rdec, vcap = decide_step(
                             rdec, prog, pr, rsp, s, v, dec[:6], d_tc, d_hor, d_ydec,
-                            d_stopm, d_clearm, d_vref, d_tau,
+                            d_stopm, d_clearm, d_vref, p_tau,
                         )  # fmt: skip
                         vdx, vdy = capped_velocity(vdx, vdy, vcap)
                 if p_obst and v < p_obstv:  # a standing or slow car in its way
