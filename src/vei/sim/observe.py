@@ -456,7 +456,7 @@ class PolicyDriver:
             x_m=now[0], y_m=now[1], yaw_rad=now[2], vx_mps=now[3], vy_mps=now[4],
             valid=now[5] > 0.5, length_m=length, width_m=width,
             is_vehicle=cats == category_code("vehicle"), ego_x_m=st.ego_x_m[sl],
-            ego_y_m=st.ego_y_m[sl],
+            ego_y_m=st.ego_y_m[sl], buildings=self.arrays.buildings,
         )  # fmt: skip
         objs, self.v2x_states[i], _ = v2x_model.step(
             cfg, vparams, state, world, cols, st.k, self.arrays.dt_s, keys
