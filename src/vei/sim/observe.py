@@ -368,7 +368,8 @@ class PolicyDriver:
             except ConfigError as exc:
                 raise PolicyError(str(exc)) from None
             if blk.v2x is not None:
-                self._log_v2x(i, st.k * self.arrays.dt_s, source, valid, truth[5] > 0.5, action)
+                self._log_v2x(i, st.k * self.arrays.dt_s, source, valid, truth[5] > 0.5,
+                              action, obs.max_decel_mps2)  # fmt: skip
             if action.command is not None:
                 cmd[sl] = action.command
             else:
@@ -378,15 +379,15 @@ class PolicyDriver:
         return Demand(accel_mps2=acc, command=cmd, fsm_state=fsm)
 
     def _log_v2x(self, i: int, t_s: float, source: Any, valid: Any, present: Any,
-                 action: PolicyAction) -> None:  # fmt: skip
+                 action: PolicyAction, max_decel_mps2: Any) -> None:  # fmt: skip
         """Block i's V2X log (vei.policy.v2x.report) after the policy acted at t_s
         (``present``: [b, N] the road users in the scene)."""
         from vei.policy.v2x import report
 
         if self.v2x_logs[i] is None:
             self.v2x_logs[i] = report.V2XLog.start(self.blocks[i].stop - self.blocks[i].start)
-        self.v2x_logs[i].update(t_s, source, valid, present,
-                                report.braking(action.accel_mps2, action.command))  # fmt: skip
+        brakes = report.braking(action.accel_mps2, action.command, max_decel_mps2)
+        self.v2x_logs[i].update(t_s, source, valid, present, brakes)
 
     def v2x_report(self) -> dict[str, np.ndarray] | None:
         """What V2X did in each variant of the batch ({field: [B]}, the fields of

@@ -14,8 +14,8 @@ Per variant (``[b]``), accumulated by :class:`V2XLog` at every policy step
 - ``v2x_stale_s``: for how long [s] it kept a V2X track of a road user that had left the
   scene (a track lives ``max_track_age_s`` after its last message);
 - ``v2x_acted_s``: the first time the car braked (its policy demanded less than
-  ``-BRAKING_MPS2``, or a brake command) while it knew a road user in the scene from V2X
-  alone (NaN: never). Braking then is what V2X can have caused; braking only while every
+  ``-BRAKING_MPS2``, or a brake command worth as much) while it knew a road user in the
+  scene from V2X alone (NaN: never). Braking then is what V2X can have caused; braking only while every
   road user was also seen is the sensor's.
 
 When no road user in the scene was ever known from V2X alone and the sensor's position
@@ -83,12 +83,17 @@ class V2XLog:
 
 
 def braking(
-    accel_mps2: npt.ArrayLike | None, command: npt.ArrayLike | None
+    accel_mps2: npt.ArrayLike | None,
+    command: npt.ArrayLike | None,
+    max_decel_mps2: npt.ArrayLike = 8.0,
 ) -> npt.NDArray[np.bool_]:
     """[b] whether a policy's action brakes: a demanded acceleration below
-    ``-BRAKING_MPS2`` or a negative command."""
+    ``-BRAKING_MPS2``, or a brake command u < 0 worth as much (u x ``max_decel_mps2``
+    [m/s^2], the full brake, below ``-BRAKING_MPS2``: a cruise controller's small
+    corrections are no braking)."""
     if command is not None:
-        return np.asarray(command, dtype=np.float64) < 0.0
+        u = np.asarray(command, dtype=np.float64)
+        return u * np.asarray(max_decel_mps2, dtype=np.float64) < -BRAKING_MPS2
     return np.asarray(accel_mps2, dtype=np.float64) < -BRAKING_MPS2
 
 
