@@ -192,6 +192,10 @@ def scene_buildings(scenario: Any, margin_m: float = SCENE_MARGIN_M) -> Building
         return None
     traj = scenario.trajectories
     x, y = traj["x_m"].to_numpy(dtype=np.float64), traj["y_m"].to_numpy(dtype=np.float64)
+    ok = np.isfinite(x) & np.isfinite(y)
+    if not ok.any():
+        return None
+    x, y = x[ok], y[ok]
     box = (x.min() - margin_m, y.min() - margin_m, x.max() + margin_m, y.max() + margin_m)
     near = shapely.clip_by_rect(geom_all, *box)
     parts = [p for p in shapely.get_parts(near) if p.geom_type == "Polygon" and not p.is_empty]
