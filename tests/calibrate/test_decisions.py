@@ -39,7 +39,7 @@ def test_separated_cases_give_a_finite_fit_between_them() -> None:
     )
     assert fit.separated and np.isfinite(fit.scale_s) and fit.scale_s > 0
     assert -2.0 < fit.critical_gap_s < 2.5
-    with pytest.raises(InputError, match="go and yield"):
+    with pytest.raises(InputError, match="at least one go and one yield"):
         fit_gap_acceptance([_case(1.0, "go")])
 
 
@@ -111,3 +111,44 @@ def test_a_deciding_population_spreads_its_critical_gaps() -> None:
     assert sample_critical_gaps(DecisionConfig(), 3, 0) is None
     same = population_cases(case, RiderPopulationConfig(sample=400, seed=5))
     assert [c.decision.critical_gap_s for c in same] == tc.tolist()  # seeded
+
+
+def test_a_calibration_that_cannot_fit_says_why() -> None:
+    """One usable case (a go): no fit, and the text and decisions.json say why (issue
+    32.4: it used to write "fit": null and print nothing about it)."""
+    from vei.calibrate.decision_validate import ARRIVE_FIRST_S, DecisionValidation
+    from vei.calibrate.decisions import no_fit_reason
+
+    one = [_case(2.5, "go")]
+    why = no_fit_reason(one)
+    assert why == (
+        "the gap-acceptance fit needs at least one go and one yield case; the 1 usable case "
+        "is 1 go and 0 yield"
+    )
+    assert "no recorded yield / go case" in no_fit_reason([])
+    assert no_fit_reason([_case(2.5, "go"), _case(-1.0, "yield")]) is None
+    with pytest.raises(InputError, match="the 1 usable case is 1 go and 0 yield"):
+        fit_gap_acceptance(one)
+    val = DecisionValidation(
+        tuple(one), None, {"s": ARRIVE_FIRST_S, "t": ARRIVE_FIRST_S}, np.ones(1, bool),
+        np.ones(1, bool), (), fit_reason=why, folds_without_fit={"s": no_fit_reason([]), "t": why},
+    )  # fmt: skip
+    text = val.format()
+    assert f"fit: none: {why}" in text
+    assert "fold without s: no fit (no recorded yield / go case" in text
+    assert "its critical gap is the default +0.00 s" in text
+    doc = val.to_dict()
+    assert doc["fit"] is None and doc["fit_reason"] == why
+    assert doc["folds_without_fit"]["t"] == why
+
+
+@pytest.mark.slow
+def test_one_usable_case_of_the_shared_recordings_is_reported(tm_scenes) -> None:
+    """Without audi_08_..._02 the shared data hold one case (cyclist 4's go at
+    klinikum_01): the validation runs and says why there is no fit."""
+    scenes = [s for s in tm_scenes if s.scenario != "audi_08_klinikum_rechtsabbiegen_02"]
+    val = validate_decisions(scenes)
+    assert len(val.cases) == 1 and val.fit is None
+    assert "1 go and 0 yield" in val.fit_reason
+    assert "fit: none: the gap-acceptance fit needs at least one go" in val.format()
+    assert val.to_dict()["fit_reason"] == val.fit_reason

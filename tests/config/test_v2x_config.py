@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from vei.config import RunConfig, V2XConfig, config_to_dict, load_config
-from vei.config.v2x import DEFAULT_LATENCY, DEFAULT_PDR, check_pdr_table
+from vei.config.v2x import DEFAULT_LATENCY, check_pdr_table
 from vei.errors import ConfigError
 
 
@@ -35,6 +35,12 @@ from vei.errors import ConfigError
         ({"enabled": "yes"}, "v2x.enabled must be true or false"),
         ({"latency_distribution": "normal"}, "v2x.latency_distribution must be one of"),
         ({"seed": 1.5}, "v2x.seed must be an integer"),
+        ({"environment": "rural"}, "v2x.environment must be one of urban, highway"),
+        ({"nlos_loss_db": 9.0}, "v2x.nlos_loss_db and v2x.nlos_loss_std_db go together"),
+        ({"nlos_loss_db": -1.0, "nlos_loss_std_db": 1.0}, "v2x.nlos_loss_db must be >= 0"),
+        ({"rider_antenna_height_m": 0.0}, "v2x.rider_antenna_height_m must be > 0"),
+        ({"pdr_slope_db_per_decade": 0.0}, "v2x.pdr_slope_db_per_decade must be > 0"),
+        ({"buildings": 1}, "v2x.buildings must be true or false"),
     ],
 )  # fmt: skip
 def test_bad_settings_are_errors_naming_the_field(kwargs, message):
@@ -51,12 +57,13 @@ def test_defaults_and_technology_defaults():
         4.0, 0.5, 4.0,
     )  # fmt: skip
     assert cfg.latency == DEFAULT_LATENCY["its-g5"]
+    # the link budget unless a measured table is given; TR 37.885's blockage by case
+    assert cfg.pdr_table is None and cfg.nlos_loss_db is None and cfg.environment == "urban"
+    assert (cfg.rider_antenna_height_m, cfg.car_antenna_height_m) == (1.5, 1.6)
     pc5 = V2XConfig(technology="c-v2x-pc5")
-    assert (
-        pc5.latency == DEFAULT_LATENCY["c-v2x-pc5"] and pc5.pdr_table[1] == DEFAULT_PDR["c-v2x-pc5"]
-    )
-    assert V2XConfig(technology="c-v2x-pc5", latency_s=0.02).latency == (0.02, 0.1, "uniform")
-    assert pc5.default_for("latency_jitter_s") == 0.1
+    assert pc5.latency == DEFAULT_LATENCY["c-v2x-pc5"] == (0.001, 0.044, "uniform")
+    assert V2XConfig(technology="c-v2x-pc5", latency_s=0.02).latency == (0.02, 0.044, "uniform")
+    assert pc5.default_for("latency_jitter_s") == 0.044
     d, p = check_pdr_table([0, 10.0], [1, 1])
     assert d == (0.0, 10.0) and p == (1.0, 1.0)
 

@@ -81,13 +81,20 @@ def test_perception_alone_collides_and_v2x_at_the_default_channel_does_not(array
 
 
 @pytest.mark.slow
-def test_the_outcome_degrades_as_latency_grows_and_delivery_falls(arrays):
+def test_the_outcome_degrades_as_delivery_falls_and_latency_matters_only_with_losses(arrays):
     base = V2XConfig(enabled=True, position_error_std_m=study.PPP_GNSS_STD_M)
-    by_latency = [collisions(arrays, replace(base, latency_s=x)).mean()
-                  for x in (0.0, 0.5, 1.0, 3.0)]  # fmt: skip
+    # The link behind the van is NLOSv (TR 37.885): it delivers (1.00 at 20-80 m), so with
+    # an unloaded channel the first VAM always arrives and latency up to 3 s changes
+    # nothing; with channel load (pdr_factor 0.6) a lost first VAM leaves the car blind
+    # for 5.1 s (T_GenVamMax) and latency from 1 s makes the second one too late.
+    unloaded = [collisions(arrays, replace(base, latency_s=x)).mean()
+                for x in (0.0, 0.5, 1.0, 3.0)]  # fmt: skip
+    assert max(unloaded) <= 0.05
+    loaded = [collisions(arrays, replace(base, latency_s=x, pdr_factor=0.6)).mean()
+              for x in (0.0, 0.5, 1.0, 3.0)]  # fmt: skip
+    assert np.all(np.diff(loaded) >= 0) and loaded[-1] > loaded[0] + 0.15
     by_pdr = [collisions(arrays, replace(base, pdr_factor=f)).mean()
               for f in (1.0, 0.6, 0.4, 0.2, 0.0)]  # fmt: skip
-    assert np.all(np.diff(by_latency) >= 0) and by_latency[-1] > by_latency[0] + 0.2
     assert np.all(np.diff(by_pdr) >= 0) and by_pdr[0] <= 0.1 and by_pdr[-1] == 1.0
     # Nothing delivered is perception alone, collision for collision.
     none = collisions(arrays, replace(base, pdr_factor=0.0))

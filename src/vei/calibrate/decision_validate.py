@@ -40,6 +40,7 @@ from vei.calibrate.decisions import (
     DecisionCase,
     extract_cases,
     fit_gap_acceptance,
+    no_fit_reason,
     rider_conflicts,
 )
 from vei.calibrate.fit import fit_tracks
@@ -240,6 +241,9 @@ class DecisionValidation:
             False where the simulated rider never reached the zone).
         stops: the riders that stop. ade_m, fde_m: {model: {horizon: mean}} of the windows
             ('SFM calibrated', 'SFM decisions'). n_windows: {horizon: windows}.
+        fit_reason: why there is no fit ('' when there is one).
+        folds_without_fit: held-out scenario -> why its training cases had no fit (its t_c
+            is then :data:`ARRIVE_FIRST_S`).
     """
 
     cases: tuple[DecisionCase, ...]
@@ -251,6 +255,8 @@ class DecisionValidation:
     ade_m: dict[str, dict[float, float]] = field(default_factory=dict)
     fde_m: dict[str, dict[float, float]] = field(default_factory=dict)
     n_windows: dict[float, int] = field(default_factory=dict)
+    fit_reason: str = ""
+    folds_without_fit: dict[str, str] = field(default_factory=dict)
 
     def format(self) -> str:
         """The figures as text (``vei calibrate decisions``)."""
@@ -310,7 +316,9 @@ def validate_decisions(
         )
     by_name = {s.scenario: s for s in scenes}
     cases = extract_cases(scenes, decision_horizon_s)
-    fit = fit_gap_acceptance(cases) if {c.outcome for c in cases} == {"go", "yield"} else None
+    reason = no_fit_reason(cases)
+    fit = fit_gap_acceptance(cases) if reason is None else None
+    fold_reasons: dict[str, str] = {}
     tc_of: dict[str, float] = {}
     open_ok = np.zeros(len(cases), dtype=bool)
     closed_ok = np.zeros(len(cases), dtype=bool)
@@ -320,8 +328,12 @@ def validate_decisions(
     }
     fdes: dict[str, dict[float, list]] = {m: {h: [] for h in horizons_s} for m in errs}
     for held in folds:
-        t_c = _fold_tc([c for c in cases if c.scenario != held])
+        train_cases = [c for c in cases if c.scenario != held]
+        t_c = _fold_tc(train_cases)
         tc_of[held] = t_c
+        why = no_fit_reason(train_cases)
+        if why is not None:
+            fold_reasons[held] = why
         for i, c in enumerate(cases):
             if c.scenario == held:
                 open_ok[i] = (c.dta_s >= t_c) == (c.outcome == "go")
@@ -403,8 +415,9 @@ def validate_decisions(
     }
     nwin = {h: int(sum(a.size for a in errs["SFM calibrated"][h])) for h in horizons_s}
     return DecisionValidation(
-        tuple(cases), fit, tc_of, open_ok, closed_ok, tuple(stops), ade, fde, nwin
-    )
+        tuple(cases), fit, tc_of, open_ok, closed_ok, tuple(stops), ade, fde, nwin,
+        reason or "", fold_reasons,
+    )  # fmt: skip
 
 
 def _arc_on(paths: PackedPaths, j: int, x: FloatArray, y: FloatArray) -> FloatArray:
@@ -453,6 +466,13 @@ def _lines(v: DecisionValidation) -> list[str]:
             f"{fit.interval_critical_gap_s[0]:+.2f} .. {fit.interval_critical_gap_s[1]:+.2f}), "
             f"scale {fit.scale_s:.2f} s{' (cases separate completely: the scale is the penalty s)' if fit.separated else ''}"
         )
+    else:
+        lines.append(f"fit: none: {v.fit_reason or 'no usable case'}")
+    for held, why in v.folds_without_fit.items():
+        lines.append(
+            f"  fold without {held}: no fit ({why}); its critical gap is the default "
+            f"{v.folds.get(held, ARRIVE_FIRST_S):+.2f} s (who arrives first goes)"
+        )
     ok_o, ok_c = v.open_loop_correct, v.closed_loop_correct
     if len(cases):
         lines.append(
@@ -482,6 +502,8 @@ def _document(v: DecisionValidation) -> dict:
     return {
         "cases": [c.to_dict() for c in v.cases],
         "fit": None if fit is None else fit.to_dict(),
+        "fit_reason": None if fit is not None else (v.fit_reason or "no usable case"),
+        "folds_without_fit": dict(v.folds_without_fit),
         "folds_critical_gap_s": v.folds,
         "open_loop_correct": np.asarray(v.open_loop_correct).tolist(),
         "closed_loop_correct": np.asarray(v.closed_loop_correct).tolist(),

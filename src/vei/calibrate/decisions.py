@@ -310,6 +310,22 @@ def _firth_logit(x: FloatArray, y: FloatArray) -> tuple[float, float]:
     return float(res.x[0]), float(res.x[1])
 
 
+def no_fit_reason(cases: Sequence[DecisionCase]) -> str | None:
+    """Why the gap-acceptance fit cannot be made on ``cases`` (None: it can): it needs at
+    least one rider that went and one that yielded."""
+    n_go = sum(c.outcome == "go" for c in cases)
+    n_yield = len(cases) - n_go
+    if n_go >= 1 and n_yield >= 1:
+        return None
+    if not cases:
+        return "no recorded yield / go case (no rider met a moving vehicle at a conflict)"
+    return (
+        f"the gap-acceptance fit needs at least one go and one yield case; the "
+        f"{len(cases)} usable case{'s' if len(cases) != 1 else ''} {'are' if len(cases) != 1 else 'is'} "
+        f"{n_go} go and {n_yield} yield"
+    )
+
+
 def fit_gap_acceptance(
     cases: Sequence[DecisionCase], *, bootstrap: int = 200, seed: int = 0
 ) -> GapFit:
@@ -321,10 +337,9 @@ def fit_gap_acceptance(
     x = np.array([c.dta_s for c in cases], dtype=np.float64)
     y = np.array([c.outcome == "go" for c in cases], dtype=np.float64)
     n_go, n_yield = int(y.sum()), int((1 - y).sum())
-    if n_go < 1 or n_yield < 1:
-        raise InputError(
-            f"the gap-acceptance fit needs go and yield cases, found {n_go} go and {n_yield} yield"
-        )
+    reason = no_fit_reason(cases)
+    if reason is not None:
+        raise InputError(reason)
     b0, b1 = _firth_logit(x, y)
     sep = bool(x[y == 1].min() > x[y == 0].max())
     rng = np.random.default_rng(seed)

@@ -30,14 +30,19 @@ def _fmt(value: Any, fmt: str = ".2f") -> str:
 
 def _cell(rec: dict[str, Any], key: str, fmt: str | None) -> str:
     """One table cell of a summary record: a missing or empty value is '-'; the verdict
-    names the configuration it is judged against ('avoided vs normal'), or says that the
-    row is that reference itself (a no-avoidance configuration)."""
+    names the configuration it is judged against ('avoided vs normal'), says that there
+    was nothing to avoid (the reference did not collide either), or that the row is that
+    reference itself (a no-avoidance configuration)."""
     value = rec.get(key)
     if key == "verdict":
         ref = rec.get("reference") or ""
         if not value or not ref:
             return "-"
-        return "reference" if ref == rec.get("name") else f"{value} vs {ref}"
+        if ref == rec.get("name"):
+            return "reference"
+        if value == "nothing-to-avoid":
+            return f"nothing to avoid ({ref} did not collide)"
+        return f"{value} vs {ref}"
     if value == "":
         return "-"
     return _fmt(value, fmt) if fmt else _fmt(value)
@@ -89,6 +94,8 @@ def print_summary(result, out: Path | None = None, console=None) -> None:
     )
     cols = [
         ("config", "name", None),
+        # which behaviour models ran (issue 32.4): decisions, traffic, V2X, perception
+        ("switches", "switches", None),
         ("collision", "collision", None),
         ("t collision [s]", "collision_time_s", ".2f"),
         ("safety index", "safety_index", ".3f"),
@@ -121,10 +128,20 @@ def print_summary(result, out: Path | None = None, console=None) -> None:
             "reaction time of contact or closer than the stopping distance): "
             f"{', '.join(flagged)}"
         )
+    for rec in records:
+        if rec.get("v2x_note"):
+            console.print(f"{rec['name']}: V2X: {rec['v2x_note']}", highlight=False)
     crit = getattr(result, "criticality", None) or {}
     for key in ("perturbation_message", "message"):
         if crit.get(key):
-            console.print(crit[key])
+            console.print(crit[key], highlight=False)
+    hit = [r["name"] for r in records if r.get("collision")]
+    if crit.get("message") and crit.get("paths_meet") is False and hit:
+        console.print(
+            "the line above is about the recorded paths; in the simulation "
+            f"{', '.join(hit)} collided (the table)",
+            highlight=False,
+        )
     outcome = result.paper_outcome()
     if outcome["reproduced"] is not None:
         verdict = "reproduced" if outcome["reproduced"] else "NOT reproduced"

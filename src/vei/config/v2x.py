@@ -19,35 +19,22 @@ from vei.errors import ConfigError
 
 Technology = Literal["its-g5", "c-v2x-pc5"]
 LatencyDistribution = Literal["exponential", "uniform"]
+Environment = Literal["urban", "highway"]
 TECHNOLOGIES: tuple[str, ...] = ("its-g5", "c-v2x-pc5")
 LATENCY_DISTRIBUTIONS: tuple[str, ...] = ("exponential", "uniform")
 #: Road-user categories that may carry a V2X device (send VAMs).
 SENDER_CATEGORIES: tuple[str, ...] = ("escooter", "cyclist", "pedestrian")
 
-#: Distances [m] of the default packet-delivery tables.
-DEFAULT_PDR_DISTANCE_M: tuple[float, ...] = (
-    0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0, 125.0, 150.0, 175.0,
-    200.0, 250.0, 300.0, 400.0, 500.0,
-)  # fmt: skip
-#: Default packet delivery ratio of each technology at DEFAULT_PDR_DISTANCE_M: a single
-#: rider -> car link at an urban intersection whose corners are built up, from 3GPP TR
-#: 37.885 (urban V2V NLOS path loss, shadowing sigma 4 dB) and its link budget; the
-#: calculation is this project's (vei.policy.v2x.channel.link_budget_pdr recomputes it;
-#: docs/v2x.md gives every input and its source).
-DEFAULT_PDR: dict[str, tuple[float, ...]] = {
-    "its-g5": (
-        1.0, 1.0, 1.0, 1.0, 1.0, 0.999, 0.995, 0.981, 0.95, 0.896, 0.82, 0.575, 0.343,
-        0.182, 0.09, 0.019, 0.004, 0.0, 0.0,
-    ),
-    "c-v2x-pc5": (
-        1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.999, 0.997, 0.981, 0.929, 0.834,
-        0.703, 0.424, 0.216, 0.042, 0.007,
-    ),
-}  # fmt: skip
+#: Link environments of 3GPP TR 37.885 Table 6.2.1-1 (the LOS path-loss law of V2V links).
+ENVIRONMENTS: tuple[str, ...] = ("urban", "highway")
 #: Default latency of each technology: (fixed part [s], random part [s], distribution).
+#: ITS-G5: 1 ms on air and through the receive path plus an exponential channel-access
+#: wait of mean 2 ms (mean 3 ms). LTE-V2X PC5: 1 ms plus a uniform wait for its resource of
+#: up to 44 ms (mean 23 ms: ITS-G5's 3 ms plus the 20 ms by which Cimoli et al. 2022
+#: measured PC5 slower in the field); docs/v2x.md.
 DEFAULT_LATENCY: dict[str, tuple[float, float, str]] = {
     "its-g5": (0.001, 0.002, "exponential"),
-    "c-v2x-pc5": (0.001, 0.100, "uniform"),
+    "c-v2x-pc5": (0.001, 0.044, "uniform"),
 }
 
 
@@ -120,7 +107,7 @@ class V2XConfig:
     Attributes:
         enabled: riders send VAMs and the car fuses them with its perception.
         technology: 'its-g5' (ETSI ITS-G5 / DSRC, IEEE 802.11p) or 'c-v2x-pc5' (LTE-V2X
-            sidelink mode 4): picks the default delivery table and latency.
+            sidelink mode 4): picks the link budget and the default latency.
         seed: seed of every V2X draw (equipped riders, GNSS error, delivery, latency,
             blockage loss), with the variant's key.
         penetration_rate: share of riders equipped, [0, 1], drawn per rider and variant
@@ -140,20 +127,35 @@ class V2XConfig:
             [s], > 0. Default 60.
         clock_offset_s: the device clock minus true time [s] (sweepable): a message's time
             stamp is its generation time plus this. Default 0.
-        pdr_distance_m, pdr: the packet-delivery table (delivery ratio of a VAM against
-            the rider-car distance, linear in between, held beyond the ends); None = the
-            technology's default (:data:`DEFAULT_PDR`). Given, both together: distances
-            strictly increasing, ratios in [0, 1] and non-increasing.
+        environment: 'urban' (default) or 'highway': the LOS path-loss law of V2V links
+            (3GPP TR 37.885 Table 6.2.1-1); NLOSv adds the vehicle blockage to it, NLOS
+            (buildings) is urban's.
+        rider_antenna_height_m, car_antenna_height_m: antenna heights [m] (> 0): they
+            pick the blockage case of TR 37.885 clause 6.2.1 against the blocker's height.
+            Defaults 1.5 (TR 37.885 Table 6.1.4-1, a pedestrian UE) and 1.6 (clause 6.1.2,
+            vehicle type 2, roof antenna).
+        truck_min_length_m: a blocking vehicle box longer than this [m] is a truck, bus or
+            van (blocker height 3 m, TR 37.885 vehicle type 3), a shorter one a passenger
+            vehicle (1.6 m). Default 5.5 (the TR's passenger vehicle is 5 m long).
+        pdr_distance_m, pdr: a measured delivery table of line-of-sight links (delivery
+            ratio against the rider-car distance, linear in between, held beyond the ends)
+            in place of the link budget; a blocked link is read at ``d 10^(L /
+            pdr_slope_db_per_decade)`` (L its extra loss over LOS). None (default): the
+            link budget of TR 37.885's path loss (vei.policy.v2x.channel). Given, both
+            together: distances strictly increasing, ratios in [0, 1] and non-increasing.
         pdr_factor: multiplies every delivery ratio, [0, 1] (sweepable): the share of
-            packets that survive channel load (interference, congestion), which the table
-            leaves out. Default 1.
-        nlos: a VAM whose direct line is blocked by a vehicle's box (not the sender's) is
-            received as from farther away (``nlos_loss_db``). Default True.
-        nlos_loss_db, nlos_loss_std_db: the blockage loss L ~ max(0, N(mean, std)) [dB]
-            (3GPP TR 37.885 clause 6.2.1, both antennas below the blocker: 9 / 4.5).
-        pdr_slope_db_per_decade: path-loss slope that turns L into distance: the link
-            is read from the table at d * 10^(L / slope) [dB per decade of distance]
-            (TR 37.885 urban NLOS: 30).
+            packets that survive channel load (interference, congestion), which the link
+            budget leaves out. Default 1.
+        nlos: links blocked by a vehicle's box (not the sender's) take the vehicle
+            blockage loss (NLOSv). Default True.
+        buildings: links blocked by a building of the scenario's map (OpenStreetMap
+            outlines, where it has them) take the NLOS path loss. Default True.
+        nlos_loss_db, nlos_loss_std_db: a fixed blockage loss L ~ max(0, N(mean, std))
+            [dB] for every NLOSv link instead of TR 37.885's by case (antenna and blocker
+            heights); None (default): the TR's. Given, both together.
+        pdr_slope_db_per_decade: the slope that turns an extra loss into distance on a
+            given delivery table [dB per decade of distance]; None (default): the LOS
+            law's (16.7 urban, 20 highway).
         latency_s: fixed part of the latency [s] (sweepable); None = the technology's.
         latency_jitter_s: scale of its random part [s] (the exponential's mean or the
             uniform's width) (sweepable); None = the technology's.
@@ -180,13 +182,18 @@ class V2XConfig:
     position_error_std_m: float = 3.23
     position_error_tau_s: float = 60.0
     clock_offset_s: float = 0.0
+    environment: Environment = "urban"
+    rider_antenna_height_m: float = 1.5
+    car_antenna_height_m: float = 1.6
+    truck_min_length_m: float = 5.5
     pdr_distance_m: tuple[float, ...] | None = None
     pdr: tuple[float, ...] | None = None
     pdr_factor: float = 1.0
     nlos: bool = True
-    nlos_loss_db: float = 9.0
-    nlos_loss_std_db: float = 4.5
-    pdr_slope_db_per_decade: float = 30.0
+    buildings: bool = True
+    nlos_loss_db: float | None = None
+    nlos_loss_std_db: float | None = None
+    pdr_slope_db_per_decade: float | None = None
     latency_s: float | None = None
     latency_jitter_s: float | None = None
     latency_distribution: LatencyDistribution | None = None
@@ -194,7 +201,7 @@ class V2XConfig:
     policies_use_v2x: bool = True
 
     def __post_init__(self) -> None:
-        for name in ("enabled", "nlos", "policies_use_v2x"):
+        for name in ("enabled", "nlos", "buildings", "policies_use_v2x"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"v2x.{name} must be true or false, got {getattr(self, name)!r}")
         if self.technology not in TECHNOLOGIES:
@@ -229,16 +236,29 @@ class V2XConfig:
             "position_error_tau_s": pos,
             "clock_offset_s": {},
             "pdr_factor": unit,
-            "nlos_loss_db": {"lo": 0.0},
-            "nlos_loss_std_db": {"lo": 0.0},
-            "pdr_slope_db_per_decade": pos,
+            "rider_antenna_height_m": pos,
+            "car_antenna_height_m": pos,
+            "truck_min_length_m": pos,
             "max_track_age_s": pos,
         }
         for name, bounds in checked.items():
             object.__setattr__(self, name, _num(name, getattr(self, name), **bounds))
-        for name in ("latency_s", "latency_jitter_s"):
+        for name in ("latency_s", "latency_jitter_s", "nlos_loss_db", "nlos_loss_std_db"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, _num(name, getattr(self, name), lo=0.0))
+        if self.pdr_slope_db_per_decade is not None:
+            object.__setattr__(self, "pdr_slope_db_per_decade",
+                               _num("pdr_slope_db_per_decade", self.pdr_slope_db_per_decade,
+                                    lo=0.0, lo_open=True))  # fmt: skip
+        if (self.nlos_loss_db is None) != (self.nlos_loss_std_db is None):
+            raise ConfigError(
+                "v2x.nlos_loss_db and v2x.nlos_loss_std_db go together: give both (a fixed "
+                "blockage loss) or neither (3GPP TR 37.885's by antenna and blocker heights)"
+            )
+        if self.environment not in ENVIRONMENTS:
+            raise ConfigError(
+                f"v2x.environment must be one of {', '.join(ENVIRONMENTS)}, got {self.environment!r}"
+            )
         if self.latency_distribution is not None and (
             self.latency_distribution not in LATENCY_DISTRIBUTIONS
         ):
@@ -258,8 +278,8 @@ class V2XConfig:
             )
         if (self.pdr_distance_m is None) != (self.pdr is None):
             raise ConfigError(
-                "v2x.pdr_distance_m and v2x.pdr go together: give both (a table) or neither "
-                "(the technology's default)"
+                "v2x.pdr_distance_m and v2x.pdr go together: give both (a measured table) or "
+                "neither (the link budget of 3GPP TR 37.885)"
             )
         if self.pdr is not None:
             d, p = check_pdr_table(self.pdr_distance_m, self.pdr)
@@ -267,11 +287,12 @@ class V2XConfig:
             object.__setattr__(self, "pdr", p)
 
     @property
-    def pdr_table(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        """(distances [m], delivery ratios) in use: the given table or the technology's."""
+    def pdr_table(self) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+        """(distances [m], delivery ratios) of a given delivery table, or None (the link
+        budget)."""
         if self.pdr is not None and self.pdr_distance_m is not None:
             return self.pdr_distance_m, self.pdr
-        return DEFAULT_PDR_DISTANCE_M, DEFAULT_PDR[self.technology]
+        return None
 
     def default_for(self, name: str) -> float:
         """The value a None field stands for: ``latency_s`` / ``latency_jitter_s`` of the
@@ -295,8 +316,7 @@ class V2XConfig:
 
 __all__ = [
     "DEFAULT_LATENCY",
-    "DEFAULT_PDR",
-    "DEFAULT_PDR_DISTANCE_M",
+    "ENVIRONMENTS",
     "LATENCY_DISTRIBUTIONS",
     "SENDER_CATEGORIES",
     "TECHNOLOGIES",

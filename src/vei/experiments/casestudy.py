@@ -31,6 +31,7 @@ import pandas as pd
 
 from vei.config import PAPER_CASES, CaseConfig, SimConfig, case_preset, config_to_dict
 from vei.errors import BackendError, ConfigError, InputError
+from vei.experiments.run_labels import add_run_labels
 from vei.metrics import (
     MetricsConfig,
     paper_ttc,
@@ -49,6 +50,10 @@ Runner = Callable[[Scenario, Sequence[CaseConfig], float, SimConfig], pd.DataFra
 #: The configurations that the paper reports colliding / not colliding (Section IV-C).
 PAPER_COLLIDING: tuple[str, ...] = ("replay", "normal", "aggressive")
 PAPER_SAFE: tuple[str, ...] = ("normal-cap", "aggressive-cap")
+#: The verdict of a case whose no-avoidance reference did not collide either.
+NOTHING_TO_AVOID = "nothing-to-avoid"
+#: The key of a backend's time series attrs that carries what V2X did (SimResult.v2x).
+V2X_ATTR = "v2x"
 #: Backends that vei knows by name.
 BACKENDS: tuple[str, ...] = ("builtin", "esmini", "carla")
 
@@ -158,8 +163,10 @@ def add_verdicts(
     Each case is compared (:func:`vei.metrics.severity.verdict`) with the no-avoidance
     case (:func:`is_no_avoidance`) of the same scenario in the same case study: equal in
     everything but the name and the controller (:func:`_scenario_fields`: rider, SFM,
-    ego cruise speed / PID / actuator settings, perception). Verdicts: 'avoided',
-    'mitigated' (impact speed at least ``cfg.mitigation_share`` lower), 'not-mitigated';
+    ego cruise speed / PID / actuator settings, perception). Verdicts: 'avoided' (the
+    reference collided, this case did not), 'mitigated' (impact speed at least
+    ``cfg.mitigation_share`` lower), 'not-mitigated' (also a collision the reference did
+    not have), :data:`NOTHING_TO_AVOID` (neither collided: no credit for avoiding);
     the no-avoidance case itself gets 'reference' (its own name as reference). A case
     without a matching no-avoidance case (e.g. the recorded-speed replay, a study without a
     'none' run, or ``--configs normal,aggressive-cap`` whose only no-avoidance case has
@@ -202,6 +209,8 @@ def add_verdicts(
     hit = out["collision"].to_numpy(bool)
     speed = out["impact_speed_mps"].to_numpy(float)
     v = verdict(hit, speed, hit[ri], speed[ri], cfg.mitigation_share)
+    # 'avoided' only where the reference collided: with nothing to avoid, no credit
+    v = np.where(~hit & ~hit[ri], NOTHING_TO_AVOID, v)
     is_ref = np.array([is_no_avoidance(c) for c in cases], dtype=bool)
     v = np.where(is_ref, "reference", v)
     out["verdict"] = np.where(has, v, "").astype(object)
@@ -248,11 +257,15 @@ def parse_time_shift(value: str | float | None) -> float | str:
 def _run_builtin(
     scenario: Scenario, cases: Sequence[CaseConfig], time_shift_s: float, sim: SimConfig
 ) -> pd.DataFrame:
-    """Built-in engine: all configurations in one batch."""
+    """Built-in engine: all configurations in one batch. What V2X did in each run
+    (SimResult.v2x) rides along in ``frame.attrs['v2x']`` ({field: [B] list})."""
     from vei.sim.engine import run_cases
 
     result = run_cases(scenario, list(cases), time_shift_s=time_shift_s, sim=sim, kernel=sim.kernel)
-    return result.to_frame()
+    frame = result.to_frame()
+    if result.v2x is not None:
+        frame.attrs[V2X_ATTR] = {k: np.asarray(v).tolist() for k, v in result.v2x.items()}
+    return frame
 
 
 def get_backend(name: str) -> Runner:
@@ -333,6 +346,7 @@ def run_casestudy(
     runner = get_backend(backend) if isinstance(backend, str) else backend
     backend_name = backend if isinstance(backend, str) else getattr(backend, "__name__", "custom")
     frame = runner(scenario, case_objs, shift_s, sim)
+    v2x_report = frame.attrs.get(V2X_ATTR)
     missing = [c for c in TIMESERIES_COLUMNS if c not in frame.columns]
     if missing:
         raise BackendError(
@@ -375,6 +389,8 @@ def run_casestudy(
     summary = add_verdicts(
         summarize(trace, mcfg, labels=names, params=run_params(case_objs)), case_objs, mcfg
     )
+    # what ran: the behaviour switches of each configuration, what V2X did (issue 32.4)
+    summary = add_run_labels(summary, case_objs, v2x_report, backend=str(backend_name))
     rider_rows = None
     if sim.sfm_riders != "primary":
         from vei.experiments.multi_rider import rider_table
@@ -483,6 +499,7 @@ def write_casestudy(
                 ttc_s=result.ttc_s,
                 keyframes=result.scenario.keyframes,
                 roads=roads,
+                dims={a.agent_id: (a.length_m, a.width_m) for a in result.scenario.agents},
                 safe_ttc_s=result.metrics_config.safe_ttc_s,
                 alert_ttc_s=result.metrics_config.alert_ttc_s,
             )

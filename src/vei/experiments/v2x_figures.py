@@ -67,7 +67,7 @@ def plot_latency_pdr(results: pd.DataFrame) -> Any:
     ax.set_xticks(range(lat.size), [f"{v:g}" for v in lat])
     ax.set_yticks(range(pdr.size), [f"{v:g}" for v in pdr])
     ax.set_xlabel("V2X latency, fixed part [s]")
-    ax.set_ylabel("packet delivery factor (x the PDR table)")
+    ax.set_ylabel("pdr_factor (x each link's delivery ratio)")
     ax.set_title("Perception + V2X: collision share (synthetic occluded crossing)")
     fig.colorbar(im, ax=ax, label="collision share in the occlusion window", shrink=0.85)
     return fig
@@ -145,6 +145,57 @@ def plot_case(shift_s: float) -> Any:
     return fig
 
 
+def plot_scene() -> Any:
+    """The scene from above (x 0..75 m): the car's path, the van's box, the rider waiting
+    ahead of it, and the rider -> car link from the car's position every second until the
+    car passes the van (perception alone at the window's middle shift: the same car path
+    up to its braking), coloured by its state (vei.policy.v2x.links: NLOSv where the van's
+    box crosses it), with the ITS-G5 delivery ratio of the link budget at the mean blockage
+    loss (vei.policy.v2x.channel.link_pdr)."""
+    from vei.experiments import v2x_study as st
+    from vei.policy.v2x import channel as ch
+    from vei.policy.v2x.links import blocker_heights_m, tallest_blocker_m
+    from vei.report.birdseye import plot_birdseye
+    from vei.types import EGO_ID
+
+    sc = occluded_crossing()
+    fig = _figure((9.0, 3.6))
+    ax = fig.add_subplot()
+    plot_birdseye(sc, ax=ax, time_dots=False, title="Occluded crossing: the scene and its V2X link")
+    van = sc.agent("van")
+    vx, vy = st.VAN_FRONT_X_M - van.length_m / 2.0, st.VAN_Y_M
+    rx, ry = st.CROSSING_X_M, st.RIDER_WAIT_Y_M
+    ego = sc.track(EGO_ID)
+    h = blocker_heights_m(np.array([van.length_m]), 5.5)
+    for t in range(0, 8):
+        row = ego.iloc[int(np.argmin(np.abs(ego["t_s"].to_numpy() - t)))]
+        ex, ey = float(row["x_m"]), float(row["y_m"])
+        if ex > st.VAN_FRONT_X_M:
+            break
+        blocked = tallest_blocker_m(
+            np.array([rx]), np.array([ry]), np.array([ex]), np.array([ey]),
+            np.array([[vx]]), np.array([[vy]]), np.zeros((1, 1)), np.array([[van.length_m]]),
+            np.array([[van.width_m]]), h[None, :], np.ones((1, 1), bool),
+        )[0] > 0.0  # fmt: skip
+        state = ch.NLOSV if blocked else ch.LOS
+        mean, _ = ch.blockage_stats_db(np.array([max(rx - ex, 3.0)]), 1.5, 1.6, h)
+        pdr = float(ch.link_pdr(np.array([np.hypot(rx - ex, ry - ey)]), np.array([state]),
+                                "its-g5", blockage_db=mean if blocked else 0.0)[0])  # fmt: skip
+        ax.plot([ex, rx], [ey, ry], "--" if blocked else "-", lw=0.8,
+                color="tab:red" if blocked else "tab:green",
+                label=f"_link {t} s")  # fmt: skip
+        ax.annotate(f"{t} s: {ch.LINK_STATES[state]}, PDR {pdr:.2f}", (ex, ey),
+                    textcoords="offset points", xytext=(0, 6 + 7 * (t % 2)), fontsize=6,
+                    rotation=0, ha="center")  # fmt: skip
+    legend = ax.get_legend()
+    if legend is not None:
+        legend.set_loc("lower center")
+    ax.set_xlim(-2, 75)
+    ax.set_ylim(-8, 8)
+    ax.set_aspect("equal", adjustable="box")
+    return fig
+
+
 def write_figures(
     out_dir: Path, table: pd.DataFrame, window: tuple[float, float], sweeps: dict[str, Path]
 ) -> list[Path]:
@@ -154,6 +205,7 @@ def write_figures(
     res = {k: pd.read_parquet(Path(v) / "results.parquet") for k, v in sweeps.items()}
     mid = float(table.loc[table["perception alone"], "time_shift_s"].median())
     figs = {
+        "v2x_scene.png": plot_scene(),
         "v2x_comparison.png": plot_comparison(table, window),
         "v2x_case.png": plot_case(mid),
         "v2x_riskmap_latency_pdr.png": plot_latency_pdr(res["latency_pdr"]),
@@ -192,6 +244,7 @@ def summarise(table: pd.DataFrame, window: tuple[float, float], sweeps: dict[str
 
 __all__ = [
     "plot_case",
+    "plot_scene",
     "plot_comparison",
     "plot_gnss",
     "plot_latency_pdr",

@@ -2,8 +2,9 @@
 
 Artists carry labels so tests (and users) can find them: the ego path is labelled
 ``'ego'``, each road user's interpolated path ``'<agent_id>'``, its keyframes
-``'<agent_id> keyframes'``, start markers ``'<agent_id> start'``, simulated tracks
-``'<agent_id> (sim)'``. The primary threat is drawn thicker, in red-orange, and named in the
+``'<agent_id> keyframes'``, start markers ``'<agent_id> start'``, its footprint where it
+starts ``'<agent_id> box'`` (a parked car, which has no path to draw, and any road user
+that can hide another), simulated tracks ``'<agent_id> (sim)'``. The primary threat is drawn thicker, in red-orange, and named in the
 legend. ``roads`` is a hook: a callable ``roads(ax)`` that draws the map underneath
 (vei.maps provides one); it is called first so that roads lie below the paths.
 """
@@ -13,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from vei.io.atomic import atomic_path
@@ -110,6 +112,11 @@ def plot_birdseye(
             fontsize=6,
             color=colour,
         )
+        if agent_id != EGO_ID:  # its box where it starts: a parked car has no path
+            info = scenario.agent(agent_id)
+            draw_box(ax, float(tr["x_m"].iloc[0]), float(tr["y_m"].iloc[0]),
+                     float(tr["yaw_rad"].iloc[0]), info.length_m, info.width_m, colour=colour,
+                     label=f"{agent_id} box", hatch="//" if cat == "vehicle" else None)  # fmt: skip
         if keyframes is not None and agent_id != EGO_ID:
             kf = keyframes[keyframes["agent_id"] == agent_id]
             if len(kf):
@@ -139,20 +146,39 @@ def plot_birdseye(
     ax.set_ylabel("y north [m]")
     ax.set_title(title if title is not None else scenario.id)
     ax.grid(True, lw=0.3, alpha=0.5)
-    # Legend: paths only (start markers and keyframes are explained by the marker key).
+    # Legend: paths only (start markers, keyframes and boxes are explained by the key).
     handles = [
         h
         for h in ax.get_lines()
-        if not h.get_label().endswith((" start", " keyframes"))
+        if not h.get_label().endswith((" start", " keyframes", " box"))
         and not h.get_label().startswith("_")
     ]
     if handles:
         ax.legend(
-            handles=handles, loc="best", fontsize=7, title="o start   x keyframes", title_fontsize=7
+            handles=handles,
+            loc="best",
+            fontsize=7,
+            title="o start   x keyframes   box: footprint",
+            title_fontsize=7,
         )
     if time_dots:
         _time_dots(ax, traj, [a for a in (EGO_ID, primary) if a is not None])
     return fig
+
+
+def draw_box(ax, x_m: float, y_m: float, yaw_rad: float, length_m: float, width_m: float, *,
+             colour: str = "black", label: str = "_box", hatch: str | None = None) -> None:  # fmt: skip
+    """Draw a road user's footprint (an oriented box [m, rad]) as a closed outline (a Line2D
+    labelled ``label``, so that tests find it) filled lightly (hatched for ``hatch``)."""
+    from matplotlib.patches import Polygon
+
+    from vei.boxes import box_corners
+
+    c = box_corners(x_m, y_m, yaw_rad, length_m, width_m)
+    ring = np.vstack([c, c[:1]])
+    ax.add_patch(Polygon(c, closed=True, facecolor=colour, alpha=0.25, hatch=hatch,
+                         edgecolor=colour, lw=0.0, zorder=2))  # fmt: skip
+    ax.plot(ring[:, 0], ring[:, 1], "-", color=colour, lw=1.2, label=label, zorder=2)
 
 
 def _time_dots(ax, traj: pd.DataFrame, agents: list[str]) -> None:

@@ -1,6 +1,7 @@
 """The case study's Fig. 4: one bird's-eye panel per configuration (the ego's path, the
 road user's keyframes and simulated path, its run-in / run-out shaded, the collision
-point), the map's roads underneath when given. Re-exported by
+point, every other road user that can hide it: its path and its box at the panel's key
+moment), the map's roads underneath when given. Re-exported by
 :mod:`vei.report.casestudy_figures`, which writes it with the other figures.
 """
 
@@ -11,7 +12,14 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 
+from vei.report.birdseye import CATEGORY_COLOURS, draw_box
 from vei.types import EGO_ID
+
+#: Footprint [m] of a road user whose size the figure is not given, by category.
+DEFAULT_DIMS_M: dict[str, tuple[float, float]] = {
+    "vehicle": (4.5, 1.8), "escooter": (1.2, 0.6), "cyclist": (1.8, 0.6),
+    "pedestrian": (0.5, 0.5),
+}  # fmt: skip
 
 
 def _configs(frame: pd.DataFrame) -> list[str]:
@@ -32,13 +40,18 @@ def plot_birdseye_configs(
     roads: Callable | None = None,
     ego_id: str = EGO_ID,
     margin_m: float = 6.0,
+    dims: dict[str, tuple[float, float]] | None = None,
 ):
     """Fig. 4: one bird's-eye panel per configuration (plane x east, y north [m]).
 
     In each panel: the ego's path, solid red (label 'ego'); the e-scooter's original
     keyframes, dashed black with markers ('keyframes'); its simulated path, dashed green
     ('<other_id> (sim)'); a star at the ego's position at the first collision
-    ('collision'). The view is the part of the scene where the road user is present.
+    ('collision'). Every other road user of the frame (each can hide the rider from the
+    car's sensor; vehicles block V2X links too) is drawn: its path, thin, and its box
+    (label '<agent_id> box', hatched for a vehicle) at the panel's key moment, the
+    collision or else the ego's and the rider's closest approach. The view is the part of
+    the scene where the road user is present.
 
     Args:
         frame: long time series of the runs (the first variant of each configuration is drawn).
@@ -46,6 +59,8 @@ def plot_birdseye_configs(
         keyframes: the scenario's keyframes (t_s, agent_id, x_m, y_m), or None.
         roads: optional callable roads(ax) drawing the map underneath (None: each panel
             says 'no road map').
+        dims: {agent_id: (length_m, width_m)} of the road users' boxes (missing ones:
+            :data:`DEFAULT_DIMS_M` by category).
     """
     from matplotlib.figure import Figure
 
@@ -125,6 +140,7 @@ def plot_birdseye_configs(
                 label="run-in / run-out",
                 zorder=4,
             ).__getitem__(0).set_gid("continuation")
+        _occluders(ax, run, ego, rider, other_id, ego_id, dims or {})
         hit = rider[rider["collided"].astype(bool)]
         if len(hit):
             t_hit = float(hit["t_s"].iloc[0])
@@ -158,7 +174,8 @@ def plot_birdseye_configs(
         axes[0].legend(fontsize=7, loc="best")
     fig.suptitle(
         f"Bird's-eye view: ego (red), original keyframes (dashed black), simulated {other_id} (dashed green; "
-        "shaded: its run-in / run-out); dots every 1 s coloured by time",
+        "shaded: its run-in / run-out); other road users' boxes at the collision or closest "
+        "approach; dots every 1 s coloured by time",
         fontsize=10,
     )
     fig.tight_layout(rect=(0.0, 0.0, 0.92, 0.97))
@@ -166,6 +183,44 @@ def plot_birdseye_configs(
         cax = fig.add_axes((0.93, 0.15, 0.012, 0.7))
         fig.colorbar(scat, cax=cax, label="time [s]")
     return fig
+
+
+def _key_time(ego: pd.DataFrame, rider: pd.DataFrame) -> float | None:
+    """The panel's key moment [s]: the first collision, else the ego's and the rider's
+    closest approach (None: the rider is never present)."""
+    hit = rider[rider["collided"].astype(bool)]
+    if len(hit):
+        return float(hit["t_s"].iloc[0])
+    both = rider.merge(ego, on="t_s", suffixes=("", "_ego"))
+    if both.empty:
+        return None
+    d = np.hypot(both["x_m"] - both["x_m_ego"], both["y_m"] - both["y_m_ego"])
+    return float(both["t_s"].iloc[int(np.argmin(d.to_numpy()))])
+
+
+def _occluders(ax, run: pd.DataFrame, ego: pd.DataFrame, rider: pd.DataFrame, other_id: str,
+               ego_id: str, dims: dict[str, tuple[float, float]]) -> None:  # fmt: skip
+    """Every road user of ``run`` but the ego and the rider: its path (thin) and its box
+    at the key moment (:func:`_key_time`; its last present pose before, if it is absent
+    then)."""
+    t_key = _key_time(ego, rider)
+    others = run[~run["agent_id"].isin([ego_id, other_id]) & run["active"].astype(bool)]
+    for agent_id, tr in others.groupby("agent_id", sort=True):
+        tr = tr.sort_values("t_s")
+        cat = str(tr["category"].iloc[0]) if "category" in tr else "vehicle"
+        colour = CATEGORY_COLOURS.get(cat, "black")
+        ax.plot(tr["x_m"].to_numpy(), tr["y_m"].to_numpy(), "-", color=colour, lw=0.8,
+                alpha=0.6, label=f"_{agent_id} path", zorder=2)  # fmt: skip
+        t = tr["t_s"].to_numpy()
+        k = (
+            0
+            if t_key is None
+            else int(np.clip(np.searchsorted(t, t_key + 1e-9) - 1, 0, t.size - 1))
+        )
+        length, width = dims.get(str(agent_id), DEFAULT_DIMS_M.get(cat, (4.5, 1.8)))
+        row = tr.iloc[k]
+        draw_box(ax, float(row["x_m"]), float(row["y_m"]), float(row["yaw_rad"]), length, width,
+                 colour=colour, label=f"{agent_id} box", hatch="//" if cat == "vehicle" else None)  # fmt: skip
 
 
 def _every_second(t: np.ndarray, lo: float, hi: float) -> np.ndarray:

@@ -389,6 +389,7 @@ def write_casestudy_figures(
     ttc_s: np.ndarray,
     keyframes: pd.DataFrame | None = None,
     roads: Callable | None = None,
+    dims: dict[str, tuple[float, float]] | None = None,
     safe_ttc_s: float = 2.0,
     alert_ttc_s: float = 1.0,
     title: str | None = None,
@@ -403,13 +404,15 @@ def write_casestudy_figures(
         ttc_t_s [T], ttc_s [B, T]: the paper's TTC series (rows in summary order).
         title: heading of every figure; default :func:`figure_title` ('Run <config>' when
             one configuration was run, 'Case study' otherwise).
+        dims: {agent_id: (length_m, width_m)} of the road users drawn in the bird's-eye
+            figure (vei.report.casestudy_birdseye.plot_birdseye_configs).
     """
     out = Path(out_dir)
     heading = title if title is not None else figure_title(summary)
     window = interaction_window(frame, other_id)
     figs = {
         "birdseye": plot_birdseye_configs(
-            frame, other_id=other_id, keyframes=keyframes, roads=roads
+            frame, other_id=other_id, keyframes=keyframes, roads=roads, dims=dims
         ),
         "speed_profiles": plot_speed_profiles(frame, other_id=other_id, window_s=window),
         "speed_std": plot_speed_std(summary),

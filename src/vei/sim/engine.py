@@ -149,9 +149,9 @@ def simulate(
                 None if vkeys is None else vkeys[n_kernel:],
             ),
         ]
-        bufs, hit_buf, xbufs, coll_t, min_d, state = _merge_runs(parts)
+        bufs, hit_buf, xbufs, coll_t, min_d, state, v2x = _merge_runs(parts)
     else:
-        bufs, hit_buf, xbufs, coll_t, min_d, state = _run_sorted(
+        bufs, hit_buf, xbufs, coll_t, min_d, state, v2x = _run_sorted(
             arrays, run_params, record, progress, use_numba and n_kernel == b, vkeys
         )
     if not sorted_already:
@@ -164,6 +164,8 @@ def simulate(
         for name in xbufs:
             xbufs[name] = xbufs[name][:, inv]
         coll_t, min_d = coll_t[inv], min_d[inv]
+        if v2x is not None:
+            v2x = {name: values[inv] for name, values in v2x.items()}
         state = SimState(
             **{
                 name: (val if name == "k" else val[:, :, inv] if name == "hist" else val[inv])
@@ -204,6 +206,7 @@ def simulate(
         car_ids=tuple(arrays.other_ids[j] for j in arrays.traffic.idx),
         ped_ids=tuple(arrays.other_ids[j] for j in arrays.peds.idx),
         routes=arrays.routes,
+        v2x=v2x,
         **{name: (xbufs[name].transpose(1, 0, 2) if name in xbufs else None) for name in _XNAMES},
         **series,
     )
@@ -218,7 +221,8 @@ def _run_sorted(
     variant_keys: npt.NDArray[np.uint64] | None = None,
 ) -> tuple[Any, ...]:
     """Run a batch already sorted into blocks; returns ([T, B] series buffers, hit
-    buffer, extra-rider buffers, collision times, minimum distances, final state)."""
+    buffer, extra-rider buffers, collision times, minimum distances, final state, what V2X
+    did (vei.sim.observe.PolicyDriver.v2x_report; None without V2X))."""
     from vei.sim import kernel as compiled
 
     fl = batch_flags(run_params, arrays.dt_s)
@@ -275,6 +279,7 @@ def _run_sorted(
             out["collision_time_s"],
             out["min_center_distance_m"],
             SimState(**out["final"]),
+            None,
         )
     driver = PolicyDriver(arrays, run_params, fl, variant_keys) if fl.any_policy else None
     _rec(state)
@@ -299,12 +304,20 @@ def _run_sorted(
     finally:
         if bar is not None:
             bar.stop()
-    return bufs, hit_buf, xbufs, coll_t, min_d, state
+    return (
+        bufs,
+        hit_buf,
+        xbufs,
+        coll_t,
+        min_d,
+        state,
+        (driver.v2x_report() if driver is not None else None),
+    )
 
 
 def _merge_runs(parts: list[tuple[Any, ...]]) -> tuple[Any, ...]:
     """Concatenate :func:`_run_sorted` outputs along the batch axis (in order)."""
-    (b0, h0, x0, c0, m0, s0), (b1, h1, x1, c1, m1, s1) = parts
+    (b0, h0, x0, c0, m0, s0, v0), (b1, h1, x1, c1, m1, s1, v1) = parts
     bufs = {name: np.concatenate([b0[name], b1[name]], axis=1) for name in b0}
     hit = None if h0 is None else np.concatenate([h0, h1], axis=1)
     xb = {name: np.concatenate([x0[name], x1[name]], axis=1) for name in x0}
@@ -321,7 +334,15 @@ def _merge_runs(parts: list[tuple[Any, ...]]) -> tuple[Any, ...]:
         )
         for name, v0, v1 in zip(SimState._fields, s0, s1, strict=True)
     }  # fmt: skip
-    return bufs, hit, xb, np.concatenate([c0, c1]), np.concatenate([m0, m1]), SimState(**merged)
+    v2x = None
+    if v0 is not None or v1 is not None:
+        from vei.policy.v2x.report import empty
+
+        v0 = empty(c0.size) if v0 is None else v0
+        v1 = empty(c1.size) if v1 is None else v1
+        v2x = {name: np.concatenate([v0[name], v1[name]]) for name in v0}
+    return (bufs, hit, xb, np.concatenate([c0, c1]), np.concatenate([m0, m1]),
+            SimState(**merged), v2x)  # fmt: skip
 
 
 def simulate_metrics(

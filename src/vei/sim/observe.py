@@ -309,6 +309,8 @@ class PolicyDriver:
         self._ring: list[FloatArray | None] = [None] * len(self.blocks)
         self._pstates: list[Any] = [None] * len(self.blocks)
         self.v2x_states: list[Any] = [None] * len(self.blocks)
+        # what V2X did, per block (vei.policy.v2x.report)
+        self.v2x_logs: list[Any] = [None] * len(self.blocks)
 
     def act(self, st: SimState) -> Demand | None:
         """The PolicyAction [B] of step k (accel_mps2 for every variant: the command of
@@ -365,6 +367,9 @@ class PolicyDriver:
                 action = action.checked(b, where)
             except ConfigError as exc:
                 raise PolicyError(str(exc)) from None
+            if blk.v2x is not None:
+                self._log_v2x(i, st.k * self.arrays.dt_s, source, valid, truth[5] > 0.5,
+                              action, obs.max_decel_mps2)  # fmt: skip
             if action.command is not None:
                 cmd[sl] = action.command
             else:
@@ -372,6 +377,33 @@ class PolicyDriver:
             if action.fsm_state is not None:
                 fsm[sl] = action.fsm_state
         return Demand(accel_mps2=acc, command=cmd, fsm_state=fsm)
+
+    def _log_v2x(self, i: int, t_s: float, source: Any, valid: Any, present: Any,
+                 action: PolicyAction, max_decel_mps2: Any) -> None:  # fmt: skip
+        """Block i's V2X log (vei.policy.v2x.report) after the policy acted at t_s
+        (``present``: [b, N] the road users in the scene)."""
+        from vei.policy.v2x import report
+
+        if self.v2x_logs[i] is None:
+            self.v2x_logs[i] = report.V2XLog.start(self.blocks[i].stop - self.blocks[i].start)
+        brakes = report.braking(action.accel_mps2, action.command, max_decel_mps2)
+        self.v2x_logs[i].update(t_s, source, valid, present, brakes)
+
+    def v2x_report(self) -> dict[str, np.ndarray] | None:
+        """What V2X did in each variant of the batch ({field: [B]}, the fields of
+        vei.policy.v2x.report, NaN where V2X was off), or None when no block ran V2X."""
+        from vei.policy.v2x import report
+
+        if all(log is None for log in self.v2x_logs):
+            return None
+        out = report.empty(self.batch_size)
+        for blk, log, state in zip(self.blocks, self.v2x_logs, self.v2x_states, strict=True):
+            if log is None:
+                continue
+            part = report.finish(log, state, self.arrays.dt_s)
+            for name, values in part.items():
+                out[name][blk.start : blk.stop] = values
+        return out
 
     def _perceive(
         self, i: int, st: SimState, blk: Block, truth: FloatArray, valid: Any, age: Any
@@ -456,7 +488,7 @@ class PolicyDriver:
             x_m=now[0], y_m=now[1], yaw_rad=now[2], vx_mps=now[3], vy_mps=now[4],
             valid=now[5] > 0.5, length_m=length, width_m=width,
             is_vehicle=cats == category_code("vehicle"), ego_x_m=st.ego_x_m[sl],
-            ego_y_m=st.ego_y_m[sl],
+            ego_y_m=st.ego_y_m[sl], buildings=self.arrays.buildings,
         )  # fmt: skip
         objs, self.v2x_states[i], _ = v2x_model.step(
             cfg, vparams, state, world, cols, st.k, self.arrays.dt_s, keys

@@ -70,6 +70,10 @@ class SimResult:
             ``peds_sfm`` (NumPy step; None from the compiled kernel).
         routes: the scenario's labelled routes (ScenarioArrays.routes): where each run's
             contacts happened (:meth:`where`).
+        v2x: what V2X did in each run ({field: [B]}, vei.policy.v2x.report: messages sent
+            and delivered, the first V2X track, the first time a road user was known from
+            V2X alone, when the car braked on it; NaN where V2X was off), None when no
+            variant ran V2X.
     """
 
     t_s: FloatArray
@@ -136,6 +140,7 @@ class SimResult:
     ped_vx_mps: FloatArray | None = None
     ped_vy_mps: FloatArray | None = None
     routes: Mapping[str, Route] | None = None
+    v2x: Mapping[str, FloatArray] | None = None
 
     @property
     def secondary_count(self) -> npt.NDArray[np.int32]:

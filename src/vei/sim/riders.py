@@ -69,8 +69,9 @@ def rider_track(
             in which a social-force rider, whose progress never goes back, gets stuck),
             and ``arc_m`` the recorded positions' monotone arc length along it.
     Returns:
-        (track, path): velocities are finite differences of the positions; ``arc_m`` the
-        arc length along the path; the path extends 50 m beyond both ends.
+        (track, path): velocities are the recorded speed along the recorded heading (finite
+        differences of the positions where no speed is recorded); ``arc_m`` the arc length
+        along the path; the path extends 50 m beyond both ends.
     """
     tr = scenario.track(agent_id)
     rx = tr["x_m"].to_numpy(dtype=np.float64)
@@ -82,7 +83,14 @@ def rider_track(
     else:
         vx = vy = np.zeros_like(rx)
     sp = tr["speed_mps"].to_numpy(dtype=np.float64)
-    sp = np.where(np.isfinite(sp), sp, np.hypot(vx, vy))
+    # One truth for every rider (issue 32.4): where the speed is recorded, the velocity is
+    # that speed along the recorded heading, as for every replayed road user
+    # (vei.sim.observe.ground_truth); finite differences of the positions only where it
+    # is not (np.gradient is one-sided at the ends: a rider's first VAM would differ).
+    rec = np.isfinite(sp)
+    vx = np.where(rec, sp * np.cos(ryaw), vx)
+    vy = np.where(rec, sp * np.sin(ryaw), vy)
+    sp = np.where(rec, sp, np.hypot(vx, vy))
     dwell = jitter_mask(rx, ry, rt) if min_step_m is None else None
     if min_step_m is None and dwell is not None and dwell.any():
         # A rider that waits (its track jitters within a metre for seconds): its path runs

@@ -14,7 +14,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -30,6 +30,7 @@ from vei.models.drivable_path import (
     recorded_arc_length,
 )
 from vei.models.ego import PathTable, median_moving_speed_mps
+from vei.policy.v2x.links import scene_buildings
 from vei.sim.decisions import Conflicts, find_conflicts
 from vei.sim.params import (
     EGO_CAP,
@@ -81,8 +82,9 @@ class ScenarioArrays:
             (NaN if the ego never moves).
         rider_id, rider_category: the primary threat (the simulated rider).
         rider_track: its recording on a uniform time grid (recording time), columns x_m,
-            y_m, yaw_rad (unwrapped), speed_mps, vx_mps, vy_mps (finite differences of the
-            positions), arc_m (arc length along rider_path).
+            y_m, yaw_rad (unwrapped), speed_mps, vx_mps, vy_mps (the recorded speed along
+            the recorded heading, like every replayed road user's; finite differences of
+            the positions where no speed is recorded), arc_m (arc length along rider_path).
         rider_path: the rider's own recorded path (arc-length table; SFM goals).
         rider_length_m, rider_width_m: rider footprint [m].
         other_ids, other_categories: the replayed other road users (n_o of them).
@@ -111,6 +113,9 @@ class ScenarioArrays:
         routes: agent id -> its labelled continued track (vei.continuation.where.Route)
             for every road user but the ego: where a run's contacts happened (on the
             recorded behaviour, a run-in or a run-out: SimResult.where).
+        buildings: the building outlines of the scenario's OpenStreetMap source near the
+            scene (vei.policy.v2x.links.Buildings; None without): V2X links through one are
+            NLOS.
     """
 
     scenario_id: str
@@ -147,6 +152,7 @@ class ScenarioArrays:
     traffic: Traffic = field(default_factory=Traffic)
     peds: Pedestrians = field(default_factory=Pedestrians)
     routes: Mapping[str, Route] = field(default_factory=dict)
+    buildings: Any = None
 
     @property
     def n_steps(self) -> int:
@@ -318,6 +324,7 @@ def prepare_scenario(
             for a in scenario.agents
             if a.agent_id != EGO_ID
         },
+        buildings=scene_buildings(scenario),
     )
 
 

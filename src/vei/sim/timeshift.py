@@ -98,19 +98,24 @@ class TimeShiftResult:
         }
 
     def message(self) -> str:
-        """One line for the terminal: the shift and whether the paths meet."""
+        """One line for the terminal: the shift and whether the paths meet. It is about
+        the *recorded* paths (the rider replayed, the ego at its cruise speed without
+        avoidance), not about any simulated run, and says so (issue 32.4)."""
         if self.paths_meet:
             return (
-                f"time shift {self.time_shift_s:+.2f} s: {self.rider_id} meets the ego's front "
-                f"(miss {self.miss_distance_m:.2f} m at t = {self.meet_time_s:.2f} s)"
+                f"recorded paths: time shift {self.time_shift_s:+.2f} s: {self.rider_id} meets "
+                f"the ego's front (miss {self.miss_distance_m:.2f} m at t = "
+                f"{self.meet_time_s:.2f} s)"
             )
         return (
-            f"NOT CRITICAL: no time shift makes the paths meet; at the best shift "
+            f"NOT CRITICAL (the recorded paths, not a run's outcome): no time shift makes "
+            f"the paths meet; at the best shift "
             f"({self.time_shift_s:+.2f} s) {self.rider_id} passes {self.miss_distance_m:.2f} m from "
             f"the ego's front (needs <= {self.meet_tolerance_m:.2f} m); try --make-critical "
             "timing+path"
             if self.search_min_s != self.search_max_s
-            else f"NOT CRITICAL: with the given time shift {self.time_shift_s:+.2f} s {self.rider_id} "
+            else f"NOT CRITICAL (the recorded paths, not a run's outcome): with the given "
+            f"time shift {self.time_shift_s:+.2f} s {self.rider_id} "
             f"passes {self.miss_distance_m:.2f} m from the ego's front at best (t = "
             f"{self.meet_time_s:.2f} s; needs <= {self.meet_tolerance_m:.2f} m)"
         )

@@ -104,7 +104,13 @@ def record_variants(
         summary = evaluator.score(result, params)
         summary.insert(0, "variant_id", grp["variant_id"].to_numpy())
         summaries.append(summary.reset_index(drop=True))
-    frame = pd.concat(frames, ignore_index=True).sort_values("variant", kind="stable")
+    # rows order (the ranking), whatever the samples' grouping; a fresh index so that
+    # _mark_continuation's sort_index keeps it
+    frame = (
+        pd.concat(frames, ignore_index=True)
+        .sort_values("variant", kind="stable")
+        .reset_index(drop=True)
+    )
     summary = pd.concat(summaries, ignore_index=True).set_index("variant_id")
     summary = summary.loc[rows["variant_id"].to_numpy()].reset_index()
     frame = _mark_continuation(frame[list(TIMESERIES_COLUMNS)], evaluator, prepared, rows)

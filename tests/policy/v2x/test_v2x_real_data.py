@@ -11,6 +11,7 @@ import pytest
 
 from vei.config import SimConfig, V2XConfig
 from vei.policy.observation import category_code
+from vei.policy.v2x import channel as ch
 from vei.policy.v2x import model
 
 SCENARIO = "audi_10_marktkauf_linksabbiegen"
@@ -59,8 +60,7 @@ def test_v2x_links_are_blocked_exactly_where_the_line_crosses_a_vehicle(imported
     # One V2X step per engine step along the recording (the ego where the INS had it); the
     # rider is the primary, sending at every check (a 0-m position trigger, every 0.1 s),
     # so every check is a link to compare.
-    cfg = V2XConfig(enabled=True, position_threshold_m=0.0, position_error_std_m=0.0,
-                    nlos_loss_std_db=0.0)  # fmt: skip
+    cfg = V2XConfig(enabled=True, position_threshold_m=0.0, position_error_std_m=0.0)
     params = model.V2XParams.from_config(cfg, 1)
     keys = np.array([7])
     cols = np.array([0])
@@ -97,10 +97,14 @@ def test_v2x_links_are_blocked_exactly_where_the_line_crosses_a_vehicle(imported
             if not ends_inside and line.intersection(poly).length > 1e-6:
                 hit = True
         assert bool(ev["blocked"][0, 0]) == hit, t
+        # NLOSv (LOS path loss + the blockage drawn) where blocked, else LOS (no map
+        # buildings here): the delivery is the link budget's (TR 37.885)
+        state = ch.NLOSV if hit else ch.LOS
+        assert ev["link"][0, 0] == state
         d = float(np.hypot(r["x_m"] - e["x_m"], r["y_m"] - e["y_m"]))
-        d_eff = d * 10 ** (9.0 / 30.0) if hit else d
-        dd, pp = cfg.pdr_table
-        assert ev["pdr"][0, 0] == pytest.approx(float(np.interp(d_eff, dd, pp)), abs=1e-12)
+        want = ch.link_pdr(np.array([d]), np.array([state]), "its-g5",
+                           blockage_db=np.nan_to_num(ev["loss_db"][0, :1]))  # fmt: skip
+        assert ev["pdr"][0, 0] == pytest.approx(float(want[0]), abs=1e-12)
         checked += 1
         blocked_seen += hit
     assert checked > 100

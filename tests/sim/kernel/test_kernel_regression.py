@@ -18,6 +18,10 @@ still give the recorded outputs bit for bit there. The scenes with continuations
 default) have their own digests, :data:`DIGESTS_CONTINUED`, recorded with issue 22's
 kernel by the procedure below.
 
+Issue 32.4 (one truth for every rider) changed the results on purpose: the primary
+rider's velocity is its recorded speed along its recorded heading, like every replayed
+road user's, no longer a finite difference of its positions; both dicts were re-recorded.
+
 Re-recording (only for a deliberate model change; say why in the commit): run
 ``NPY_DISABLE_CPU_FEATURES="<the AVX-512 features>" OPENBLAS_CORETYPE=Haswell python -m
 tests.sim.kernel.test_kernel_regression`` (the environment :func:`_avx2_env` builds: the
@@ -58,46 +62,46 @@ RECORDED_WITH = ("0.68.1", "x86_64")
 
 #: sha256 (first 32 hex digits) of each (scene, configuration), recorded before the split.
 DIGESTS = {
-    "cross/aggressive-cap": "6bcba7287bc3217d6d572084c487381c",
-    "cross/aggressive": "05121abfc43031719123f43accc6d99d",
-    "cross/mixed": "1664cd6bd6c080a77fbf6b18690037aa",
-    "cross/normal-cap": "165cd5bba49bb6b25b6343a3eb749e67",
-    "cross/normal": "e9b500f08e91535fb2c71eb48c5f57a2",
-    "cross/replay": "94c6dc69affa7c1c02cbc4fb481df0a6",
-    "demo/aggressive-cap": "b41bf03b29203cfeba058d6199c8c83d",
-    "demo/aggressive": "9efaa84025807b2a6c209a7e2a5bf66d",
-    "demo/mixed": "b3245b1fc628abcbd09ed5b7df26f526",
-    "demo/normal-cap": "5ee1e7573d6fa608f260f556ced447e8",
-    "demo/normal": "64a4c8dbdb7a8d055e97f84cd038da9c",
-    "demo/replay": "90f6af8823c85129504cdc4fcef4b73a",
-    "riders/aggressive-cap": "c95d24511d728b47f920c3f8aaa486b1",
-    "riders/aggressive": "5aa235b35d138b739806e52b584cd109",
-    "riders/mixed": "d0c79acff70e5e76f7a44437a3c173e1",
-    "riders/normal-cap": "10e4c5bf2e3beadd7dc77f883a58ddd0",
-    "riders/normal": "dd49f6555ad813197a15926c9c4e688d",
-    "riders/replay": "ed5e69ab1f6c603efcb1cee20051eede",
+    "cross/aggressive": "a90b8e4d03b13142325c140bbdabd8c0",
+    "cross/aggressive-cap": "cfeabec42286592f553e03132613d14a",
+    "cross/mixed": "89f19e199927a45d9de6df176dbf19b8",
+    "cross/normal": "e295a1ec5f853e9ed70fc7cc627b3c2b",
+    "cross/normal-cap": "a80619c70b5cf618f432cff8f432a0c1",
+    "cross/replay": "892fa136128705ae8124a25f9d1a50a9",
+    "demo/aggressive": "9881b5a7f86d4d3d3dcec2f3e525460b",
+    "demo/aggressive-cap": "5ca043d90e8811298ddb94af299e6bea",
+    "demo/mixed": "8a7bcca7c3f8731bb99b86a0fa820524",
+    "demo/normal": "327cb6f0045b559385e5d85c2eb6dfca",
+    "demo/normal-cap": "a257894ae70de6c5bcc1590ca59f9805",
+    "demo/replay": "32867ce7242d18e3be20df5478ffdf7e",
+    "riders/aggressive": "ae2881529660fc4cba71fcfbb4ce73aa",
+    "riders/aggressive-cap": "6d6facb607086406f31b486cb0be60bb",
+    "riders/mixed": "c7eb260f29ecf8df3bdf529f5e69c4f2",
+    "riders/normal": "b766d73d352532b3246cee35c65b5e57",
+    "riders/normal-cap": "e0855c2992b3d30836585df8db5be56f",
+    "riders/replay": "0e50cf7e1c0e7302748bad716032f9d3",
 }
 
 #: The same with continuations (the default since issue 22), recorded with its kernel.
 DIGESTS_CONTINUED: dict[str, str] = {
-    "cross/aggressive": "64790a931655852e8cad0c97db7fd9ec",
-    "cross/aggressive-cap": "ea355d8f95189e6fed653763b9ac3ca5",
-    "cross/mixed": "fad8f0463dd1f639c3ed8e479b79ae44",
-    "cross/normal": "01e03bf8d0e8ab7da02df2c6b44abea3",
-    "cross/normal-cap": "658105f5c349f247130a959d0bf73341",
-    "cross/replay": "d80a96483786a6c015c4f38b44a080df",
-    "demo/aggressive": "118ec1daa0ab09b03ed8e308b6da6a39",
-    "demo/aggressive-cap": "97f9e19d27bb56cb8232dad01a83bcd8",
-    "demo/mixed": "5298c4b49a622b6fd1f574ace4fcee0a",
-    "demo/normal": "22fc70296082475f454734f5763a73c9",
-    "demo/normal-cap": "dacd25591e16f44abb10932bcb37a308",
-    "demo/replay": "51af4dc4ea75f76088a388bf1fb747ce",
-    "riders/aggressive": "09516f7bbf084255d6c0b0f69f24bb07",
-    "riders/aggressive-cap": "2583d4b3f875ed0b5a5c071d7de9bcb5",
-    "riders/mixed": "3f7ddfa0df5df01569f311e4e9ac6238",
-    "riders/normal": "1b3eff6e444d1db2955fef51aa23b3c2",
-    "riders/normal-cap": "e54fc1fd43b804bdd54daf25fbac0c35",
-    "riders/replay": "07e6b13d0d00dedc48fbdca32b36ca73",
+    "cross/aggressive": "585f1937795fe9c50ab4b4a3b1ae9610",
+    "cross/aggressive-cap": "ca2058707b197de97a677710cd1a4913",
+    "cross/mixed": "974be1dea5d34c1499434a56f2be1a3a",
+    "cross/normal": "99884bf2d9400798caae93ea85f930c6",
+    "cross/normal-cap": "83e0f4bb39113038ae81f65af1488ba3",
+    "cross/replay": "c4eab96a3d500770e3ba9f419d87b930",
+    "demo/aggressive": "f0302c820f5bad500a63ef25a83dd940",
+    "demo/aggressive-cap": "b7f82dc3333c4a47a41441dd2d78e2a2",
+    "demo/mixed": "eb31203cc5987cf8f1b6e9c0c12334d0",
+    "demo/normal": "7405f6bccf433599d8ace4dab810b02d",
+    "demo/normal-cap": "a208a25259e768da5df0461232d9189f",
+    "demo/replay": "669f8fc7a27e4d65b0b79b5935cc519c",
+    "riders/aggressive": "6fc5ad439283c5af33be875fb520bdfa",
+    "riders/aggressive-cap": "4c60f0a2c73e491b0b47a62cc721e8b5",
+    "riders/mixed": "67ffb849a87601df1c5635ee0e93609f",
+    "riders/normal": "13d9016ddfcb22f63f3c5cd7c5182820",
+    "riders/normal-cap": "a1ca3cbd8bed56a95058b41fbc662aed",
+    "riders/replay": "c63d0abc0b589bcbfeddd26d662f36f4",
 }
 
 _EXTRA = (

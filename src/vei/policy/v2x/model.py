@@ -8,8 +8,10 @@ road users of the observation whose category may carry a device):
    position, speed, heading, the stated 95 % position accuracy (:data:`.vam.R95_PER_SIGMA`
    times the configured sigma, as a circle) and its time stamp (generation time + the
    device's clock offset);
-2. channel (:mod:`.channel`): each VAM is delivered or lost (distance, blockage by vehicle
-   boxes, ``pdr_factor``) and, if delivered, arrives after its latency;
+2. channel (:mod:`.channel`, :mod:`.links`): each link is LOS, NLOSv (a vehicle's box
+   crosses it) or NLOS (a building of the map does); each VAM is delivered or lost (its
+   link budget, or a given delivery table, and ``pdr_factor``) and, if delivered, arrives
+   after its latency;
 3. car side: the VAMs that have arrived by t update the car's track of their sender (the
    newest generation wins; an older one arriving late is ignored); a track is predicted to
    t at constant velocity over its age ``t - time stamp`` (clipped at 0) and dropped once
@@ -31,7 +33,7 @@ import numpy.typing as npt
 
 from vei.policy.perception_random import counter_normal_pair, counter_uniform
 from vei.policy.v2x import channel as ch
-from vei.policy.v2x import vam
+from vei.policy.v2x import links, vam
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -86,6 +88,8 @@ class World:
         valid: [b, N] present. length_m, width_m: [N] boxes [m].
         is_vehicle: [N] bool, the road user's box can block a link.
         ego_x_m, ego_y_m: [b] the car's box centre (its antenna) [m].
+        buildings: the map's building outlines near the scene
+            (:class:`vei.policy.v2x.links.Buildings`) or None (no NLOS link).
     """
 
     x_m: FloatArray
@@ -99,6 +103,7 @@ class World:
     is_vehicle: BoolArray
     ego_x_m: FloatArray
     ego_y_m: FloatArray
+    buildings: Any = None
 
 
 @dataclass(frozen=True)
@@ -111,6 +116,7 @@ class V2XState:
         slot: [b, S] the next slot to fill.
         tracks: the car's tracks, [7, b, S], rows :data:`TRACK_FIELDS` (NaN = no track).
         first_rx_s: [b, S] when the car first received a VAM of that rider [s] (NaN: not yet).
+        n_sent, n_delivered: [b, S] VAMs generated / delivered so far.
     """
 
     senders: vam.SenderState
@@ -118,6 +124,8 @@ class V2XState:
     slot: npt.NDArray[np.int64]
     tracks: FloatArray
     first_rx_s: FloatArray
+    n_sent: npt.NDArray[np.int64] | None = None
+    n_delivered: npt.NDArray[np.int64] | None = None
 
 
 @dataclass(frozen=True)
@@ -168,6 +176,8 @@ def init_state(
         slot=np.zeros((b, s), dtype=np.int64),
         tracks=np.full((len(TRACK_FIELDS), b, s), np.nan),
         first_rx_s=np.full((b, s), np.nan),
+        n_sent=np.zeros((b, s), dtype=np.int64),
+        n_delivered=np.zeros((b, s), dtype=np.int64),
     )
 
 
@@ -179,46 +189,77 @@ def _deliver(
     columns: npt.NDArray[np.intp],
     keys: npt.ArrayLike,
     k: int,
-) -> tuple[BoolArray, FloatArray, BoolArray, FloatArray]:
-    """(delivered, latency [s], blocked, delivery probability) [b, S] of this step's VAMs
-    (NaN / False where none was sent)."""
+) -> dict[str, Any]:
+    """This step's VAMs over the channel, [b, S] each (NaN / False / -1 where none was
+    sent): 'delivered', 'latency_s', 'blocked' (a vehicle's box crosses the link), 'nlos'
+    (a building does), 'link' (int8 state: channel.LOS / NLOSV / NLOS), 'loss_db' (the
+    vehicle blockage loss drawn), 'pdr' (the delivery probability)."""
     shape = gen.sent.shape
-    delivered = np.zeros(shape, dtype=bool)
-    lat = np.full(shape, np.nan)
-    blocked = np.zeros(shape, dtype=bool)
-    prob = np.full(shape, np.nan)
+    ev: dict[str, Any] = {
+        "delivered": np.zeros(shape, dtype=bool), "latency_s": np.full(shape, np.nan),
+        "blocked": np.zeros(shape, dtype=bool), "nlos": np.zeros(shape, dtype=bool),
+        "link": np.full(shape, -1, dtype=np.int8), "loss_db": np.full(shape, np.nan),
+        "pdr": np.full(shape, np.nan),
+    }  # fmt: skip
     bi, si = np.nonzero(gen.sent)
     if bi.size == 0:
-        return delivered, lat, blocked, prob
+        return ev
     n = world.x_m.shape[1]
     cols = columns[si]
     sx, sy = world.x_m[bi, cols], world.y_m[bi, cols]
     rx, ry = world.ego_x_m[bi], world.ego_y_m[bi]
     dist = np.hypot(sx - rx, sy - ry)
+    blocker_h = np.zeros(bi.size)
     if cfg.nlos and world.is_vehicle.any():
         veh = np.flatnonzero(world.is_vehicle)
         blk = world.valid[bi][:, veh] & (veh[None, :] != cols[:, None])
-        blocked[bi, si] = ch.links_blocked(
+        shp = blk.shape
+        heights = links.blocker_heights_m(world.length_m[veh], cfg.truck_min_length_m)
+        blocker_h = links.tallest_blocker_m(
             sx, sy, rx, ry, world.x_m[bi][:, veh], world.y_m[bi][:, veh],
-            world.yaw_rad[bi][:, veh], np.broadcast_to(world.length_m[veh], blk.shape),
-            np.broadcast_to(world.width_m[veh], blk.shape), blk,
+            world.yaw_rad[bi][:, veh], np.broadcast_to(world.length_m[veh], shp),
+            np.broadcast_to(world.width_m[veh], shp), np.broadcast_to(heights, shp), blk,
         )  # fmt: skip
+    vehicle = blocker_h > 0.0
+    building = np.zeros(bi.size, dtype=bool)
+    if cfg.buildings and world.buildings is not None:
+        building = world.buildings.blocks(sx, sy, rx, ry)
+    state = np.where(building, ch.NLOS, np.where(vehicle, ch.NLOSV, ch.LOS)).astype(np.int8)
+    dh = cfg.car_antenna_height_m - cfg.rider_antenna_height_m
+    d3 = ch.distance_3d_m(dist, dh)
     loss = np.zeros(bi.size)
-    hit = blocked[bi, si]
-    if hit.any():
+    nlosv = state == ch.NLOSV
+    if nlosv.any():
         z, _ = counter_normal_pair(cfg.seed, keys, k, n, vam.STREAM_BLOCKAGE)
-        loss = np.where(hit, ch.blockage_loss(cfg.nlos_loss_db, cfg.nlos_loss_std_db,
-                                              z[bi, cols]), 0.0)  # fmt: skip
-    d_eff = ch.effective_distance(dist, loss, cfg.pdr_slope_db_per_decade)
-    table_d, table_p = cfg.pdr_table
-    p = params.pdr_factor[bi] * ch.pdr_at(d_eff, table_d, table_p)
-    prob[bi, si] = p
+        if cfg.nlos_loss_db is not None:
+            mean, std = cfg.nlos_loss_db, cfg.nlos_loss_std_db
+        else:
+            mean, std = ch.blockage_stats_db(d3, cfg.rider_antenna_height_m,
+                                             cfg.car_antenna_height_m, blocker_h)  # fmt: skip
+        loss = np.where(nlosv, ch.blockage_loss(mean, std, z[bi, cols]), 0.0)
+    table = cfg.pdr_table
+    if table is None:
+        snr = ch.mean_snr_db(ch.path_loss_db(d3, state, cfg.environment, loss), cfg.technology)
+        sigma = np.asarray(ch.SHADOWING_STD_DB)[state]
+        p_link = ch.delivery_ratio(snr, cfg.technology, sigma)
+    else:
+        extra = np.where(state == ch.NLOS, ch.pathloss_nlos_db(d3)
+                         - ch.pathloss_los_db(d3, cfg.environment), loss)  # fmt: skip
+        slope = cfg.pdr_slope_db_per_decade or ch.los_slope_db_per_decade(cfg.environment)
+        p_link = ch.pdr_at(ch.effective_distance(dist, extra, slope), *table)
+    p = params.pdr_factor[bi] * p_link
     u = counter_uniform(cfg.seed, keys, k, n, vam.STREAM_DELIVERY)[bi, cols]
-    delivered[bi, si] = u < p
     _, _, dist_kind = cfg.latency
     ul = counter_uniform(cfg.seed, keys, k, n, vam.STREAM_LATENCY)[bi, cols]
-    lat[bi, si] = ch.latency(ul, params.latency_s[bi], params.latency_jitter_s[bi], dist_kind)
-    return delivered, lat, blocked, prob
+    ev["pdr"][bi, si] = p
+    ev["delivered"][bi, si] = u < p
+    ev["blocked"][bi, si] = vehicle
+    ev["nlos"][bi, si] = building
+    ev["link"][bi, si] = state
+    ev["loss_db"][bi, si] = loss
+    ev["latency_s"][bi, si] = ch.latency(ul, params.latency_s[bi], params.latency_jitter_s[bi],
+                                         dist_kind)  # fmt: skip
+    return ev
 
 
 def step(
@@ -239,8 +280,8 @@ def step(
         k: step index. dt_s: engine step [s]. keys: [b] variant keys.
     Returns:
         (the car's V2X objects [b, S] predicted to now, the new state, this step's events
-        {'sent', 'delivered', 'blocked', 'latency_s', 'pdr' (the delivery probability)}:
-        [b, S] arrays).
+        {'sent', 'delivered', 'blocked', 'nlos', 'link', 'loss_db', 'latency_s', 'pdr'
+        (the delivery probability)}: [b, S] arrays; see :func:`_deliver`).
     """
     cols = np.asarray(columns, dtype=np.intp)
     t = k * dt_s
@@ -253,7 +294,8 @@ def step(
         world.yaw_rad[:, cols], ex, ey, fix,
     )  # fmt: skip
 
-    delivered, lat, blocked, prob = _deliver(cfg, params, gen, world, cols, keys, k)
+    ev = _deliver(cfg, params, gen, world, cols, keys, k)
+    delivered, lat = ev["delivered"], ev["latency_s"]
     # Messages into their slots (a copy only when one is written: state stays untouched).
     msgs = state.msgs
     slot = state.slot
@@ -296,11 +338,12 @@ def step(
         valid=has, x_m=tracks[_T["x_m"]] + vxt * age, y_m=tracks[_T["y_m"]] + vyt * age,
         vx_mps=vxt, vy_mps=vyt, yaw_rad=heading, age_s=age, std_m=tracks[_T["std_m"]],
     )  # fmt: skip
+    n_sent = state.n_sent if state.n_sent is not None else np.zeros(gen.sent.shape, np.int64)
+    n_del = state.n_delivered if state.n_delivered is not None else np.zeros_like(n_sent)
     new = replace(state, senders=senders, msgs=msgs, slot=slot, tracks=tracks,
-                  first_rx_s=first_rx)  # fmt: skip
-    events = {"sent": gen.sent, "delivered": delivered, "blocked": blocked, "latency_s": lat,
-              "pdr": prob}  # fmt: skip
-    return objs, new, events
+                  first_rx_s=first_rx, n_sent=n_sent + gen.sent,
+                  n_delivered=n_del + delivered)  # fmt: skip
+    return objs, new, {"sent": gen.sent, **ev}
 
 
 __all__ = [
