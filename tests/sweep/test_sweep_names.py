@@ -101,6 +101,9 @@ def test_a_variant_config_sets_the_field_of_the_parameters_name():
         "v2x.pdr_factor": 0.9,
         "v2x.position_error_std_m": 1.5,
         "v2x.clock_offset_s": -0.05,
+        # issue 32
+        "sfm.obstacle_braking": False,
+        "sfm.obstacle_decel_mps2": 3.0,
     }
     assert set(values) | DESIGN_ONLY >= {n for n in PARAMETERS if not n.startswith("ego.pol")}
     run = variant_config(values, spec, auto_shift_s=0.0)

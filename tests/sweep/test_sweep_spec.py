@@ -226,6 +226,9 @@ def test_every_documented_parameter_is_known():
         "v2x.pdr_factor",
         "v2x.position_error_std_m",
         "v2x.clock_offset_s",
+        # issue 32: the rider brakes for a car in its way
+        "sfm.obstacle_braking",
+        "sfm.obstacle_decel_mps2",
     }
 
 
