@@ -29,13 +29,18 @@ What "the same" means (docs/datasets.md, "Two doors"):
   finds +4.7 s through one door and -3.1 s through the other): the same primary threat; the automatic time shift within two
   simulation steps (each door searches its own 0.05 s grid, the clocks differ by a
   fraction of a step); run with door A's shift (the same physical delay of the rider), every
-  configuration collides in both doors or in neither, unless door A's run is a near miss
+  configuration collides in both doors or in neither, unless one door's run is a near miss
   with a paper TTC (distance / car speed) under MARGIN_TTC_S = 0.3 s: the positions of the
   two doors differ by up to DIST_TOL_M + (5.6 + 4) m/s x one step ~ 0.6 m, and the rider's
   box (1.8 m x 0.6 m) by up to ~0.6 m where the two doors' heading estimates differ (door
   A: none below 0.5 m/s, the direction of motion then; door B: the inD layout's heading,
   held through slow samples), together ~1.2 m = 0.2 s of TTC at the case study's 5.6 m/s,
-  and the social-force riders react to the car, which amplifies small differences.
+  and the social-force riders react to the car, which amplifies small differences (they take
+  over at their first recorded sample with its recorded speed, and at 30 Hz a cubic
+  spline through the camera's jittery frames differentiates that jitter: the speed of
+  audi_08_klinikum_rechtsabbiegen_02's cyclist reads 1-31 m/s in door A and 0.7-49 m/s
+  in door B, where its positions move at about 4 m/s; its normal rider collides through
+  door A and misses by a TTC of 0.20 s through door B).
 """
 
 from __future__ import annotations
@@ -175,7 +180,11 @@ def test_same_case_study_outcome_with_the_ins_as_ego(doors, name):
     sa = auto_a.summary.set_index("name")
     sb = same_b.summary.set_index("name")
     for config in sa.index:
-        marginal = (not sa.loc[config, "collision"]) and sa.loc[config, "min_ttc_s"] < MARGIN_TTC_S
+        # A near miss through either door: the tolerance below is symmetric.
+        marginal = any(
+            (not s.loc[config, "collision"]) and s.loc[config, "min_ttc_s"] < MARGIN_TTC_S
+            for s in (sa, sb)
+        )
         if not marginal:
             assert bool(sb.loc[config, "collision"]) == bool(sa.loc[config, "collision"]), (
                 name,
