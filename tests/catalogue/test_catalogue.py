@@ -111,6 +111,14 @@ def test_small_catalogue_table(small_catalogue):
     share = rows.groupby("encounter_id")["collision"].mean()
     for r in enc.itertuples():
         assert r.collision_share == pytest.approx(share[r.encounter_id])
+    # issue 31: the share colliding on the rider's recorded behaviour, from the rows
+    ok = ~rows["seen_too_late"].astype(bool)
+    on_rec = (rows["collision"].astype(bool) & rows["collision_recorded"].astype(bool))[ok]
+    rec = on_rec.groupby(rows.loc[ok, "encounter_id"]).mean()
+    for r in enc.itertuples():
+        assert r.recorded_collision_share == pytest.approx(rec[r.encounter_id])
+        assert r.recorded_collision_share_lo <= r.recorded_collision_share
+        assert r.recorded_collision_share <= r.recorded_collision_share_hi
     # the paper's encounter: stadtmitte_12 cyclist_60 collides without CAP, not with it
     cs = rows[
         (rows["encounter_id"] == "stadtmitte_12_audi_geradeaus_03__cyclist_60")

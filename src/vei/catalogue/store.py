@@ -138,7 +138,8 @@ def encounter_scores(rows: pd.DataFrame) -> pd.DataFrame:
     mean_safety_index, worst_min_gap_m, worst_min_ttc_s, casestudy_collisions, the
     ``risk_*`` columns where estimated, secondary_share / rear_end_share (issue 24: share
     of its unflagged configurations with a secondary / a rear-end collision, where the
-    rows report them), rank.
+    rows report them), the recorded-behaviour columns of :func:`_recorded_shares` where
+    the rows report ``collision_recorded`` (issue 31), rank.
     """
     from vei.metrics.seen import flagged_mask
 
@@ -184,6 +185,8 @@ def encounter_scores(rows: pd.DataFrame) -> pd.DataFrame:
     ):
         if col in rows:
             out[name] = g[col].apply(lambda c: c.fillna(False).astype(bool).mean()).astype(float)
+    if "collision_recorded" in rows:  # issue 31: the collisions the data itself supports
+        _recorded_shares(out, rows)
     risk_cols = [c for c in all_rows.columns if c.startswith("risk_")]
     for c in risk_cols:  # issue 23: one estimate per encounter, constant over its rows
         out[c] = ga[c].first()
@@ -233,3 +236,29 @@ def assemble(out: Path, ids: list[str] | None = None) -> tuple[pd.DataFrame, pd.
     write_parquet(out / TABLE, rows)
     write_text(out / ENCOUNTER_TABLE, enc.to_csv(index=False))
     return rows, enc
+
+
+def _recorded_shares(out: pd.DataFrame, rows: pd.DataFrame) -> None:
+    """Add, per encounter (``out``'s index) from its unflagged ``rows``:
+    ``recorded_collision_share`` = share of its configurations that collide with the primary
+    rider on the rider's recorded behaviour, with its 95 % Wilson interval
+    (``recorded_collision_share_lo`` / ``_hi``), and ``collisions_on_recorded`` = the share
+    of its collisions that happen on recorded behaviour (NaN without a collision); the
+    rest happen on the synthetic run-in or run-out (vei.continuation)."""
+    from vei.risk.estimators import wilson_interval
+
+    coll = rows["collision"].fillna(False).astype(bool)
+    on_rec = rows["collision_recorded"].fillna(False).astype(bool) & coll
+    frame = pd.DataFrame({"e": rows["encounter_id"], "c": coll, "r": on_rec})
+    g = frame.groupby("e", sort=True)
+    n, k, n_coll = g.size(), g["r"].sum().astype(int), g["c"].sum().astype(int)
+    ci = [wilson_interval(int(k[e]), int(n[e])) for e in n.index]
+    out["recorded_collision_share"] = (k / n).astype(float).reindex(out.index)
+    out["recorded_collision_share_lo"] = pd.Series([c[0] for c in ci], index=n.index).reindex(
+        out.index
+    )
+    out["recorded_collision_share_hi"] = pd.Series([c[1] for c in ci], index=n.index).reindex(
+        out.index
+    )
+    share = (k / n_coll.where(n_coll > 0)).astype(float)
+    out["collisions_on_recorded"] = share.reindex(out.index)

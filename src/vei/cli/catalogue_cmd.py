@@ -158,6 +158,14 @@ def _print_result(console, result, top: int) -> None:
             )
             cols = (*cols[:3], ("_harm", "expected harm [95 % CI]", "{}"),
                     ("_p", "P(collision) [95 % CI]", "{}"), *cols[3:])  # fmt: skip
+        if "recorded_collision_share" in enc:  # issue 31: what the recorded behaviour supports
+            enc = enc.assign(
+                _rec=[_share_ci(r, "recorded_collision_share") for r in enc.to_dict("records")]
+            )
+            i = [c for c, *_ in cols].index("collision_share") + 1
+            cols = (*cols[:i], ("_rec", "on recorded [95 % CI]", "{}"),
+                    ("collisions_on_recorded", "of collisions on recorded", "{:.0%}"),
+                    *cols[i:])  # fmt: skip
         for c, head, _ in cols:
             t.add_column(
                 head,
@@ -172,6 +180,12 @@ def _print_result(console, result, top: int) -> None:
         f"{result.n_done_before} encounter(s) done by an earlier run; "
         f"status {'complete' if result.complete else 'partial'}"
     )
+
+
+def _share_ci(rec: dict, name: str) -> str:
+    """'0.120 [0.081, 0.170]' (a share of configurations with its 95 % interval)."""
+    v, lo, hi = rec.get(name), rec.get(f"{name}_lo"), rec.get(f"{name}_hi")
+    return "-" if v is None or v != v else f"{v:.3f} [{lo:.3f}, {hi:.3f}]"
 
 
 def _ci(rec: dict, name: str) -> str:
