@@ -1,25 +1,30 @@
 """The vector environment's compiled step and observation (numba; imported only when used).
 
 The model is the built-in engine's for a policy-driven ego (ego_mode 'policy') with the
-primary rider replayed or social-force driven and every other road user replayed
+primary rider replayed or social-force driven (with its obstacle braking and yield / go
+decision) and every other road user replayed
 (:func:`vei.sim.step.step`, order of operations in :mod:`vei.sim.engine`), one step of B
 environments each at its own step index k (autoreset puts them out of step, which the
 engine's shared ``SimState.k`` cannot express). The laws are not written again: the ego's
 actuator, speed and reported acceleration are :mod:`vei.models.ego_core`'s functions and
-the rider's social force, integration and limits :mod:`vei.sim.kernel.sfm`'s (the engine's
-compiled kernel's), compiled here on scalars; the box overlap is :mod:`vei.boxes`'s; the
-observation's corridor gap and lateral offset are the cores of
+the rider's social force, obstacle braking, integration and limits
+:mod:`vei.sim.kernel.sfm`'s and its decision :mod:`vei.sim.kernel.decision`'s (the
+engine's compiled kernel's), compiled here on scalars; the box overlap is
+:mod:`vei.boxes`'s; the observation's corridor gap and lateral offset are the cores of
 :func:`vei.models.ego.corridor_check` and :func:`vei.sim.observe.path_lateral`. A test
 checks every state field and observation entry against the engine's NumPy step.
 
 Packed arrays (:mod:`vei.gym.core` builds them), S scenarios, B environments:
   FS [15, B] float state: s x y yaw v a_rep a_act rx ry ryaw rvx rvy rsp racc prog;
-  BS [4, B] uint8: rider active, started, done, collided; HIT [B, O] uint8 (others touched);
+  BS [5, B] uint8: rider active, started, done, collided, decision (0 FREE, 1 GO, 2 YIELD);
+  HIT [B, O] uint8 (others touched);
   K [B] step index, SC [B] scenario index, SHIFT [B] the rider's time shift [s].
   Scenario tables padded to the longest: EP [S, 10, Np] ego path (x y yaw cos sin, then
   slopes) on s0 + i ds; RT [S, 14, M] rider track (x y yaw speed vx vy arc, then slopes) on
   t0 + i dt, rt_sfm0 [S] the recording time [s] from which an SFM rider is driven (it is
-  replayed before: its run-in); RP [S, 10, N] rider path; others OX, OY, OYAW, OSP [S, T, O], OACT [S, T, O].
+  replayed before: its run-in); RP [S, 10, N] rider path; others OX, OY, OYAW, OSP [S, T, O], OACT [S, T, O];
+  CF [S, 5, Kc] the rider's conflicts with the ego path (zone exit, crossing along the
+  rider's and the ego's path, half-lengths [m]; vei.sim.decisions.Conflicts), cf_n [S].
 """
 
 # ruff: noqa: N803, N806, E501
@@ -32,29 +37,47 @@ import numpy as np
 
 from vei.boxes import overlap_core
 from vei.models import ego_core as core
+from vei.sim.kernel.decision import decide_step, reference_speed
 from vei.sim.kernel.layout import (
     P_AMAX,
     P_AMAX_R,
     P_ARRIVE,
     P_AVEH,
     P_BVEH,
+    P_CLEARM,
+    P_DECIDE,
     P_DMAX,
     P_FRONTB,
     P_HALFW,
+    P_HORIZON,
     P_KDES,
     P_LOOK,
     P_MASS,
+    P_OBST,
+    P_OBSTA,
+    P_OBSTM,
+    P_OBSTV,
     P_PAPERV,
     P_RANGE,
     P_SFM,
     P_SIGMA,
+    P_STOPM,
+    P_TC,
     P_USEVF,
     P_V0,
     P_VD,
     P_VMAX,
+    P_YDEC,
 )
 from vei.sim.kernel.scalar import idx
-from vei.sim.kernel.sfm import drive_force, integrate, vehicle_force
+from vei.sim.kernel.sfm import (
+    capped_velocity,
+    destination_force,
+    goal_velocity,
+    integrate,
+    obstacle_velocity,
+    vehicle_force,
+)
 
 _inline = numba.njit(cache=True, inline="always")
 actuator = _inline(core.actuator_core)
@@ -71,8 +94,9 @@ sat = numba.njit(cache=True)(overlap_core)
 F_S, F_X, F_Y, F_YAW, F_V, F_AREP, F_AACT = 0, 1, 2, 3, 4, 5, 6
 F_RX, F_RY, F_RYAW, F_RVX, F_RVY, F_RSP, F_RACC, F_PROG = 7, 8, 9, 10, 11, 12, 13, 14
 N_FS = 15
-# Bool state rows.
-B_ACT, B_STARTED, B_DONE, B_COLL = 0, 1, 2, 3
+# Bool / small-integer state rows (B_DEC: the rider's decision, 0 FREE, 1 GO, 2 YIELD).
+B_ACT, B_STARTED, B_DONE, B_COLL, B_DEC = 0, 1, 2, 3, 4
+N_BS = 5
 # Reward terms (columns of TERMS).
 T_CONTACTS, T_IMPACT, T_PROGRESS, T_COMFORT = 0, 1, 2, 3
 
@@ -95,6 +119,7 @@ def step_envs(  # type: ignore[no-untyped-def]
     RT, rt_t0, rt_dt, rt_tend, rt_n, rt_sfm0,
     RP, rp_s0, rp_ds, rp_n, rp_len, rp_ex, rp_ey,
     OX, OY, OYAW, OACT, OL, OW, n_o,
+    CF, cf_n,
     TERMS,
 ):  # fmt: skip
     """Advance the environments with ``run[b]`` by one step with demand A[b] [m/s^2].
@@ -119,6 +144,7 @@ def step_envs(  # type: ignore[no-untyped-def]
         r_started = BS[B_STARTED, b] > 0
         r_done = BS[B_DONE, b] > 0
         collided = BS[B_COLL, b] > 0
+        rdec = int(BS[B_DEC, b])
         # ---- ego: the policy's demand, clipped, through the actuator (vei.sim.step)
         amax, dmax = P[P_AMAX, sc], P[P_DMAX, sc]
         a_cmd = min(max(A[b], -dmax), amax)
@@ -166,10 +192,26 @@ def step_envs(  # type: ignore[no-untyped-def]
             )
             if r_act and r_started and not collided:
                 look, vmax, amax_r = P[P_LOOK, sc], P[P_VMAX, sc], P[P_AMAX_R, sc]
-                fx, fy, pr = drive_force(
-                    rx, ry, rvx, rvy, prog, RP[sc], rp_s0[sc], rp_ds[sc], rp_n[sc], rp_len[sc],
-                    look, P[P_SIGMA, sc], P[P_PAPERV, sc] > 0.5, P[P_V0, sc], P[P_KDES, sc],
+                sigma, v0, kdes = P[P_SIGMA, sc], P[P_V0, sc], P[P_KDES, sc]
+                tau = P[P_MASS, sc] / kdes
+                vdx, vdy, pr = goal_velocity(
+                    rx, ry, prog, RP[sc], rp_s0[sc], rp_ds[sc], rp_n[sc], rp_len[sc],
+                    look, sigma, P[P_PAPERV, sc] > 0.5, v0,
                 )  # fmt: skip
+                if cf_n[sc] > 0 and P[P_DECIDE, sc] > 0.5:  # yield / go (vei.sim.decisions)
+                    conf = (cf_n[sc], CF[sc, 0], CF[sc, 1], CF[sc, 2], CF[sc, 3], CF[sc, 4])
+                    rdec, vcap = decide_step(
+                        rdec, prog, pr, rsp, s, v, conf, P[P_TC, sc], P[P_HORIZON, sc],
+                        P[P_YDEC, sc], P[P_STOPM, sc], P[P_CLEARM, sc],
+                        reference_speed(v0, look, sigma), tau,
+                    )  # fmt: skip
+                    vdx, vdy = capped_velocity(vdx, vdy, vcap)
+                if P[P_OBST, sc] > 0.5 and v < P[P_OBSTV, sc]:  # a standing / slow car ahead
+                    vdx, vdy = obstacle_velocity(
+                        rx, ry, vdx, vdy, rsp, ex, ey, eyaw, Le, We, 0.5 * math.hypot(Lr, Wr),
+                        P[P_OBSTM, sc], P[P_OBSTA, sc], tau,
+                    )  # fmt: skip
+                fx, fy = destination_force(vdx, vdy, rvx, rvy, kdes)
                 if P[P_USEVF, sc] > 0.5:
                     vfx, vfy = vehicle_force(
                         rx, ry, ex, ey, eyaw, Le, We, P[P_FRONTB, sc] > 0.5, P[P_AVEH, sc], P[P_BVEH, sc]
@@ -250,6 +292,7 @@ def step_envs(  # type: ignore[no-untyped-def]
         BS[B_STARTED, b] = 1 if r_started else 0
         BS[B_DONE, b] = 1 if r_done else 0
         BS[B_COLL, b] = 1 if collided else 0
+        BS[B_DEC, b] = rdec
         K[b] = k + 1
 
 
@@ -404,4 +447,4 @@ def observe_envs(  # type: ignore[no-untyped-def]
             OUT[b, OUT.shape[1] - 1] = on
 
 
-__all__ = ["N_FS", "observe_envs", "step_envs"]
+__all__ = ["N_BS", "N_FS", "observe_envs", "step_envs"]
