@@ -1,5 +1,5 @@
-"""The vector env's rider features (obstacle braking, the yield / go decision) equal to the
-engine's NumPy step and to single envs, its refusals naming the features it does not
+"""The vector env's features (the rider's obstacle braking and yield / go decision, the
+perception delay) equal to the engine's NumPy step and to single envs, its refusals naming the features it does not
 model, and a catalogue read once per encounter."""
 
 from __future__ import annotations
@@ -107,15 +107,44 @@ def test_rider_feature_equals_the_engine(crossing_folder, feature):
         assert changed[:3].all()
 
 
+@pytest.mark.slow
+def test_perception_delay_equals_the_engine(demo_config, real_folder):
+    """A perception delay of 0.3 s (6 steps): the compiled observation == the engine's
+    (PolicyDriver's ring) == single envs through autoresets, on the demo and on a real
+    recording with six replayed riders; and the delay changes what the agent sees."""
+    from tests.gym.test_vector import _compare
+
+    for cfg in (demo_config, EnvConfig(source="folder", path=real_folder)):
+        case = cfg.case
+        delayed = dataclasses.replace(
+            cfg, case=dataclasses.replace(case, cap=dataclasses.replace(case.cap, perception_delay_s=0.3)),
+            max_episode_steps=80,
+        )  # fmt: skip
+        ended, _ = _compare(delayed, 4, 170, seed=5, accel=(-3.0, 3.0))
+        assert ended >= 4  # autoresets: nothing perceived in the first 6 steps again
+        a = np.zeros((4, 1), np.float32)
+        env_d, env_0 = (
+            VeiVectorEnv(4, delayed),
+            VeiVectorEnv(4, dataclasses.replace(delayed, case=case)),
+        )
+        assert env_d.delay == 6 and env_0.delay == 0
+        od, o0 = env_d.reset(seed=5)[0], env_0.reset(seed=5)[0]
+        assert not od[:, 6].any() and o0[:, 6].any()  # slot 0 (the rider) not yet perceived
+        for _ in range(30):
+            od, o0 = env_d.step(a)[0], env_0.step(a)[0]
+        assert od[:, 6].all() and not np.array_equal(od, o0)  # seen, 6 steps late
+
+
 def test_refuses_what_it_does_not_model(demo_config):
     """Each feature the vector env does not model is a ConfigError naming it and the way out."""
     from vei.config import SimConfig
     from vei.config.behaviour import TrafficConfig
+    from vei.config.perception import PerceptionConfig
 
     normal = case_preset("normal")
     cases = {
-        r"a perception delay \(cap\.perception_delay_s = 0\.3 s\)": dataclasses.replace(
-            normal, cap=dataclasses.replace(normal.cap, perception_delay_s=0.3)
+        r"a sensor model \(case\.perception\)": dataclasses.replace(
+            normal, perception=PerceptionConfig(enabled=True)
         ),
         r"reacting cars \(traffic\.cars_react\)": dataclasses.replace(
             normal, traffic=TrafficConfig(cars_react=True)

@@ -304,21 +304,23 @@ def _wrap(a):  # type: ignore[no-untyped-def]
 
 @numba.njit(cache=True, inline="always")
 def _slot(  # type: ignore[no-untyped-def]
-    OUT, b, base, j, k, sc, collided, ego, dims, halfw, rng, cap, FS, BS, cat_r, geo, oth,
+    OUT, b, base, j, k, sc, collided, ego, dims, halfw, rng, cap, RD, cat_r, geo, oth,
 ):  # fmt: skip
     """Write the 9 entries of one road-user slot (object j: 0 the rider, j > 0 replayed
     other j - 1, -1 empty) of environment b at OUT[b, base:base + 9]. Argument groups:
     ego = (x, y, yaw, cos, sin, vx, vy, s), dims = (Le, Lr, Wr), geo = the ego path
     tables, oth = the others' tables (a call of > 30 arguments cannot be inlined), indexed
-    in place: an array bound to a name costs an atomic reference count per call."""
+    in place: an array bound to a name costs an atomic reference count per call. The
+    rider as perceived is RD[:, b] (x y yaw vx vy active), the others at step k (both
+    delayed by the perception delay)."""
     ex, ey, eyaw, c, sn, evx, evy, s_e = ego
     Le, Lr, Wr = dims
     valid = False
     ox = oy = oyaw = ovx = ovy = ol = ow = ocat = 0.0
     if j == 0:
-        valid = BS[B_ACT, b] > 0
-        ox, oy, oyaw = FS[F_RX, b], FS[F_RY, b], FS[F_RYAW, b]
-        ovx, ovy = FS[F_RVX, b], FS[F_RVY, b]
+        valid = RD[5, b] > 0.5
+        ox, oy, oyaw = RD[0, b], RD[1, b], RD[2, b]
+        ovx, ovy = RD[3, b], RD[4, b]
         ol, ow, ocat = Lr, Wr, cat_r[sc]
     elif j > 0:
         jj = j - 1
@@ -376,20 +378,25 @@ def _slot(  # type: ignore[no-untyped-def]
 
 @numba.njit(cache=True, nogil=True)
 def observe_envs(  # type: ignore[no-untyped-def]
-    dt, FS, BS, K, SC, P, DIM, T_n, path_end, cat_r,
+    dt, FS, BS, K, SC, P, DIM, T_n, path_end, cat_r, RD, delay,
     EP, ep_s0, ep_ds, ep_n,
     OX, OY, OYAW, OSP, OACT, OL, OW, OCAT, n_o,
     ROAD, rd_x0, rd_y0, rd_cell, rd_nx, rd_ny, road_on,
     KMAX, cap, OUT,
 ):  # fmt: skip
     """The observation vectors OUT [B, D] (layout: vei.gym.features) of every environment
-    at its current step, from the ground truth (no perception delay, no sensor model)."""
+    at its current step. The road users as perceived ``delay`` steps ago (the engine's
+    vei.sim.observe.PolicyDriver: nothing before step ``delay``): the rider's state then
+    is RD [6, B] (x y yaw vx vy active; the current one without a delay), the others'
+    the tables' at k - delay; the ego's own state is the current one; ``rider_on_road``
+    is the rider's current position's where the rider is perceived. No sensor model."""
     B = FS.shape[1]
     geo = (EP, ep_s0, ep_ds, ep_n)
     oth = (OX, OY, OYAW, OSP, OACT, OL, OW, OCAT)
     for b in range(B):
         sc = SC[b]
         k = K[b]
+        kd = k - delay  # the step the road users are perceived at (< 0: nothing yet)
         ex, ey, eyaw = FS[F_X, b], FS[F_Y, b], FS[F_YAW, b]
         v, s_e = FS[F_V, b], FS[F_S, b]
         collided = BS[B_COLL, b] > 0
@@ -404,7 +411,7 @@ def observe_envs(  # type: ignore[no-untyped-def]
         OUT[b, 5] = 1.0 if collided else 0.0
         # slots: 0 = the rider, then the nearest valid others (ties by index), found by
         # repeated "next after (d2, j)" scans: no per-environment allocation.
-        no = n_o[sc]
+        no = n_o[sc] if kd >= 0 else 0
         halfw, rng = P[P_HALFW, sc], P[P_RANGE, sc]
         ego = (ex, ey, eyaw, c, sn, evx, evy, s_e)
         dims = (Le, Lr, Wr)
@@ -413,12 +420,12 @@ def observe_envs(  # type: ignore[no-untyped-def]
         for q in range(KMAX):
             j = -1
             if q == 0:
-                j = 0
+                j = 0 if kd >= 0 else -1
             else:
                 bd = np.inf
                 for jj in range(no):
-                    if OACT[sc, k, jj]:
-                        dx, dy = OX[sc, k, jj] - ex, OY[sc, k, jj] - ey
+                    if OACT[sc, kd, jj]:
+                        dx, dy = OX[sc, kd, jj] - ex, OY[sc, kd, jj] - ey
                         rxx = dx * c + dy * sn
                         ryy = -dx * sn + dy * c
                         dd = rxx * rxx + ryy * ryy
@@ -435,11 +442,11 @@ def observe_envs(  # type: ignore[no-untyped-def]
                     OUT[b, base + f] = 0.0
                 OUT[b, base + 6] = cap
             else:
-                _slot(OUT, b, 6 + 9 * q, j, k, sc, collided, ego, dims, halfw, rng, cap, FS, BS,
+                _slot(OUT, b, 6 + 9 * q, j, kd, sc, collided, ego, dims, halfw, rng, cap, RD,
                       cat_r, geo, oth)  # fmt: skip
         if road_on:
             on = 0.0
-            if BS[B_ACT, b] > 0:
+            if kd >= 0 and RD[5, b] > 0.5:
                 jx = math.floor((FS[F_RX, b] - rd_x0[sc]) / rd_cell[sc])
                 iy = math.floor((FS[F_RY, b] - rd_y0[sc]) / rd_cell[sc])
                 if iy >= 0 and iy < rd_ny[sc] and jx >= 0 and jx < rd_nx[sc]:

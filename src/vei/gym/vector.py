@@ -13,8 +13,8 @@ environment's episode ended (terminated or truncated) resets it, ignores its act
 returns its first observation with reward 0 and both flags False.
 
 The vector env models the primary rider (replayed or social-force, with obstacle braking
-and its yield / go decision) and replays every other road user, observing the ground
-truth: a configuration with a perception delay, a sensor model, extra social-force riders,
+and its yield / go decision) and replays every other road user, observing them with the
+configuration's perception delay: a configuration with a sensor model, extra social-force riders,
 reacting cars, walking pedestrians or V2X runs in the single env (or
 ``gymnasium.make_vec(..., vectorization_mode='sync')``); the vector env refuses it,
 naming the feature and that way out (:func:`unsupported_features`).
@@ -34,7 +34,7 @@ from vei.errors import ConfigError, InputError
 from vei.gym.config import EnvConfig
 from vei.gym.env import action_limits, check_actions, injury_risk
 from vei.gym.features import feature_names, observation_bounds, vectorize
-from vei.gym.kernel import N_BS, N_FS
+from vei.gym.kernel import F_RVX, F_RVY, F_RX, F_RY, F_RYAW, N_BS, N_FS
 from vei.gym.world import AgentSeat, World, load_world
 from vei.policy.observation import category_code
 from vei.sim.state import SimState
@@ -184,12 +184,10 @@ def unsupported_features(world: World) -> list[str]:
     that turns them on (empty: it models them all). The vector env models: the agent's
     actuator, a replayed or social-force primary rider with its ego repulsion, obstacle
     braking (sfm.obstacle_braking) and yield / go decision (decision.enabled), replayed
-    other road users; not the features listed here."""
+    other road users, the perception delay (cap.perception_delay_s); not the features
+    listed here."""
     p = world.scenarios[0].params
     out = []
-    delay = float(p.perception_delay_s[0])
-    if delay > 0:
-        out.append(f"a perception delay (cap.perception_delay_s = {delay:g} s)")
     if p.perception[0] is not None:
         out.append("a sensor model (case.perception)")
     if bool(p.cars_react[0]):
@@ -263,6 +261,10 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         self.steps = np.zeros(b, np.int64)
         self.TERMS = np.zeros((b, 4))
         self.OBS = np.zeros((b, lo.shape[0]), np.float32)
+        # the perception delay (vei.sim.observe.PolicyDriver's ring of the rider's truth)
+        self.delay = int(self.world.scenarios[0].params.delay_steps(self.pk.dt)[0])
+        self.RING = np.zeros((self.delay + 1, 6, b))
+        self.RD = np.zeros((6, b))
         self._needs_reset = np.ones(b, dtype=bool)
         self._rngs: list[np.random.Generator] = []
         self.weights = np.array(
@@ -415,15 +417,31 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             self.HIT[sel, : new.hit_other.shape[1]] = new.hit_other
             self.K[sel] = new.k
 
+    def _perceive(self) -> None:
+        """Store every environment's rider truth (x y yaw vx vy active) of its step k in
+        the ring and set RD to the one of step k - delay (stale where k < delay: the
+        observation then shows nothing, as the engine's PolicyDriver)."""
+        h = self.delay + 1
+        cols = np.arange(self.num_envs)
+        now = self.K % h
+        for r, row in enumerate((F_RX, F_RY, F_RYAW, F_RVX, F_RVY)):
+            self.RING[now, r, cols] = self.FS[row]
+        self.RING[now, 5, cols] = self.BS[0]
+        if self.delay == 0:
+            self.RD[:] = self.RING[0]
+        else:
+            self.RD[:] = self.RING[(self.K - self.delay) % h, :, cols].T
+
     def _observe(self) -> npt.NDArray[np.float32]:
         cfg = self.config
+        self._perceive()
         if self.backend == "numba":
             from vei.gym.kernel import observe_envs
 
             pk = self.pk
             observe_envs(
                 pk.dt, self.FS, self.BS, self.K, self.SC, pk.P, pk.DIM, pk.T_n, pk.path_end,
-                pk.cat_r, pk.EP, pk.ep_s0, pk.ep_ds, pk.ep_n, pk.OX, pk.OY, pk.OYAW, pk.OSP,
+                pk.cat_r, self.RD, self.delay, pk.EP, pk.ep_s0, pk.ep_ds, pk.ep_n, pk.OX, pk.OY, pk.OYAW, pk.OSP,
                 pk.OACT, pk.OL, pk.OW, pk.OCAT, pk.n_o, pk.ROAD, pk.rd_x0, pk.rd_y0, pk.rd_cell,
                 pk.rd_nx, pk.rd_ny, pk.road_on, cfg.max_objects, cfg.gap_cap_m, self.OBS,
             )  # fmt: skip
@@ -439,8 +457,18 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             st = self.state_of(sel)
             blk = batch_flags(params, ws.arrays.dt_s).blocks[0]
             truth = ground_truth(st, ws.arrays, slice(None))
-            valid = truth[5] > 0.5
-            age = np.zeros(valid.shape)
+            kd = st.k - self.delay
+            if self.delay:  # the truth of step k - delay (PolicyDriver's ring)
+                truth[:, :, 0] = self.RD[:, sel]
+                a, j0 = ws.arrays, 1 + ws.arrays.riders.n  # the replayed others' columns
+                if kd >= 0 and len(a.other_ids):
+                    yaw, sp = a.other_yaw_rad[kd], a.other_speed_mps[kd]
+                    rows = (a.other_x_m[kd], a.other_y_m[kd], yaw, sp * np.cos(yaw),
+                            sp * np.sin(yaw), a.other_active[kd].astype(np.float64))  # fmt: skip
+                    for r, row in enumerate(rows):
+                        truth[r, :, j0:] = row
+            valid = (truth[5] > 0.5) & (kd >= 0)
+            age = np.full(valid.shape, self.delay * ws.arrays.dt_s)
             obs = build_observation(st, ws.arrays, blk, truth, valid, age, object_table(ws.arrays))
             t_left = (ws.arrays.n_steps - 1 - st.k) * ws.arrays.dt_s
             on = None
