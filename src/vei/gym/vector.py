@@ -22,6 +22,7 @@ naming the feature and that way out (:func:`unsupported_features`).
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 import gymnasium as gym
@@ -205,6 +206,35 @@ def refuse_features(features: list[str]) -> None:
         raise ConfigError(f"the vector env does not model {'; '.join(features)}: {_WAY_OUT}")
 
 
+def kernel_notice() -> Any:
+    """A context for the first calls of vei.gym.kernel: flushes its on-disk machine code
+    when a module compiled into it changed (numba checks only the kernel's own file:
+    vei.sim.kernel.cache.drop_stale), and announces the compilation (vei.io.progress) when
+    there is no machine code for the current sources (tens of seconds to minutes)."""
+    import contextlib
+
+    from vei.gym import kernel as gk
+    from vei.io.progress import activity
+    from vei.sim.kernel.cache import cache_dir, drop_stale, sources_digest
+
+    fns = (gk.step_envs, gk.observe_envs)
+    if all(f.signatures for f in fns):
+        return contextlib.nullcontext()
+    folder = cache_dir(gk.step_envs)
+    stamp = None if folder is None else folder / "loop.sources.sha256"
+    fresh = stamp is not None and stamp.is_file() and stamp.read_text().strip() == sources_digest()
+    drop_stale(*fns, gk.sat)
+    if fresh and folder is not None:
+        index = [folder / f"kernel.{f.__name__}-{f.py_func.__code__.co_firstlineno}.py"
+                 f"{sys.version_info[0]}{sys.version_info[1]}.nbi" for f in fns]  # fmt: skip
+        if all(p.is_file() for p in index):  # numba's index of this source's functions
+            return contextlib.nullcontext()
+    return activity(
+        "compiling vei.gym's vector-env kernel for this machine (once per installation "
+        "and update, about 30-120 s; later runs load it in about a second)"
+    )
+
+
 class VeiVectorEnv(gym.vector.VectorEnv):
     """B environments of :class:`vei.gym.env.VeiEnv` in one batched state (module docstring).
 
@@ -270,6 +300,10 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         self.weights = np.array(
             [self.config.reward.collision, self.config.reward.progress, self.config.reward.comfort]
         )
+        if self.backend == "numba":  # load (or compile, saying so) both kernels now
+            with kernel_notice():
+                self._step_numba(np.zeros(b, dtype=bool), np.zeros(b))  # steps no env
+                self._observe()
 
     # ------------------------------------------------------------------ episodes
     def _draw(self, envs: np.ndarray) -> None:

@@ -234,9 +234,10 @@ def _prepare(
     return WorldScenario(name, folder, arrays, _agent_params(case, arrays, seat), shift, road, scen)
 
 
-#: A world of at least this many scenarios reports its loading (vei.io.progress); a
-#: single real scenario with its map takes ~1-3 s, so fewer stay silent.
-PROGRESS_MIN_SCENARIOS = 2
+#: A world of at least this many scenarios reports its loading (vei.io.progress): one
+#: scenario with its map takes ~1 s, the demo ~3 s (it is reconstructed first), a
+#: catalogue ~1 s per encounter, so every world says what it is doing.
+PROGRESS_MIN_SCENARIOS = 1
 
 
 def load_world(config: EnvConfig, seat: AgentSeat, *, progress: bool | None = None) -> World:
