@@ -54,10 +54,9 @@ def linear_accel(
     w: np.ndarray, b: np.ndarray, x: np.ndarray, scale: np.ndarray, lo: Any, hi: Any
 ) -> np.ndarray:
     """The demanded acceleration [B] m/s^2 of weights w [B, D] (or [D]), offsets b [B] (or
-    scalar) on observations x [B, D]: clip(sum(w x / scale) + b, lo, hi)."""
-    z = (np.asarray(x, np.float64) / scale) @ w if w.ndim == 1 else np.einsum(
-        "ij,ij->i", w, np.asarray(x, np.float64) / scale
-    )  # fmt: skip
+    scalar) on observations x [B, D]: clip(sum(x w / scale) + b, lo, hi)."""
+    x = np.asarray(x, np.float64)
+    z = x @ (w / scale) if w.ndim == 1 else np.einsum("ij,ij->i", x, w / scale)
     return np.clip(z + b, lo, hi)
 
 
