@@ -209,7 +209,10 @@ def _prepare(
     from vei.io.scenario import read_scenario
     from vei.sim.timeshift import find_time_shift
 
-    assert folder is not None
+    if folder is None:  # the built-in demo, reconstructed into a temporary folder (~2 s)
+        from vei.experiments.demo_map import write_demo_scenario
+
+        folder = write_demo_scenario(Path(tempfile.mkdtemp(prefix="vei-gym-demo-")) / "demo")
     scen = read_scenario(folder)
     if name == "":
         name = scen.id
@@ -258,10 +261,7 @@ def load_world(config: EnvConfig, seat: AgentSeat, *, progress: bool | None = No
 
     entries: list[tuple[str, Path | None, float | None]] = []
     if config.source == "demo":
-        from vei.experiments.demo_map import write_demo_scenario
-
-        tmp = Path(tempfile.mkdtemp(prefix="vei-gym-demo-"))
-        entries.append(("demo", write_demo_scenario(tmp / "demo"), None))
+        entries.append(("demo", None, None))
     elif config.source == "folder":
         assert config.path is not None
         entries += [("", folder, None) for folder in _scenario_folders(config.path)]
