@@ -20,7 +20,8 @@ Policies: ``zero`` (returns a = 0: its own time is ~nothing), ``my-policy``
 (examples/my_policy.py:MyPolicy, a vectorised NumPy TTC rule) and ``gym-linear``
 (examples/gym_trained_policy.py:LinearGymPolicy: the vector env's observation vector
 rebuilt from the Observation, then a linear map). For scale: the built-in ``paper-cap``
-(``normal-cap``) in the compiled kernel, the same B and span, per step.
+(``normal-cap``) in the compiled kernel, the same B and span, per step; each policy's
+simulations per second as a ratio to paper-cap's (measured first, in the same run).
 
     python -m benchmarks python_policy
 """
@@ -149,9 +150,11 @@ def main() -> None:
         "gym-linear": _example_class("gym_trained_policy.py", "LinearGymPolicy")(),
     }
     print(f"demo, B = {B:,}, {arrays.n_steps - 1} steps, simulate(record='none')")
+    cap = paper_cap_step(arrays)
+    cap_rate = B / (cap * (arrays.n_steps - 1))
     head = (
         f"{'policy':<12s} {'step ms':>8s} {'driver ms':>10s} {'policy ms':>10s} "
-        f"{'overhead ms':>12s} {'ns/variant':>11s} {'sims/s':>8s}"
+        f"{'overhead ms':>12s} {'ns/variant':>11s} {'sims/s':>8s} {'/ paper-cap':>12s}"
     )
     print(head)
     for name, pol in policies.items():
@@ -160,13 +163,12 @@ def main() -> None:
         print(
             f"{name:<12s} {1e3 * m['step']:8.2f} {1e3 * m['driver']:10.2f} "
             f"{1e3 * m['policy']:10.2f} {1e3 * m['overhead']:12.2f} "
-            f"{1e9 * m['overhead'] / B:11.1f} {sims:8.0f}",
+            f"{1e9 * m['overhead'] / B:11.1f} {sims:8.0f} {sims / cap_rate:12.2f}",
             flush=True,
         )
-    cap = paper_cap_step(arrays)
     print(
         f"{'paper-cap':<12s} {1e3 * cap:8.2f} {'(compiled kernel, no Python per step)':>45s} "
-        f"{B / (cap * (arrays.n_steps - 1)):8.0f}"
+        f"{cap_rate:8.0f} {1.0:12.2f}"
     )
 
 
