@@ -183,6 +183,16 @@ def test_catalogue_one_world_per_encounter(demo_folder, tmp_path, capsys):
     assert [w.base_shift_s for w in envs.world.scenarios] == [1.5, -0.5]
     err = capsys.readouterr().err
     assert "vei.gym: preparing scenarios: 2/2 scenarios" in err
+    # a missing stored shift (NaN) is found again: the demo's automatic shift
+    pd.DataFrame({"encounter_id": ["demo__a"] * 3, "time_shift_auto_s": [np.nan] * 3}).to_parquet(
+        tmp_path / TABLE
+    )
+    from vei.io.scenario import read_scenario
+    from vei.sim.timeshift import find_time_shift
+
+    envs = VeiVectorEnv(2, EnvConfig(source="catalogue", path=tmp_path))
+    auto = float(find_time_shift(read_scenario(demo_folder)))
+    assert envs.world.n == 1 and envs.world.scenarios[0].base_shift_s == auto
     # an encounter whose rows disagree on the stored shift is named
     pd.DataFrame({"encounter_id": ["demo__a"] * 2, "time_shift_auto_s": [1.0, 2.0]}).to_parquet(
         tmp_path / TABLE

@@ -161,8 +161,8 @@ def _scenario_folders(path: Path) -> list[Path]:
     return subs
 
 
-def _catalogue(path: Path) -> list[tuple[str, Path, float]]:
-    """(encounter id, scenario folder, stored automatic time shift [s]) per encounter of a
+def _catalogue(path: Path) -> list[tuple[str, Path, float | None]]:
+    """(encounter id, scenario folder, stored automatic time shift [s] or None) per encounter of a
     catalogue, in the table's order of first appearance: the table has one row per
     encounter and configuration (sweep variants), the world one scenario per encounter."""
     import pandas as pd
@@ -177,7 +177,7 @@ def _catalogue(path: Path) -> list[tuple[str, Path, float]]:
         raise InputError("the catalogue has no encounter", path=table)
     rows["encounter_id"] = rows["encounter_id"].astype(str)
     spread = rows.groupby("encounter_id", sort=False)["time_shift_auto_s"].agg(["min", "max"])
-    bad = spread[~np.isclose(spread["min"], spread["max"], rtol=0.0, atol=1e-9)]
+    bad = spread[~np.isclose(spread["min"], spread["max"], rtol=0.0, atol=1e-9, equal_nan=True)]
     if not bad.empty:
         eid = str(bad.index[0])
         raise InputError(
@@ -187,8 +187,8 @@ def _catalogue(path: Path) -> list[tuple[str, Path, float]]:
             field="time_shift_auto_s",
         )
     first = rows.drop_duplicates("encounter_id", keep="first")
-    return [
-        (eid, encounter_dir(path, eid) / "scenario", float(shift))
+    return [  # a missing stored shift (NaN) is found again from the scenario
+        (eid, encounter_dir(path, eid) / "scenario", None if np.isnan(shift) else float(shift))
         for eid, shift in zip(first["encounter_id"], first["time_shift_auto_s"], strict=True)
     ]
 
