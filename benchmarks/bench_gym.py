@@ -22,6 +22,10 @@ Reference: GPUDrive (Kazemkhani et al., "GPUDrive: Data-driven, multi-agent driv
 simulation at 1 million FPS", ICLR 2025, arXiv:2408.01584) reports over a million
 simulation steps per second on a GPU.
 
+``--features`` prints only the demo's vector env at B = 10^4 with each feature set of
+issue 34 (``normal``: obstacle braking on; + the rider's decisions; + a perception delay
+of 0.3 s), best of 3 runs of 100 steps.
+
 Second table (``--learn`` prints only this one): examples/gym_cem.py, the cross-entropy
 method on a linear policy, 24 x 16 environments of the demo, 15 generations; the held-out
 return of the mean policy against the random policy and blind cruising (a = 0).
@@ -102,11 +106,36 @@ def _scenes(tmp: Path) -> dict[str, Path]:
     return out
 
 
-def _vector_rate(folder: Path, b: int, steps: int, backend: str) -> float:
+def _feature_cases() -> dict[str, object]:
+    """The vector env's feature sets (issue 34.4): 'normal' has obstacle braking on."""
+    import dataclasses
+
+    from vei.config import case_preset
+    from vei.config.behaviour import DecisionConfig
+
+    n = case_preset("normal")
+    dec = dataclasses.replace(n, decision=DecisionConfig(enabled=True))
+    delay = dataclasses.replace(dec, cap=dataclasses.replace(n.cap, perception_delay_s=0.3))
+    return {"+ decisions": dec, "+ decisions + delay": delay}
+
+
+def features() -> None:
+    """The demo's vector env at B = 10^4 with each feature set (``--features``)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        from vei.experiments.demo_map import write_demo_scenario
+
+        folder = write_demo_scenario(Path(tmp) / "demo")
+        print(f"machine: {machine()}")
+        for name, case in {"normal": "normal", **_feature_cases()}.items():
+            rate = max(_vector_rate(folder, 10_000, STEPS // 2, "numba", case) for _ in range(3))
+            print(f"{'demo':<14} {'vector ' + name:<24} {10_000:>8} {rate:>14,.0f}", flush=True)
+
+
+def _vector_rate(folder: Path, b: int, steps: int, backend: str, case: object = "normal") -> float:
     from vei.gym import EnvConfig
     from vei.gym.vector import VeiVectorEnv
 
-    env = VeiVectorEnv(b, EnvConfig(source="folder", path=folder, backend=backend))
+    env = VeiVectorEnv(b, EnvConfig(source="folder", path=folder, backend=backend, case=case))
     rng = np.random.default_rng(0)
     env.reset(seed=0)
     lo, hi = env.action_low, env.action_high
@@ -165,6 +194,12 @@ def throughput() -> bool:
                 if name == "demo" and b == 10_000:
                     met = rate >= TARGET
                     demo_rate = rate
+            if name == "demo":
+                for what, case in _feature_cases().items():
+                    rate = _vector_rate(folder, 10_000, STEPS, "numba", case)
+                    print(
+                        f"{name:<14} {'vector ' + what:<24} {10_000:>8} {rate:>14,.0f}", flush=True
+                    )
             rate = _vector_rate(folder, 10_000, NUMPY_STEPS, "numpy")
             print(f"{name:<14} {'vector (numpy)':<24} {10_000:>8} {rate:>14,.0f}", flush=True)
             print(f"{name:<14} {'single env':<24} {1:>8} {_single_rate(folder):>14,.0f}")
@@ -198,6 +233,9 @@ def learn() -> bool:
 
 def main() -> None:
     """Both tables (``--learn``: the second only)."""
+    if "--features" in sys.argv:
+        features()
+        return
     ok = True
     if "--learn" not in sys.argv:
         ok = throughput() and ok

@@ -135,7 +135,7 @@ def test_vector_bad_input(demo_config):
         VeiVectorEnv(0, demo_config)
     from vei.config import SimConfig
 
-    with pytest.raises(ConfigError, match="primary rider only"):
+    with pytest.raises(ConfigError, match="extra social-force riders"):
         VeiVectorEnv(2, dataclasses.replace(demo_config, sim=SimConfig(sfm_riders="all")))
 
 

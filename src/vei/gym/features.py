@@ -117,30 +117,30 @@ def vectorize(
     out[:, 5] = o.collided  # type: ignore[attr-defined]
     slots = nearest_slots(o.valid, o.rel_x_m, o.rel_y_m, max_objects)  # type: ignore[attr-defined]
     rows = np.arange(b)
+    n = np.shape(o.valid)[1]  # type: ignore[attr-defined]
+    valid = np.asarray(o.valid)  # type: ignore[attr-defined]
+    clipped = (o.rel_x_m, o.rel_y_m)  # type: ignore[attr-defined]
+    plain = (o.rel_vx_mps, o.rel_vy_mps, o.rel_yaw_rad)  # type: ignore[attr-defined]
     for s in range(max_objects):
+        base = N_EGO + N_OBJ * s
+        out[:, base + 6] = cap_m  # empty slot: all 0 but path_gap_m = cap
         j = slots[:, s]
         has = j >= 0
-        jj = np.where(has, j, 0)
-        v = has & o.valid[rows, jj]  # type: ignore[attr-defined]
-        base = N_EGO + N_OBJ * s
-
-        def pick(a: npt.NDArray, jj: npt.NDArray = jj) -> npt.NDArray:
-            return np.asarray(a)[rows, jj]
-
-        gap = pick(o.path_gap_m)  # type: ignore[attr-defined]
-        cols = (
-            v.astype(np.float64),
-            np.clip(pick(o.rel_x_m), -cap_m, cap_m),  # type: ignore[attr-defined]
-            np.clip(pick(o.rel_y_m), -cap_m, cap_m),  # type: ignore[attr-defined]
-            pick(o.rel_vx_mps),  # type: ignore[attr-defined]
-            pick(o.rel_vy_mps),  # type: ignore[attr-defined]
-            pick(o.rel_yaw_rad),  # type: ignore[attr-defined]
-            np.minimum(gap, cap_m),
-            np.clip(pick(o.path_lateral_m), -cap_m, cap_m),  # type: ignore[attr-defined]
-            pick(o.category).astype(np.float64),  # type: ignore[attr-defined]
-        )
-        for f, col in enumerate(cols):
-            out[:, base + f] = np.where(v, col, cap_m if f == 6 else 0.0)
+        if not has.any():
+            continue
+        flat = rows * n + np.where(has, j, 0)  # [B] index into the [B, N] arrays, flattened
+        vi = np.flatnonzero(has & np.take(valid, flat))
+        if vi.size == 0:
+            continue
+        fi = flat[vi]
+        out[vi, base] = 1.0
+        for f, a in enumerate(clipped):
+            out[vi, base + 1 + f] = np.clip(np.take(a, fi), -cap_m, cap_m)
+        for f, a in enumerate(plain):
+            out[vi, base + 3 + f] = np.take(a, fi)
+        out[vi, base + 6] = np.minimum(np.take(o.path_gap_m, fi), cap_m)  # type: ignore[attr-defined]
+        out[vi, base + 7] = np.clip(np.take(o.path_lateral_m, fi), -cap_m, cap_m)  # type: ignore[attr-defined]
+        out[vi, base + 8] = np.take(o.category, fi)  # type: ignore[attr-defined]
     if rider_on_road is not None:
         out[:, -1] = rider_on_road
     return out.astype(np.float32)

@@ -1,25 +1,30 @@
 """The vector environment's compiled step and observation (numba; imported only when used).
 
 The model is the built-in engine's for a policy-driven ego (ego_mode 'policy') with the
-primary rider replayed or social-force driven and every other road user replayed
+primary rider replayed or social-force driven (with its obstacle braking and yield / go
+decision) and every other road user replayed
 (:func:`vei.sim.step.step`, order of operations in :mod:`vei.sim.engine`), one step of B
 environments each at its own step index k (autoreset puts them out of step, which the
 engine's shared ``SimState.k`` cannot express). The laws are not written again: the ego's
 actuator, speed and reported acceleration are :mod:`vei.models.ego_core`'s functions and
-the rider's social force, integration and limits :mod:`vei.sim.kernel.sfm`'s (the engine's
-compiled kernel's), compiled here on scalars; the box overlap is :mod:`vei.boxes`'s; the
-observation's corridor gap and lateral offset are the cores of
+the rider's social force, obstacle braking, integration and limits
+:mod:`vei.sim.kernel.sfm`'s and its decision :mod:`vei.sim.kernel.decision`'s (the
+engine's compiled kernel's), compiled here on scalars; the box overlap is
+:mod:`vei.boxes`'s; the observation's corridor gap and lateral offset are the cores of
 :func:`vei.models.ego.corridor_check` and :func:`vei.sim.observe.path_lateral`. A test
 checks every state field and observation entry against the engine's NumPy step.
 
 Packed arrays (:mod:`vei.gym.core` builds them), S scenarios, B environments:
   FS [15, B] float state: s x y yaw v a_rep a_act rx ry ryaw rvx rvy rsp racc prog;
-  BS [4, B] uint8: rider active, started, done, collided; HIT [B, O] uint8 (others touched);
+  BS [5, B] uint8: rider active, started, done, collided, decision (0 FREE, 1 GO, 2 YIELD);
+  HIT [B, O] uint8 (others touched);
   K [B] step index, SC [B] scenario index, SHIFT [B] the rider's time shift [s].
   Scenario tables padded to the longest: EP [S, 10, Np] ego path (x y yaw cos sin, then
   slopes) on s0 + i ds; RT [S, 14, M] rider track (x y yaw speed vx vy arc, then slopes) on
   t0 + i dt, rt_sfm0 [S] the recording time [s] from which an SFM rider is driven (it is
-  replayed before: its run-in); RP [S, 10, N] rider path; others OX, OY, OYAW, OSP [S, T, O], OACT [S, T, O].
+  replayed before: its run-in); RP [S, 10, N] rider path; others OX, OY, OYAW, OSP [S, T, O], OACT [S, T, O];
+  CF [S, 5, Kc] the rider's conflicts with the ego path (zone exit, crossing along the
+  rider's and the ego's path, half-lengths [m]; vei.sim.decisions.Conflicts), cf_n [S].
 """
 
 # ruff: noqa: N803, N806, E501
@@ -32,29 +37,47 @@ import numpy as np
 
 from vei.boxes import overlap_core
 from vei.models import ego_core as core
+from vei.sim.kernel.decision import decide_step, reference_speed
 from vei.sim.kernel.layout import (
     P_AMAX,
     P_AMAX_R,
     P_ARRIVE,
     P_AVEH,
     P_BVEH,
+    P_CLEARM,
+    P_DECIDE,
     P_DMAX,
     P_FRONTB,
     P_HALFW,
+    P_HORIZON,
     P_KDES,
     P_LOOK,
     P_MASS,
+    P_OBST,
+    P_OBSTA,
+    P_OBSTM,
+    P_OBSTV,
     P_PAPERV,
     P_RANGE,
     P_SFM,
     P_SIGMA,
+    P_STOPM,
+    P_TC,
     P_USEVF,
     P_V0,
     P_VD,
     P_VMAX,
+    P_YDEC,
 )
 from vei.sim.kernel.scalar import idx
-from vei.sim.kernel.sfm import drive_force, integrate, vehicle_force
+from vei.sim.kernel.sfm import (
+    capped_velocity,
+    destination_force,
+    goal_velocity,
+    integrate,
+    obstacle_velocity,
+    vehicle_force,
+)
 
 _inline = numba.njit(cache=True, inline="always")
 actuator = _inline(core.actuator_core)
@@ -71,8 +94,9 @@ sat = numba.njit(cache=True)(overlap_core)
 F_S, F_X, F_Y, F_YAW, F_V, F_AREP, F_AACT = 0, 1, 2, 3, 4, 5, 6
 F_RX, F_RY, F_RYAW, F_RVX, F_RVY, F_RSP, F_RACC, F_PROG = 7, 8, 9, 10, 11, 12, 13, 14
 N_FS = 15
-# Bool state rows.
-B_ACT, B_STARTED, B_DONE, B_COLL = 0, 1, 2, 3
+# Bool / small-integer state rows (B_DEC: the rider's decision, 0 FREE, 1 GO, 2 YIELD).
+B_ACT, B_STARTED, B_DONE, B_COLL, B_DEC = 0, 1, 2, 3, 4
+N_BS = 5
 # Reward terms (columns of TERMS).
 T_CONTACTS, T_IMPACT, T_PROGRESS, T_COMFORT = 0, 1, 2, 3
 
@@ -95,6 +119,7 @@ def step_envs(  # type: ignore[no-untyped-def]
     RT, rt_t0, rt_dt, rt_tend, rt_n, rt_sfm0,
     RP, rp_s0, rp_ds, rp_n, rp_len, rp_ex, rp_ey,
     OX, OY, OYAW, OACT, OL, OW, n_o,
+    CF, cf_n,
     TERMS,
 ):  # fmt: skip
     """Advance the environments with ``run[b]`` by one step with demand A[b] [m/s^2].
@@ -119,6 +144,7 @@ def step_envs(  # type: ignore[no-untyped-def]
         r_started = BS[B_STARTED, b] > 0
         r_done = BS[B_DONE, b] > 0
         collided = BS[B_COLL, b] > 0
+        rdec = int(BS[B_DEC, b])
         # ---- ego: the policy's demand, clipped, through the actuator (vei.sim.step)
         amax, dmax = P[P_AMAX, sc], P[P_DMAX, sc]
         a_cmd = min(max(A[b], -dmax), amax)
@@ -166,10 +192,26 @@ def step_envs(  # type: ignore[no-untyped-def]
             )
             if r_act and r_started and not collided:
                 look, vmax, amax_r = P[P_LOOK, sc], P[P_VMAX, sc], P[P_AMAX_R, sc]
-                fx, fy, pr = drive_force(
-                    rx, ry, rvx, rvy, prog, RP[sc], rp_s0[sc], rp_ds[sc], rp_n[sc], rp_len[sc],
-                    look, P[P_SIGMA, sc], P[P_PAPERV, sc] > 0.5, P[P_V0, sc], P[P_KDES, sc],
+                sigma, v0, kdes = P[P_SIGMA, sc], P[P_V0, sc], P[P_KDES, sc]
+                tau = P[P_MASS, sc] / kdes
+                vdx, vdy, pr = goal_velocity(
+                    rx, ry, prog, RP[sc], rp_s0[sc], rp_ds[sc], rp_n[sc], rp_len[sc],
+                    look, sigma, P[P_PAPERV, sc] > 0.5, v0,
                 )  # fmt: skip
+                if cf_n[sc] > 0 and P[P_DECIDE, sc] > 0.5:  # yield / go (vei.sim.decisions)
+                    conf = (cf_n[sc], CF[sc, 0], CF[sc, 1], CF[sc, 2], CF[sc, 3], CF[sc, 4])
+                    rdec, vcap = decide_step(
+                        rdec, prog, pr, rsp, s, v, conf, P[P_TC, sc], P[P_HORIZON, sc],
+                        P[P_YDEC, sc], P[P_STOPM, sc], P[P_CLEARM, sc],
+                        reference_speed(v0, look, sigma), tau,
+                    )  # fmt: skip
+                    vdx, vdy = capped_velocity(vdx, vdy, vcap)
+                if P[P_OBST, sc] > 0.5 and v < P[P_OBSTV, sc]:  # a standing / slow car ahead
+                    vdx, vdy = obstacle_velocity(
+                        rx, ry, vdx, vdy, rsp, ex, ey, eyaw, Le, We, 0.5 * math.hypot(Lr, Wr),
+                        P[P_OBSTM, sc], P[P_OBSTA, sc], tau,
+                    )  # fmt: skip
+                fx, fy = destination_force(vdx, vdy, rvx, rvy, kdes)
                 if P[P_USEVF, sc] > 0.5:
                     vfx, vfy = vehicle_force(
                         rx, ry, ex, ey, eyaw, Le, We, P[P_FRONTB, sc] > 0.5, P[P_AVEH, sc], P[P_BVEH, sc]
@@ -250,6 +292,7 @@ def step_envs(  # type: ignore[no-untyped-def]
         BS[B_STARTED, b] = 1 if r_started else 0
         BS[B_DONE, b] = 1 if r_done else 0
         BS[B_COLL, b] = 1 if collided else 0
+        BS[B_DEC, b] = rdec
         K[b] = k + 1
 
 
@@ -261,21 +304,23 @@ def _wrap(a):  # type: ignore[no-untyped-def]
 
 @numba.njit(cache=True, inline="always")
 def _slot(  # type: ignore[no-untyped-def]
-    OUT, b, base, j, k, sc, collided, ego, dims, halfw, rng, cap, FS, BS, cat_r, geo, oth,
+    OUT, b, base, j, k, sc, collided, ego, dims, halfw, rng, cap, RD, cat_r, geo, oth,
 ):  # fmt: skip
     """Write the 9 entries of one road-user slot (object j: 0 the rider, j > 0 replayed
     other j - 1, -1 empty) of environment b at OUT[b, base:base + 9]. Argument groups:
     ego = (x, y, yaw, cos, sin, vx, vy, s), dims = (Le, Lr, Wr), geo = the ego path
     tables, oth = the others' tables (a call of > 30 arguments cannot be inlined), indexed
-    in place: an array bound to a name costs an atomic reference count per call."""
+    in place: an array bound to a name costs an atomic reference count per call. The
+    rider as perceived is RD[:, b] (x y yaw vx vy active), the others at step k (both
+    delayed by the perception delay)."""
     ex, ey, eyaw, c, sn, evx, evy, s_e = ego
     Le, Lr, Wr = dims
     valid = False
     ox = oy = oyaw = ovx = ovy = ol = ow = ocat = 0.0
     if j == 0:
-        valid = BS[B_ACT, b] > 0
-        ox, oy, oyaw = FS[F_RX, b], FS[F_RY, b], FS[F_RYAW, b]
-        ovx, ovy = FS[F_RVX, b], FS[F_RVY, b]
+        valid = RD[5, b] > 0.5
+        ox, oy, oyaw = RD[0, b], RD[1, b], RD[2, b]
+        ovx, ovy = RD[3, b], RD[4, b]
         ol, ow, ocat = Lr, Wr, cat_r[sc]
     elif j > 0:
         jj = j - 1
@@ -333,20 +378,25 @@ def _slot(  # type: ignore[no-untyped-def]
 
 @numba.njit(cache=True, nogil=True)
 def observe_envs(  # type: ignore[no-untyped-def]
-    dt, FS, BS, K, SC, P, DIM, T_n, path_end, cat_r,
+    dt, FS, BS, K, SC, P, DIM, T_n, path_end, cat_r, RD, delay,
     EP, ep_s0, ep_ds, ep_n,
     OX, OY, OYAW, OSP, OACT, OL, OW, OCAT, n_o,
     ROAD, rd_x0, rd_y0, rd_cell, rd_nx, rd_ny, road_on,
     KMAX, cap, OUT,
 ):  # fmt: skip
     """The observation vectors OUT [B, D] (layout: vei.gym.features) of every environment
-    at its current step, from the ground truth (no perception delay, no sensor model)."""
+    at its current step. The road users as perceived ``delay`` steps ago (the engine's
+    vei.sim.observe.PolicyDriver: nothing before step ``delay``): the rider's state then
+    is RD [6, B] (x y yaw vx vy active; the current one without a delay), the others'
+    the tables' at k - delay; the ego's own state is the current one; ``rider_on_road``
+    is the rider's current position's where the rider is perceived. No sensor model."""
     B = FS.shape[1]
     geo = (EP, ep_s0, ep_ds, ep_n)
     oth = (OX, OY, OYAW, OSP, OACT, OL, OW, OCAT)
     for b in range(B):
         sc = SC[b]
         k = K[b]
+        kd = k - delay  # the step the road users are perceived at (< 0: nothing yet)
         ex, ey, eyaw = FS[F_X, b], FS[F_Y, b], FS[F_YAW, b]
         v, s_e = FS[F_V, b], FS[F_S, b]
         collided = BS[B_COLL, b] > 0
@@ -361,7 +411,7 @@ def observe_envs(  # type: ignore[no-untyped-def]
         OUT[b, 5] = 1.0 if collided else 0.0
         # slots: 0 = the rider, then the nearest valid others (ties by index), found by
         # repeated "next after (d2, j)" scans: no per-environment allocation.
-        no = n_o[sc]
+        no = n_o[sc] if kd >= 0 else 0
         halfw, rng = P[P_HALFW, sc], P[P_RANGE, sc]
         ego = (ex, ey, eyaw, c, sn, evx, evy, s_e)
         dims = (Le, Lr, Wr)
@@ -370,12 +420,12 @@ def observe_envs(  # type: ignore[no-untyped-def]
         for q in range(KMAX):
             j = -1
             if q == 0:
-                j = 0
+                j = 0 if kd >= 0 else -1
             else:
                 bd = np.inf
                 for jj in range(no):
-                    if OACT[sc, k, jj]:
-                        dx, dy = OX[sc, k, jj] - ex, OY[sc, k, jj] - ey
+                    if OACT[sc, kd, jj]:
+                        dx, dy = OX[sc, kd, jj] - ex, OY[sc, kd, jj] - ey
                         rxx = dx * c + dy * sn
                         ryy = -dx * sn + dy * c
                         dd = rxx * rxx + ryy * ryy
@@ -392,11 +442,11 @@ def observe_envs(  # type: ignore[no-untyped-def]
                     OUT[b, base + f] = 0.0
                 OUT[b, base + 6] = cap
             else:
-                _slot(OUT, b, 6 + 9 * q, j, k, sc, collided, ego, dims, halfw, rng, cap, FS, BS,
+                _slot(OUT, b, 6 + 9 * q, j, kd, sc, collided, ego, dims, halfw, rng, cap, RD,
                       cat_r, geo, oth)  # fmt: skip
         if road_on:
             on = 0.0
-            if BS[B_ACT, b] > 0:
+            if kd >= 0 and RD[5, b] > 0.5:
                 jx = math.floor((FS[F_RX, b] - rd_x0[sc]) / rd_cell[sc])
                 iy = math.floor((FS[F_RY, b] - rd_y0[sc]) / rd_cell[sc])
                 if iy >= 0 and iy < rd_ny[sc] and jx >= 0 and jx < rd_nx[sc]:
@@ -404,4 +454,4 @@ def observe_envs(  # type: ignore[no-untyped-def]
             OUT[b, OUT.shape[1] - 1] = on
 
 
-__all__ = ["N_FS", "observe_envs", "step_envs"]
+__all__ = ["N_BS", "N_FS", "observe_envs", "step_envs"]

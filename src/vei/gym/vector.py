@@ -12,13 +12,17 @@ Autoreset (``metadata['autoreset_mode']`` = Gymnasium's NEXT_STEP): the step aft
 environment's episode ended (terminated or truncated) resets it, ignores its action and
 returns its first observation with reward 0 and both flags False.
 
-The vector env observes the ground truth directly: a configuration with a perception
-delay or an enabled sensor model runs in the single env (or ``gymnasium.make_vec(...,
-vectorization_mode='sync')``); the vector env refuses it, naming that way out.
+The vector env models the primary rider (replayed or social-force, with obstacle braking
+and its yield / go decision) and replays every other road user, observing them with the
+configuration's perception delay: a configuration with a sensor model, extra social-force riders,
+reacting cars, walking pedestrians or V2X runs in the single env (or
+``gymnasium.make_vec(..., vectorization_mode='sync')``); the vector env refuses it,
+naming the feature and that way out (:func:`unsupported_features`).
 """
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 import gymnasium as gym
@@ -31,7 +35,7 @@ from vei.errors import ConfigError, InputError
 from vei.gym.config import EnvConfig
 from vei.gym.env import action_limits, check_actions, injury_risk
 from vei.gym.features import feature_names, observation_bounds, vectorize
-from vei.gym.kernel import N_FS
+from vei.gym.kernel import F_RVX, F_RVY, F_RX, F_RY, F_RYAW, N_BS, N_FS
 from vei.gym.world import AgentSeat, World, load_world
 from vei.policy.observation import category_code
 from vei.sim.state import SimState
@@ -42,8 +46,8 @@ _FLOAT_STATE = (
     "rider_x_m", "rider_y_m", "rider_yaw_rad", "rider_vx_mps", "rider_vy_mps",
     "rider_speed_mps", "rider_a_mps2", "rider_prog_m",
 )  # fmt: skip
-_BOOL_STATE = ("rider_active", "rider_started", "rider_done", "collided")
-assert len(_FLOAT_STATE) == N_FS
+_BOOL_STATE = ("rider_active", "rider_started", "rider_done", "collided", "rider_decision")
+assert len(_FLOAT_STATE) == N_FS and len(_BOOL_STATE) == N_BS
 
 
 def _pad(arrs: list[np.ndarray], axis: int) -> np.ndarray:
@@ -135,6 +139,14 @@ class Packed:
             self.OL[s, :n], self.OW[s, :n] = a.other_length_m, a.other_width_m
             self.OCAT[s, :n] = [category_code(c) for c in a.other_categories]
         self.n_o = np.array([len(a.other_ids) for a in arrs], np.int64)
+        # the primary rider's conflicts with the ego path (its yield / go decision)
+        kc = max([a.conflicts.n for a in arrs] + [1])
+        self.CF = np.zeros((len(arrs), 5, kc))
+        for s, a in enumerate(arrs):
+            c = a.conflicts
+            for r, v in enumerate((c.exit_m, c.s_rider_m, c.s_ego_m, c.hz_rider_m, c.hz_ego_m)):
+                self.CF[s, r, : c.n] = v
+        self.cf_n = np.array([a.conflicts.n for a in arrs], np.int64)
         roads = [w.road for w in ws]
         self.road_on = all(r is not None for r in roads)
         if self.road_on:
@@ -160,6 +172,69 @@ class Packed:
         return out
 
 
+#: The way out named by every refusal of a feature the vector env does not model.
+_WAY_OUT = (
+    "run single environments side by side instead: gymnasium.make_vec(..., "
+    "vectorization_mode='sync'), which runs the engine's own step with every feature "
+    "(docs/gym.md)"
+)
+
+
+def unsupported_features(world: World) -> list[str]:
+    """The configuration's features the vector env does not model, named with the setting
+    that turns them on (empty: it models them all). The vector env models: the agent's
+    actuator, a replayed or social-force primary rider with its ego repulsion, obstacle
+    braking (sfm.obstacle_braking) and yield / go decision (decision.enabled), replayed
+    other road users, the perception delay (cap.perception_delay_s); not the features
+    listed here."""
+    p = world.scenarios[0].params
+    out = []
+    if p.perception[0] is not None:
+        out.append("a sensor model (case.perception)")
+    if bool(p.cars_react[0]):
+        out.append("reacting cars (traffic.cars_react)")
+    if bool(p.peds_sfm[0]):
+        out.append("walking pedestrians (traffic.pedestrians)")
+    if p.v2x[0] is not None:
+        out.append("V2X (case.v2x)")
+    return out
+
+
+def refuse_features(features: list[str]) -> None:
+    """ConfigError naming every feature in ``features`` and the way out (none: return)."""
+    if features:
+        raise ConfigError(f"the vector env does not model {'; '.join(features)}: {_WAY_OUT}")
+
+
+def kernel_notice() -> Any:
+    """A context for the first calls of vei.gym.kernel: flushes its on-disk machine code
+    when a module compiled into it changed (numba checks only the kernel's own file:
+    vei.sim.kernel.cache.drop_stale), and announces the compilation (vei.io.progress) when
+    there is no machine code for the current sources (tens of seconds to minutes)."""
+    import contextlib
+
+    from vei.gym import kernel as gk
+    from vei.io.progress import activity
+    from vei.sim.kernel.cache import cache_dir, drop_stale, sources_digest
+
+    fns = (gk.step_envs, gk.observe_envs)
+    if all(f.signatures for f in fns):
+        return contextlib.nullcontext()
+    folder = cache_dir(gk.step_envs)
+    stamp = None if folder is None else folder / "loop.sources.sha256"
+    fresh = stamp is not None and stamp.is_file() and stamp.read_text().strip() == sources_digest()
+    drop_stale(*fns, gk.sat)
+    if fresh and folder is not None:
+        index = [folder / f"kernel.{f.__name__}-{f.py_func.__code__.co_firstlineno}.py"
+                 f"{sys.version_info[0]}{sys.version_info[1]}.nbi" for f in fns]  # fmt: skip
+        if all(p.is_file() for p in index):  # numba's index of this source's functions
+            return contextlib.nullcontext()
+    return activity(
+        "compiling vei.gym's vector-env kernel for this machine (once per installation "
+        "and update, about 30-120 s; later runs load it in about a second)"
+    )
+
+
 class VeiVectorEnv(gym.vector.VectorEnv):
     """B environments of :class:`vei.gym.env.VeiEnv` in one batched state (module docstring).
 
@@ -179,19 +254,12 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             raise ConfigError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         self.config = EnvConfig.from_mapping(config)
         if self.config.sim.sfm_riders != "primary":
-            raise ConfigError(
-                "the vector env drives the primary rider only (sim.sfm_riders 'primary'); "
-                "use gymnasium.make_vec(..., vectorization_mode='sync') for extra SFM riders"
+            refuse_features(
+                [f"extra social-force riders (sim.sfm_riders = {self.config.sim.sfm_riders!r})"]
             )
         self.seat = AgentSeat()
         self.world = load_world(self.config, self.seat)
-        p0 = self.world.scenarios[0].params
-        if float(p0.perception_delay_s[0]) > 0 or p0.perception[0] is not None:
-            raise ConfigError(
-                "the vector env observes the ground truth: a perception delay or sensor model "
-                "(case.perception, cap.perception_delay_s) needs the single env "
-                "(gymnasium.make_vec(..., vectorization_mode='sync'))"
-            )
+        refuse_features(unsupported_features(self.world))
         from vei.sim import kernel as compiled
 
         backend = self.config.backend
@@ -215,7 +283,7 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         self.pk = Packed(self.world)
         b, no = num_envs, max(1, self.world.max_others)
         self.FS = np.zeros((N_FS, b))
-        self.BS = np.zeros((4, b), np.uint8)
+        self.BS = np.zeros((N_BS, b), np.uint8)
         self.HIT = np.zeros((b, no), np.uint8)
         self.K = np.zeros(b, np.int64)
         self.SC = np.zeros(b, np.int64)
@@ -223,11 +291,19 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         self.steps = np.zeros(b, np.int64)
         self.TERMS = np.zeros((b, 4))
         self.OBS = np.zeros((b, lo.shape[0]), np.float32)
+        # the perception delay (vei.sim.observe.PolicyDriver's ring of the rider's truth)
+        self.delay = int(self.world.scenarios[0].params.delay_steps(self.pk.dt)[0])
+        self.RING = np.zeros((self.delay + 1, 6, b))
+        self.RD = np.zeros((6, b))
         self._needs_reset = np.ones(b, dtype=bool)
         self._rngs: list[np.random.Generator] = []
         self.weights = np.array(
             [self.config.reward.collision, self.config.reward.progress, self.config.reward.comfort]
         )
+        if self.backend == "numba":  # load (or compile, saying so) both kernels now
+            with kernel_notice():
+                self._step_numba(np.zeros(b, dtype=bool), np.zeros(b))  # steps no env
+                self._observe()
 
     # ------------------------------------------------------------------ episodes
     def _draw(self, envs: np.ndarray) -> None:
@@ -273,7 +349,8 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         fields: dict[str, Any] = {
             name: self.FS[r, envs].copy() for r, name in enumerate(_FLOAT_STATE)
         }
-        fields.update({name: self.BS[r, envs] > 0 for r, name in enumerate(_BOOL_STATE)})
+        fields.update({name: self.BS[r, envs] > 0 for r, name in enumerate(_BOOL_STATE[:4])})
+        fields["rider_decision"] = self.BS[4, envs].astype(np.int8)
         fields.update(
             k=int(ks[0]), ego_cmd=z.copy(), pid_integral_m=z.copy(), pid_prev_error_mps=z.copy(),
             cap_state=np.zeros(n, np.int8), hit_other=self.HIT[envs, :no] > 0,
@@ -285,13 +362,12 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         fields["extra_decision"] = np.zeros((n, 0), np.int8)
         for name in ("extra_active", "extra_started", "extra_done", "extra_hit"):
             fields[name] = np.zeros((n, 0), bool)
-        # issue 24's state (the env's rider never decides, its cars replay, no pedestrians
-        # walk): as at k = 0; the contact latches and secondary summaries are not kept
+        # issue 24's state (its cars replay, no pedestrians walk: the env refuses them): as
+        # at k = 0; the contact latches and secondary summaries are not kept
         from vei.sim.contacts import initial_contact_state
         from vei.sim.pedestrians import initial_pedestrian_state
         from vei.sim.traffic import initial_traffic_state
 
-        fields["rider_decision"] = np.zeros(n, np.int8)
         fields.update(initial_traffic_state(arrays, n))
         fields.update(initial_contact_state(n, no, arrays.traffic.n))
         fields.update(initial_pedestrian_state(arrays, n))
@@ -334,7 +410,7 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             pk.P, pk.ALPHA, pk.DIM, pk.EP, pk.ep_s0, pk.ep_ds, pk.ep_n,
             pk.RT, pk.rt_t0, pk.rt_dt, pk.rt_tend, pk.rt_n, pk.rt_sfm0,
             pk.RP, pk.rp_s0, pk.rp_ds, pk.rp_n, pk.rp_len, pk.rp_ex, pk.rp_ey,
-            pk.OX, pk.OY, pk.OYAW, pk.OACT, pk.OL, pk.OW, pk.n_o, self.TERMS,
+            pk.OX, pk.OY, pk.OYAW, pk.OACT, pk.OL, pk.OW, pk.n_o, pk.CF, pk.cf_n, self.TERMS,
         )  # fmt: skip
 
     def _groups(self, envs: np.ndarray) -> list[np.ndarray]:
@@ -375,15 +451,31 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             self.HIT[sel, : new.hit_other.shape[1]] = new.hit_other
             self.K[sel] = new.k
 
+    def _perceive(self) -> None:
+        """Store every environment's rider truth (x y yaw vx vy active) of its step k in
+        the ring and set RD to the one of step k - delay (stale where k < delay: the
+        observation then shows nothing, as the engine's PolicyDriver)."""
+        h = self.delay + 1
+        cols = np.arange(self.num_envs)
+        now = self.K % h
+        for r, row in enumerate((F_RX, F_RY, F_RYAW, F_RVX, F_RVY)):
+            self.RING[now, r, cols] = self.FS[row]
+        self.RING[now, 5, cols] = self.BS[0]
+        if self.delay == 0:
+            self.RD[:] = self.RING[0]
+        else:
+            self.RD[:] = self.RING[(self.K - self.delay) % h, :, cols].T
+
     def _observe(self) -> npt.NDArray[np.float32]:
         cfg = self.config
+        self._perceive()
         if self.backend == "numba":
             from vei.gym.kernel import observe_envs
 
             pk = self.pk
             observe_envs(
                 pk.dt, self.FS, self.BS, self.K, self.SC, pk.P, pk.DIM, pk.T_n, pk.path_end,
-                pk.cat_r, pk.EP, pk.ep_s0, pk.ep_ds, pk.ep_n, pk.OX, pk.OY, pk.OYAW, pk.OSP,
+                pk.cat_r, self.RD, self.delay, pk.EP, pk.ep_s0, pk.ep_ds, pk.ep_n, pk.OX, pk.OY, pk.OYAW, pk.OSP,
                 pk.OACT, pk.OL, pk.OW, pk.OCAT, pk.n_o, pk.ROAD, pk.rd_x0, pk.rd_y0, pk.rd_cell,
                 pk.rd_nx, pk.rd_ny, pk.road_on, cfg.max_objects, cfg.gap_cap_m, self.OBS,
             )  # fmt: skip
@@ -399,8 +491,18 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             st = self.state_of(sel)
             blk = batch_flags(params, ws.arrays.dt_s).blocks[0]
             truth = ground_truth(st, ws.arrays, slice(None))
-            valid = truth[5] > 0.5
-            age = np.zeros(valid.shape)
+            kd = st.k - self.delay
+            if self.delay:  # the truth of step k - delay (PolicyDriver's ring)
+                truth[:, :, 0] = self.RD[:, sel]
+                a, j0 = ws.arrays, 1 + ws.arrays.riders.n  # the replayed others' columns
+                if kd >= 0 and len(a.other_ids):
+                    yaw, sp = a.other_yaw_rad[kd], a.other_speed_mps[kd]
+                    rows = (a.other_x_m[kd], a.other_y_m[kd], yaw, sp * np.cos(yaw),
+                            sp * np.sin(yaw), a.other_active[kd].astype(np.float64))  # fmt: skip
+                    for r, row in enumerate(rows):
+                        truth[r, :, j0:] = row
+            valid = (truth[5] > 0.5) & (kd >= 0)
+            age = np.full(valid.shape, self.delay * ws.arrays.dt_s)
             obs = build_observation(st, ws.arrays, blk, truth, valid, age, object_table(ws.arrays))
             t_left = (ws.arrays.n_steps - 1 - st.k) * ws.arrays.dt_s
             on = None
@@ -452,4 +554,4 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         return None
 
 
-__all__ = ["VeiVectorEnv"]
+__all__ = ["VeiVectorEnv", "refuse_features", "unsupported_features"]

@@ -161,7 +161,10 @@ def _scenario_folders(path: Path) -> list[Path]:
     return subs
 
 
-def _catalogue(path: Path) -> list[tuple[str, Path, float]]:
+def _catalogue(path: Path) -> list[tuple[str, Path, float | None]]:
+    """(encounter id, scenario folder, stored automatic time shift [s] or None) per encounter of a
+    catalogue, in the table's order of first appearance: the table has one row per
+    encounter and configuration (sweep variants), the world one scenario per encounter."""
     import pandas as pd
 
     from vei.catalogue.store import TABLE, encounter_dir
@@ -169,14 +172,25 @@ def _catalogue(path: Path) -> list[tuple[str, Path, float]]:
     table = path / TABLE
     if not table.is_file():
         raise InputError(f"not a vei catalogue (no {TABLE}); run 'vei catalogue' first", path=path)
-    rows = pd.read_parquet(table)
+    rows = pd.read_parquet(table, columns=["encounter_id", "time_shift_auto_s"])
     if rows.empty:
         raise InputError("the catalogue has no encounter", path=table)
-    out = []
-    for _, r in rows.iterrows():
-        eid = str(r["encounter_id"])
-        out.append((eid, encounter_dir(path, eid) / "scenario", float(r["time_shift_auto_s"])))
-    return out
+    rows["encounter_id"] = rows["encounter_id"].astype(str)
+    spread = rows.groupby("encounter_id", sort=False)["time_shift_auto_s"].agg(["min", "max"])
+    bad = spread[~np.isclose(spread["min"], spread["max"], rtol=0.0, atol=1e-9, equal_nan=True)]
+    if not bad.empty:
+        eid = str(bad.index[0])
+        raise InputError(
+            f"encounter {eid!r} has rows with different automatic time shifts "
+            f"({bad.loc[eid, 'min']:g} .. {bad.loc[eid, 'max']:g} s); expected one per encounter",
+            path=table,
+            field="time_shift_auto_s",
+        )
+    first = rows.drop_duplicates("encounter_id", keep="first")
+    return [  # a missing stored shift (NaN) is found again from the scenario
+        (eid, encounter_dir(path, eid) / "scenario", None if np.isnan(shift) else float(shift))
+        for eid, shift in zip(first["encounter_id"], first["time_shift_auto_s"], strict=True)
+    ]
 
 
 def _agent_params(case: CaseConfig, arrays: ScenarioArrays, seat: AgentSeat) -> VariantParams:
@@ -188,61 +202,90 @@ def _agent_params(case: CaseConfig, arrays: ScenarioArrays, seat: AgentSeat) -> 
     )
 
 
-def load_world(config: EnvConfig, seat: AgentSeat) -> World:
-    """Read the configured scenarios (see the module docstring).
+def _prepare(
+    config: EnvConfig, seat: AgentSeat, name: str, folder: Path | None, shift: float | None
+) -> WorldScenario:
+    """One scenario of the world: read, its map raster, the engine's arrays, its shift."""
+    from vei.io.scenario import read_scenario
+    from vei.sim.timeshift import find_time_shift
+
+    if folder is None:  # the built-in demo, reconstructed into a temporary folder (~2 s)
+        from vei.experiments.demo_map import write_demo_scenario
+
+        folder = write_demo_scenario(Path(tempfile.mkdtemp(prefix="vei-gym-demo-")) / "demo")
+    scen = read_scenario(folder)
+    if name == "":
+        name = scen.id
+    road = None
+    if config.road_features:
+        rel = scen.maps.get("opendrive")
+        xodr = None if rel is None else folder / rel
+        if xodr is None or not xodr.is_file():
+            raise InputError(
+                "the scenario has no road map (map.xodr), which the observation's "
+                "rider_on_road needs: reconstruct it with 'vei reconstruct --map', or set "
+                "road_features=False",
+                path=folder,
+                field="maps.opendrive",
+            )
+        road = road_raster(scen, xodr)
+    arrays = prepare_scenario(scen, config.sim)
+    if shift is None:
+        shift = float(find_time_shift(scen, sim=config.sim))
+    case = config.case
+    assert isinstance(case, CaseConfig)
+    return WorldScenario(name, folder, arrays, _agent_params(case, arrays, seat), shift, road, scen)
+
+
+#: A world of at least this many scenarios reports its loading (vei.io.progress): one
+#: scenario with its map takes ~1 s, the demo ~3 s (it is reconstructed first), a
+#: catalogue ~1 s per encounter, so every world says what it is doing.
+PROGRESS_MIN_SCENARIOS = 1
+
+
+def load_world(config: EnvConfig, seat: AgentSeat, *, progress: bool | None = None) -> World:
+    """Read the configured scenarios (see the module docstring): one per scenario folder,
+    one per catalogue encounter (not per catalogue row).
+
+    Args:
+        config: the environment's settings. seat: the agent's policy object.
+        progress: None: report the loading (vei.io.progress: a bar on a terminal, a line
+            every 10 s in a log) when the world has >= PROGRESS_MIN_SCENARIOS scenarios;
+            False: silent; True: always.
 
     Raises:
         InputError: a folder that is no scenario (or catalogue), a scenario without a map
             while ``road_features`` is on (naming the folder and the way out).
     """
-    from vei.io.scenario import read_scenario
-    from vei.sim.timeshift import find_time_shift
+    from vei.io.progress import progress as report
 
-    entries: list[tuple[str, Path | None, Scenario, float | None]] = []
-    tmp: Path | None = None
+    entries: list[tuple[str, Path | None, float | None]] = []
     if config.source == "demo":
-        from vei.experiments.demo_map import write_demo_scenario
-
-        tmp = Path(tempfile.mkdtemp(prefix="vei-gym-demo-"))
-        folder = write_demo_scenario(tmp / "demo")
-        entries.append(("demo", folder, read_scenario(folder), None))
+        entries.append(("demo", None, None))
     elif config.source == "folder":
         assert config.path is not None
-        for folder in _scenario_folders(config.path):
-            scen = read_scenario(folder)
-            entries.append((scen.id, folder, scen, None))
+        entries += [("", folder, None) for folder in _scenario_folders(config.path)]
     else:
         assert config.path is not None
-        for eid, folder, shift in _catalogue(config.path):
-            entries.append((eid, folder, read_scenario(folder), shift))
-    case = config.case
-    assert isinstance(case, CaseConfig)
-    out = []
-    for name, folder, scen, shift in entries:
-        road = None
-        if config.road_features:
-            rel = scen.maps.get("opendrive")
-            xodr = None if rel is None or folder is None else folder / rel
-            if xodr is None or not xodr.is_file():
-                raise InputError(
-                    "the scenario has no road map (map.xodr), which the observation's "
-                    "rider_on_road needs: reconstruct it with 'vei reconstruct --map', or set "
-                    "road_features=False",
-                    path=folder,
-                    field="maps.opendrive",
-                )
-            road = road_raster(scen, xodr)
-        arrays = prepare_scenario(scen, config.sim)
-        if shift is None:
-            shift = float(find_time_shift(scen, sim=config.sim))
-        out.append(
-            WorldScenario(
-                name, folder, arrays, _agent_params(case, arrays, seat), shift, road, scen
-            )
-        )
-    if not out:
+        entries += list(_catalogue(config.path))
+    if not entries:
         raise ConfigError("the environment has no scenario")
+    on = len(entries) >= PROGRESS_MIN_SCENARIOS if progress is None else progress
+    out = []
+    with report("vei.gym: preparing scenarios", len(entries), unit="scenarios",
+                enabled=None if on else False) as rep:  # fmt: skip
+        for name, folder, shift in entries:
+            out.append(_prepare(config, seat, name, folder, shift))
+            rep.advance()
     return World(config, tuple(out))
 
 
-__all__ = ["AgentSeat", "RoadRaster", "World", "WorldScenario", "load_world", "road_raster"]
+__all__ = [
+    "PROGRESS_MIN_SCENARIOS",
+    "AgentSeat",
+    "RoadRaster",
+    "World",
+    "WorldScenario",
+    "load_world",
+    "road_raster",
+]
