@@ -4,14 +4,16 @@ more penetration never raises P(collision) beyond its confidence interval.
 
 The second is stated on P(collision), not per variant: an equipped rider's VAMs carry a
 GNSS error (3.23 m std by default) and an age, so the car can act on a message at a
-different step than on its sensor, and a single variant may collide with more V2X where
-it did not with less. The rates share their random numbers (a variant's label fixes its
+different step than on its sensor, and nothing keeps a single variant from colliding with
+more V2X where it did not with less (not seen on the demo: no such variant in 3 seeds x 100
+variants x 3 steps of the rate). The rates share their random numbers (a variant's label fixes its
 draws; the equipped riders at a rate are a subset of those at a higher one:
 vei.policy.v2x.vam.equipped_riders), so the difference of two rates is paired: the rise
 ``P(higher) - P(lower)`` must stay within z = 1.96 standard errors of the paired
 difference. The scene: the demo's CAP car behind a short-sighted sensor (6 m, every
 direction, detecting a visible rider in 10 % of the steps), which collides in 12 of 100
-variants without V2X (measured)."""
+variants without V2X (measured; seed 0 of sensor and channel: P(collision) 0.13, 0.07,
+0.05, 0.03 at penetration 0, 0.25, 0.5, 1)."""
 
 from __future__ import annotations
 
