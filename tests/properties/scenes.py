@@ -3,7 +3,8 @@ reconstructed once per process, and the rigid motion of a whole scene.
 
 ``scene(name) -> Scenario``: "demo" (vei.experiments.demo_data: the rider rides ahead of
 the car in its lane, then crosses) or a TrafficMonitoring recording of the shared data
-(imported at the paper's 1 Hz annotations and reconstructed; skipped without the data).
+(imported at the paper's 1 Hz annotations and reconstructed; skipped without the data;
+the name + ALL_ROAD_USERS: with the vehicles and pedestrians too).
 ``prepared(name) -> (ScenarioArrays, auto time shift [s])`` with the default SimConfig.
 ``moved(scenario, angle_rad, dx_m, dy_m)``: the scene rotated by angle_rad about the
 plane's origin, then translated by (dx_m, dy_m).
@@ -24,6 +25,9 @@ from tests.conftest import require_data
 from vei.types import Scenario
 
 DEMO = "demo"
+#: Suffix of a recording's name: imported with every road user the camera tracked (also
+#: vehicles and pedestrians), not only the riders.
+ALL_ROAD_USERS = "+all"
 #: Shared recordings whose encounter collides at some shifts within 2 s of the auto shift:
 #: a cyclist ahead of the car going straight (1,223 steps, six other road users), the car
 #: turning left across a cyclist's path (1,089 steps), a right turn (149 steps).
@@ -46,9 +50,11 @@ def _reconstructed(name: str) -> Scenario:
     from vei.io.interaction import read_interaction
 
     root = require_data("trafficmonitoring")
+    recording = name.removesuffix(ALL_ROAD_USERS)
     with tempfile.TemporaryDirectory(prefix="vei_props_") as tmp:
-        out = Path(tmp) / name
-        import_scenario(root, name, out, rate_hz=1.0)
+        out = Path(tmp) / recording
+        import_scenario(root, recording, out, rate_hz=1.0,
+                        road_users="all" if name.endswith(ALL_ROAD_USERS) else "riders")  # fmt: skip
         return reconstruct(read_interaction(out))
 
 

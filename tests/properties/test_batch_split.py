@@ -1,5 +1,6 @@
 """Property: splitting a batch changes nothing. A batch of variants (replayed, social-force,
-deciding, CAP cars; perceived and V2X-informed ones drawing random numbers) run at once
+deciding, CAP cars; perceived and V2X-informed ones drawing random numbers; recorded cars
+that react) run at once
 and the same variants run in parts give the same rows, bit for bit, on each kernel.
 
 Narrower than "any batch": each variant has its own label. Perception and V2X draw their
@@ -19,7 +20,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tests.properties.scenes import DEMO, RECORDINGS, prepared, props
+from tests.properties.scenes import ALL_ROAD_USERS, DEMO, RECORDINGS, prepared, props
 from vei.config import DecisionConfig, PerceptionConfig, V2XConfig, case_preset
 from vei.sim.engine import kernel_metrics, simulate_metrics
 from vei.sim.state import VariantParams
@@ -54,6 +55,15 @@ COMPILED_POOL = {
     "cautious": _deciding(3.0),
 }
 POLICY_POOL = {**COMPILED_POOL, "perceived": _perceived()}
+#: On a recording with its vehicles: also the recorded cars reacting to the car (IDM): a
+#: part without them runs the compiled specialisation without traffic.
+TRAFFIC_POOL = {
+    **COMPILED_POOL,
+    "traffic": dataclasses.replace(
+        case_preset("normal-cap"),
+        traffic=dataclasses.replace(case_preset("normal-cap").traffic, cars_react=True),
+    ),
+}
 
 
 def _batch(arrays, base: float, pool: dict, rows: list[tuple[str, int, int]], ids: list[int]):
@@ -121,7 +131,8 @@ def test_splitting_a_perceived_batch_changes_nothing(first, rows, cuts) -> None:
 
 @pytest.mark.slow
 @props(max_examples=10)
-@given(rows=_variants(COMPILED_POOL, 10), cuts=st.sets(st.integers(1, 9), max_size=3))
+@given(rows=_variants(TRAFFIC_POOL, 10), cuts=st.sets(st.integers(1, 9), max_size=3))
 def test_splitting_a_recording_batch_changes_nothing(rows, cuts) -> None:
     pytest.importorskip("numba")
-    _check(RECORDINGS[0], COMPILED_POOL, "numba", rows, cuts)  # six other road users
+    # the left turn with every road user: 23 others, 14 of them cars that can react
+    _check(RECORDINGS[1] + ALL_ROAD_USERS, TRAFFIC_POOL, "numba", rows, cuts)

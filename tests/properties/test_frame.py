@@ -1,7 +1,7 @@
 """Property: rotating and translating the whole scene (every trajectory and keyframe)
 leaves every metric unchanged: the engine, the auto time shift and the scores see only
 relative geometry. Both kernels; the demo in the fast tier, shared recordings in the
-slow one.
+slow one (one with its vehicles, which react to the car in one case).
 
 Per variant this holds for every deterministic model and for a sensor that misses
 objects (range, field of view, occlusion, detection draws) and V2X without GNSS error.
@@ -22,7 +22,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tests.properties.scenes import DEMO, RECORDINGS, moved, props, scene
+from tests.properties.scenes import ALL_ROAD_USERS, DEMO, RECORDINGS, moved, props, scene
 from vei.config import DecisionConfig, PerceptionConfig, SimConfig, V2XConfig, case_preset
 from vei.sim.engine import kernel_metrics, simulate_metrics
 from vei.sim.state import VariantParams, prepare_scenario
@@ -41,7 +41,9 @@ def _cases():
     deciding = dataclasses.replace(
         case_preset("normal"), decision=DecisionConfig(enabled=True, critical_gap_s=1.0)
     )
-    return [case_preset("replay"), case_preset("normal"), case_preset("normal-cap"), deciding]
+    cap = case_preset("normal-cap")
+    traffic = dataclasses.replace(cap, traffic=dataclasses.replace(cap.traffic, cars_react=True))
+    return [case_preset("replay"), case_preset("normal"), cap, deciding, traffic]
 
 
 def _metrics(s, kernel: str, cases=None, shifts_s=SHIFTS_S) -> tuple[float, pd.DataFrame]:
@@ -97,7 +99,7 @@ def test_demo_metrics_do_not_depend_on_the_frame_numpy(angle, dx, dy) -> None:
 @pytest.mark.slow
 @props(max_examples=12)
 @given(
-    name=st.sampled_from(RECORDINGS),
+    name=st.sampled_from([*RECORDINGS, RECORDINGS[1] + ALL_ROAD_USERS]),
     kernel=st.sampled_from(["numpy", "numba"]),
     angle=angles,
     dx=offsets,
