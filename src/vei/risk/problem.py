@@ -127,8 +127,14 @@ class RiskProblem:
         shift = None
         if model.time_shift_reference == "auto":
             shift = find_time_shift(scenario, sim=evaluator.sim)
+        from vei.risk.rider_space import recorded_rider_speeds
+
         space = resolve_space(
-            model, float(prepared.arrays.ego_median_moving_speed_mps), str(rider.category)
+            model,
+            float(prepared.arrays.ego_median_moving_speed_mps),
+            str(rider.category),
+            recorded_rider_speeds(scenario, str(rider.agent_id)),
+            shift,
         )
         return cls(
             path, model, tuple(checked), evaluator, prepared, space, prepared.scenario_id,
