@@ -293,3 +293,19 @@ def test_a_standing_rider_is_centred_on_the_population_median():
     assert any("does not move in its recording" in n for n in space.notes)
     med, p99 = space.rider_speed
     assert 0.5 < med <= p99
+
+
+def test_reconstruction_samples_are_one_more_dimension():
+    from vei.sweep.spec import SAMPLE_COLUMN
+
+    m = parse_variation({"reconstruction": {"samples": 4}})
+    assert m.dimension_names[-1] == "reconstruction.sample" and m.dimension == 7
+    assert parse_variation(m.to_dict()) == m
+    space = resolve_space(m, 6.0, "cyclist", rider_speed=(3.0, 4.5))
+    u = np.zeros((5, space.dimension))
+    # Phi(u) in [k/4, (k+1)/4) -> sample k: u = -1 (0.159) -> 0, 0 -> 2, 0.5 (0.69) -> 2,
+    # 1 (0.841) -> 3, 9 -> 3 (never 4)
+    u[:, -1] = [-1.0, 0.0, 0.5, 1.0, 9.0]
+    assert list(space.to_params(u)[SAMPLE_COLUMN]) == [0, 2, 2, 3, 3]
+    with pytest.raises(ConfigError, match="reconstruction.samples must be an integer >= 1"):
+        parse_variation({"reconstruction": {"samples": 0}}, "risk.yaml")

@@ -86,3 +86,33 @@ def test_on_a_recording_whose_paths_meet_most_collisions_are_recorded(
         if window == "recorded":
             assert any("narrowed from [-2, 2] to [-2.00, +0.00] s" in n for n in prob.space.notes)
     assert share["recorded"] > 0.85 and share["full"] < 0.5
+
+
+@pytest.mark.slow
+def test_reconstruction_samples_run_on_their_posterior_sample(tmp_path, trafficmonitoring_root):
+    """reconstruction: {samples: N} on a shared recording: each sample runs on its
+    posterior reconstruction (the same u with another sample gives another outcome on
+    some samples; with N = 1 ... the sample's own trajectory, not the mean)."""
+    import numpy as np
+
+    from vei.cli.main import main
+    from vei.risk.problem import RECON_NOTE, RiskProblem
+    from vei.risk.variation import parse_variation
+    from vei.sweep.spec import SAMPLE_COLUMN
+
+    inter, scen = tmp_path / "inter", tmp_path / "scen"
+    name = "audi_08_klinikum_rechtsabbiegen_02"
+    assert main(["import", "trafficmonitoring", "--root", str(trafficmonitoring_root),
+                 "--scenario", name, "--out", str(inter)]) == 0  # fmt: skip
+    assert main(["reconstruct", str(inter), "--out", str(scen), "--no-figure"]) == 0
+    prob = RiskProblem.prepare(scen, parse_variation({"reconstruction": {"samples": 8}}), ("none",))
+    assert RECON_NOTE in prob.space.notes and len(prob.prepared.sample_arrays) == 8
+    u = np.random.default_rng(0).standard_normal((600, prob.space.dimension))
+    u[:300, -1] = -5.0  # all on sample 0
+    u[300:, -1] = 5.0  # the same samples on sample 7
+    u[300:, :-1] = u[:300, :-1]
+    df = prob.evaluate(u)
+    assert set(df[SAMPLE_COLUMN][:300]) == {0} and set(df[SAMPLE_COLUMN][300:]) == {7}
+    gap0, gap7 = df["min_gap_m"].to_numpy()[:300], df["min_gap_m"].to_numpy()[300:]
+    assert not np.allclose(gap0, gap7)  # another posterior trajectory, other outcomes
+    assert df["variant_id"].nunique() == 600

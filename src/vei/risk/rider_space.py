@@ -21,17 +21,113 @@ bounds of :mod:`vei.calibrate.variation`).
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from vei.errors import ConfigError
+
 FloatArray = npt.NDArray[np.float64]
+
+RIDER_CATEGORIES: tuple[str, ...] = ("auto", "escooter", "cyclist", "all")
+RIDER_SPEEDS: tuple[str, ...] = ("population", "recorded")
+_RIDER_KEYS = {"profile", "category", "speed", "speed_sigma_log", "max_speed_mps"}
 
 #: Population parameters varied beside the speed when ``speed: recorded``.
 CONDITIONAL_PARAMETERS: tuple[str, ...] = ("tau_s", "lookahead_m", "max_accel_mps2")
 #: The riders' moving threshold [m/s] (as the calibrated tracks).
 MOVING_MPS = 0.5
+
+
+@dataclass(frozen=True)
+class RiderVariation:
+    """The rider population that varies the social-force rider.
+
+    Attributes:
+        profile: a rider profile file or 'calibrated' (the shipped profile).
+        category: 'auto' (the primary rider's category), 'escooter', 'cyclist' or 'all'.
+        speed: 'population' (v0 and the speed limit from the population) or 'recorded'
+            (centred on the recorded rider's own speed, vei.risk.rider_space).
+        speed_sigma_log: with speed 'recorded': the log spread of the rider's cruise speed.
+        max_speed_mps: ((category, bound [m/s]), ...): upper bound of a rider's cruise /
+            desired speed and speed limit per category (empty: the population's bounds).
+    """
+
+    profile: str = "calibrated"
+    category: str = "auto"
+    speed: str = "population"
+    speed_sigma_log: float | None = None
+    max_speed_mps: tuple[tuple[str, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.speed not in RIDER_SPEEDS:
+            raise ConfigError(f"rider.speed must be population or recorded, got {self.speed!r}")
+        sig = self.speed_sigma_log
+        if self.speed == "recorded":
+            if isinstance(sig, bool) or not isinstance(sig, int | float) or not 0 < sig < 5:
+                raise ConfigError(
+                    f"rider.speed_sigma_log must be a number in (0, 5) with speed: recorded, got {sig!r}"
+                )
+        elif sig is not None:
+            raise ConfigError("rider.speed_sigma_log needs speed: recorded")
+        for cat, b in self.max_speed_mps:
+            if cat not in RIDER_CATEGORIES[1:]:
+                raise ConfigError(
+                    f"rider.max_speed_mps: unknown category {cat!r}; expected escooter, cyclist, all"
+                )
+            if isinstance(b, bool) or not isinstance(b, int | float) or not 0.5 <= b <= 15.0:
+                raise ConfigError(f"rider.max_speed_mps.{cat} must be in [0.5, 15] m/s, got {b!r}")
+        if not isinstance(self.profile, str) or not self.profile:
+            raise ConfigError(f"rider.profile must be a file or 'calibrated', got {self.profile!r}")
+        if self.category not in RIDER_CATEGORIES:
+            raise ConfigError(
+                f"rider.category must be one of {', '.join(RIDER_CATEGORIES)}, got {self.category!r}"
+            )
+
+
+def rider_dict(rider: RiderVariation) -> dict[str, Any]:
+    """The YAML form of a rider variation."""
+    out: dict[str, Any] = {"profile": rider.profile, "category": rider.category}
+    if rider.speed != "population":
+        out["speed"] = rider.speed
+        out["speed_sigma_log"] = rider.speed_sigma_log
+    if rider.max_speed_mps:
+        out["max_speed_mps"] = dict(rider.max_speed_mps)
+    return out
+
+
+def parse_about(raw: Any, where: str) -> tuple[tuple[str, str], ...]:
+    """A spec's ``model:`` mapping -> ((key, text), ...) (its derived description left out)."""
+    if raw is None:
+        return ()
+    if not isinstance(raw, Mapping) or not all(
+        isinstance(v, str | int | float) and not isinstance(v, bool) for v in raw.values()
+    ):
+        raise ConfigError(
+            f"{where}: model must be a mapping of texts (name, fitted_from, validation, ...)"
+        )
+    return tuple((str(k), str(v)) for k, v in raw.items() if str(k) != "description")
+
+
+def parse_rider(val: Any, where: str) -> RiderVariation:
+    """A spec's ``variation.rider`` mapping -> a RiderVariation (ConfigError naming the key)."""
+    loc = f"{where}: variation.rider"
+    if not isinstance(val, Mapping) or set(map(str, val)) - _RIDER_KEYS:
+        raise ConfigError(
+            f"{loc}: expected {{profile: calibrated, category: auto[, speed: recorded, "
+            "speed_sigma_log: S, max_speed_mps: {cyclist: B, escooter: B}]}"
+        )
+    kw = {str(k): v for k, v in val.items()}
+    bounds = kw.pop("max_speed_mps", None) or {}
+    if not isinstance(bounds, Mapping):
+        raise ConfigError(f"{loc}.max_speed_mps: expected {{category: m/s}}")
+    kw["max_speed_mps"] = tuple(sorted((str(k), v) for k, v in bounds.items()))
+    try:
+        return RiderVariation(**kw)
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: variation.{exc}") from None
 
 
 def rider_dimension_names(speed: str) -> tuple[str, ...]:

@@ -20,6 +20,8 @@ A risk spec (``vei risk --spec FILE``; the ``risk:`` section of catalogue settin
     perception: {enabled: true, position_noise_std_m: 0.3}   # optional sensor model
     v2x: {enabled: true, penetration_rate: 0.5}   # optional V2X (docs/v2x.md)
     injury_relevant_speed_mps: 5.56   # optional: the injury-relevant impact speed [m/s]
+    reconstruction: {samples: 50}   # optional: the rider's reconstruction uncertainty as a
+                                  # dimension (reconstruction.sample: one of N posterior samples)
 
 Without ``variation:`` the defaults of :mod:`vei.risk.defaults` apply (every default with
 its unit and source; docs/risk.md). The quantities are sweep parameters
@@ -52,11 +54,12 @@ from vei.config.perception import PerceptionConfig
 from vei.config.v2x import V2XConfig
 from vei.errors import ConfigError, InputError
 from vei.risk.defaults import DEFAULT_ABOUT, INJURY_RELEVANT_SPEED_MPS, default_variation
+from vei.risk.rider_space import RIDER_CATEGORIES as RIDER_CATEGORIES
+from vei.risk.rider_space import RiderVariation, parse_about, parse_rider, rider_dict
 
 FloatArray = npt.NDArray[np.float64]
 
 TIME_SHIFT_REFERENCES: tuple[str, ...] = ("auto", "zero")
-RIDER_CATEGORIES: tuple[str, ...] = ("auto", "escooter", "cyclist", "all")
 _SPEC_KEYS = {
     "base",
     "time_shift_reference",
@@ -68,55 +71,10 @@ _SPEC_KEYS = {
     "v2x",
     "injury_relevant_speed_mps",
     "model",
+    "reconstruction",
 }
-RIDER_SPEEDS: tuple[str, ...] = ("population", "recorded")
-_RIDER_KEYS = {"profile", "category", "speed", "speed_sigma_log", "max_speed_mps"}
-
-
-@dataclass(frozen=True)
-class RiderVariation:
-    """The rider population that varies the social-force rider.
-
-    Attributes:
-        profile: a rider profile file or 'calibrated' (the shipped profile).
-        category: 'auto' (the primary rider's category), 'escooter', 'cyclist' or 'all'.
-        speed: 'population' (v0 and the speed limit from the population) or 'recorded'
-            (centred on the recorded rider's own speed, vei.risk.rider_space).
-        speed_sigma_log: with speed 'recorded': the log spread of the rider's cruise speed.
-        max_speed_mps: ((category, bound [m/s]), ...): upper bound of a rider's cruise /
-            desired speed and speed limit per category (empty: the population's bounds).
-    """
-
-    profile: str = "calibrated"
-    category: str = "auto"
-    speed: str = "population"
-    speed_sigma_log: float | None = None
-    max_speed_mps: tuple[tuple[str, float], ...] = ()
-
-    def __post_init__(self) -> None:
-        if self.speed not in RIDER_SPEEDS:
-            raise ConfigError(f"rider.speed must be population or recorded, got {self.speed!r}")
-        sig = self.speed_sigma_log
-        if self.speed == "recorded":
-            if isinstance(sig, bool) or not isinstance(sig, int | float) or not 0 < sig < 5:
-                raise ConfigError(
-                    f"rider.speed_sigma_log must be a number in (0, 5) with speed: recorded, got {sig!r}"
-                )
-        elif sig is not None:
-            raise ConfigError("rider.speed_sigma_log needs speed: recorded")
-        for cat, b in self.max_speed_mps:
-            if cat not in RIDER_CATEGORIES[1:]:
-                raise ConfigError(
-                    f"rider.max_speed_mps: unknown category {cat!r}; expected escooter, cyclist, all"
-                )
-            if isinstance(b, bool) or not isinstance(b, int | float) or not 0.5 <= b <= 15.0:
-                raise ConfigError(f"rider.max_speed_mps.{cat} must be in [0.5, 15] m/s, got {b!r}")
-        if not isinstance(self.profile, str) or not self.profile:
-            raise ConfigError(f"rider.profile must be a file or 'calibrated', got {self.profile!r}")
-        if self.category not in RIDER_CATEGORIES:
-            raise ConfigError(
-                f"rider.category must be one of {', '.join(RIDER_CATEGORIES)}, got {self.category!r}"
-            )
+#: The dimension of the reconstruction's posterior sample (``reconstruction: {samples: N}``).
+RECON_DIMENSION = "reconstruction.sample"
 
 
 @dataclass(frozen=True)
@@ -154,6 +112,7 @@ class VariationModel:
     v2x: V2XConfig | None = None
     injury_relevant_speed_mps: float = INJURY_RELEVANT_SPEED_MPS
     about: tuple[tuple[str, str], ...] = field(default=(), compare=False)
+    reconstruction_samples: int | None = None
     source: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -206,9 +165,10 @@ class VariationModel:
 
     @property
     def dimension_names(self) -> tuple[str, ...]:
-        """The standard-space dimensions, in order: the varied distributions, then the
-        rider population's five."""
-        return tuple(n for n, _ in self.varied) + self.rider_dimensions
+        """The standard-space dimensions, in order: the varied distributions, the rider's,
+        then the reconstruction sample's (RECON_DIMENSION, with reconstruction samples)."""
+        recon = (RECON_DIMENSION,) if self.reconstruction_samples else ()
+        return tuple(n for n, _ in self.varied) + self.rider_dimensions + recon
 
     @property
     def dimension(self) -> int:
@@ -220,7 +180,7 @@ class VariationModel:
         import dataclasses
 
         var: dict[str, Any] = {n: d.to_dict() for n, d in self.distributions}
-        var["rider"] = None if self.rider is None else _rider_dict(self.rider)
+        var["rider"] = None if self.rider is None else rider_dict(self.rider)
         out: dict[str, Any] = {
             "base": self.base,
             "time_shift_reference": self.time_shift_reference,
@@ -230,6 +190,8 @@ class VariationModel:
             "fixed": dict(self.fixed),
             "injury_relevant_speed_mps": self.injury_relevant_speed_mps,
         }
+        if self.reconstruction_samples:
+            out["reconstruction"] = {"samples": self.reconstruction_samples}
         if self.perception is not None:
             out["perception"] = dataclasses.asdict(self.perception)
         if self.v2x is not None:
@@ -258,46 +220,6 @@ class VariationModel:
             text += f", fitted from {about['fitted_from']}"
         val = about.get("validation")
         return text + (f"; validation: {val}" if val else "; not validated against held-out data")
-
-
-def _rider_dict(rider: RiderVariation) -> dict[str, Any]:
-    out: dict[str, Any] = {"profile": rider.profile, "category": rider.category}
-    if rider.speed != "population":
-        out["speed"] = rider.speed
-        out["speed_sigma_log"] = rider.speed_sigma_log
-    if rider.max_speed_mps:
-        out["max_speed_mps"] = dict(rider.max_speed_mps)
-    return out
-
-
-def _parse_about(raw: Any, where: str) -> tuple[tuple[str, str], ...]:
-    if raw is None:
-        return ()
-    if not isinstance(raw, Mapping) or not all(
-        isinstance(v, str | int | float) and not isinstance(v, bool) for v in raw.values()
-    ):
-        raise ConfigError(
-            f"{where}: model must be a mapping of texts (name, fitted_from, validation, ...)"
-        )
-    return tuple((str(k), str(v)) for k, v in raw.items() if str(k) != "description")
-
-
-def _parse_rider(val: Any, where: str) -> RiderVariation:
-    loc = f"{where}: variation.rider"
-    if not isinstance(val, Mapping) or set(map(str, val)) - _RIDER_KEYS:
-        raise ConfigError(
-            f"{loc}: expected {{profile: calibrated, category: auto[, speed: recorded, "
-            "speed_sigma_log: S, max_speed_mps: {cyclist: B, escooter: B}]}"
-        )
-    kw = {str(k): v for k, v in val.items()}
-    bounds = kw.pop("max_speed_mps", None) or {}
-    if not isinstance(bounds, Mapping):
-        raise ConfigError(f"{loc}.max_speed_mps: expected {{category: m/s}}")
-    kw["max_speed_mps"] = tuple(sorted((str(k), v) for k, v in bounds.items()))
-    try:
-        return RiderVariation(**kw)
-    except ConfigError as exc:
-        raise ConfigError(f"{where}: variation.{exc}") from None
 
 
 def _check_parameter(name: str, where: str) -> None:
@@ -347,7 +269,7 @@ def parse_variation(raw: Any, where: str = "risk spec") -> VariationModel:
         ConfigError: unknown keys, impossible distributions, an empty variation, values
             outside a parameter's bounds (each naming ``where`` and the key).
     """
-    from vei.sweep.params import PARAMETERS, parse_perception, parse_v2x
+    from vei.sweep.params import PARAMETERS, parse_perception, parse_reconstruction, parse_v2x
 
     if raw is None:
         raw = {}
@@ -375,7 +297,7 @@ def parse_variation(raw: Any, where: str = "risk spec") -> VariationModel:
         loc = f"{where}: variation.{name}"
         if name == "rider":
             if val is not None:
-                rider = _parse_rider(val, where)
+                rider = parse_rider(val, where)
             continue
         _check_parameter(name, loc)
         dist = parse_distribution(val, loc, allow_recorded=name == "ego.cruise_speed_mps")
@@ -406,7 +328,8 @@ def parse_variation(raw: Any, where: str = "risk spec") -> VariationModel:
         perception=parse_perception(raw.get("perception"), where),
         v2x=parse_v2x(raw.get("v2x"), where),
         injury_relevant_speed_mps=raw.get("injury_relevant_speed_mps", INJURY_RELEVANT_SPEED_MPS),
-        about=_parse_about(about_raw, where),
+        about=parse_about(about_raw, where),
+        reconstruction_samples=parse_reconstruction(raw.get("reconstruction"), where),
         source=where,
     )
     return model
@@ -489,11 +412,20 @@ class ScenarioSpace:
         if self.rider_profile is not None and self.model.rider is not None:
             from vei.risk.rider_space import rider_params
 
-            z = u[:, len(self.distributions) :]
+            nd = len(self.distributions)
+            z = u[:, nd : nd + len(self.model.rider_dimensions)]
             riders = rider_params(self, z, dict(self.model.rider.max_speed_mps))
             for fname, arr in riders.items():
                 if fname != "tau_s":
                     cols[f"rider.{fname}"] = arr
+        n_rec = self.model.reconstruction_samples
+        if n_rec:  # u -> Phi(u) -> one of the N posterior samples, equally likely
+            from scipy.special import ndtr
+
+            from vei.sweep.spec import SAMPLE_COLUMN
+
+            k = np.floor(ndtr(u[:, -1]) * n_rec).astype(np.int64)
+            cols[SAMPLE_COLUMN] = np.clip(k, 0, n_rec - 1)
         return pd.DataFrame(cols, index=pd.RangeIndex(len(u)))
 
     def normalised(self, u: npt.ArrayLike) -> FloatArray:
