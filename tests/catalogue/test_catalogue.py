@@ -481,6 +481,7 @@ def test_catalogue_imports_and_reconstructs_as_the_step_by_step_pipeline(
     assert code == 0
     rows = pd.read_parquet(out / "catalogue.parquet")
     assert set(rows["import_road_users"]) == {"all"} and set(rows["recon_interp"]) == {"smoothing"}
+    assert set(rows["risk_basis"]) == {"recorded behaviour"}  # the cyclist meets the car
     status = json.loads((out / "recordings" / name / "status.json").read_text())
     assert (status["road_users"], status["interp"]) == ("all", "smoothing")
     inter, scen = tmp_path / "inter", tmp_path / "scen"

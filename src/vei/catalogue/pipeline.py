@@ -304,6 +304,9 @@ def _encounter(out: Path, enc: Encounter, config: CatalogueConfig) -> int:
         # how the encounter was imported and reconstructed (one answer per setting)
         "import_road_users": config.road_users,
         "recon_interp": config.recon_config().interp,
+        # 'recorded behaviour' where the recorded paths meet, else 'continuations' (the
+        # risk is continuation-driven: vei.risk.window)
+        "risk_basis": str(cs.time_shift.get("risk_basis", "")),
     }
     summary = cs.summary.rename(columns={"name": "config"}).copy()
     summary.insert(0, "kind", "casestudy")
