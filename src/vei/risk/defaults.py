@@ -122,7 +122,10 @@ DEFAULTS: tuple[DefaultSetting, ...] = (
         "3 s windows around their own rider's median, 15 TrafficMonitoring rider tracks, "
         "widened to a prediction interval), its speed limit scales with its own recorded "
         "p99 / median; tau, look-ahead and acceleration limit from the calibrated population "
-        "(vei calibrate riders: 15 tracks, 13 cyclists, 2 e-scooters; docs/riders.md). "
+        "(vei calibrate riders: 15 tracks, 13 cyclists, 2 e-scooters; docs/riders.md), within "
+        "the fit's bounds: tau [0.1, 10] s, look-ahead [0.5, 20] m, acceleration limit "
+        "[0.3, 8] m/s2 (8 m/s2, about 0.8 g: the most a bicycle or e-scooter brakes before "
+        "skidding or lifting its rear wheel). "
         "Bounds (cited): e-scooter <= 20 km/h (eKFV section 1 (1)), cyclist <= 30 km/h "
         "(assumption bounded by Schleinitz et al. 2017, Safety Science 92: mean 15.3 km/h "
         "conventional, 17.4 km/h pedelec, 24.5 km/h S-pedelec)",
