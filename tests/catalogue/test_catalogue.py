@@ -385,6 +385,7 @@ def test_encounters_belong_to_the_listed_folder_not_the_scenario_id(tmp_path):
         ("cases: [1]\n", "cases must be a list"),
         ("rule: {categories: 3}\n", "categories must be a list"),
         ("map_source: 3\n", "map_source must be"),
+        ("road_users: some\n", "road_users must be riders or all"),
     ],
 )
 def test_settings_file_bad_values_are_config_errors(tmp_path, text, message):
@@ -467,3 +468,39 @@ def test_a_run_over_other_recordings_adds_to_the_catalogue(tmp_path):
     manifest = json.loads((out / "catalogue.json").read_text())
     assert sorted(manifest["recordings"]) == ["rec_a", "rec_b"]
     assert manifest["n_encounters"] == 4 and manifest["status"] == "complete"
+
+
+def test_catalogue_imports_and_reconstructs_as_the_step_by_step_pipeline(
+    tmp_path, trafficmonitoring_root
+):
+    """`vei catalogue --road-users all --interp smoothing` gives the encounter the scenario
+    of `vei import trafficmonitoring --road-users all` + `vei reconstruct --interp
+    smoothing` (the README's pipeline), and records both settings with the encounter."""
+    from vei.cli.main import main
+    from vei.io.scenario import read_scenario
+
+    name = "audi_08_klinikum_rechtsabbiegen_02"
+    settings = tmp_path / "s.yaml"
+    settings.write_text("risk: null\ncases: [replay]\n")
+    out = tmp_path / "cat"
+    code = main(["catalogue", str(trafficmonitoring_root), "--out", str(out), "--recording",
+                 name, "--settings", str(settings), "--no-sweep", "--no-figures", "--no-report",
+                 "--road-users", "all", "--interp", "smoothing"])  # fmt: skip
+    assert code == 0
+    rows = pd.read_parquet(out / "catalogue.parquet")
+    assert set(rows["import_road_users"]) == {"all"} and set(rows["recon_interp"]) == {"smoothing"}
+    assert set(rows["risk_basis"]) == {"recorded behaviour"}  # the cyclist meets the car
+    status = json.loads((out / "recordings" / name / "status.json").read_text())
+    assert (status["road_users"], status["interp"]) == ("all", "smoothing")
+    inter, scen = tmp_path / "inter", tmp_path / "scen"
+    assert main(["import", "trafficmonitoring", "--root", str(trafficmonitoring_root),
+                 "--scenario", name, "--out", str(inter), "--road-users", "all"]) == 0  # fmt: skip
+    assert main(["reconstruct", str(inter), "--out", str(scen), "--no-figure",
+                 "--interp", "smoothing"]) == 0  # fmt: skip
+    mine = read_scenario(out / "recordings" / name / "scenario")
+    ref = read_scenario(scen)
+    assert [a.agent_id for a in mine.agents] == [a.agent_id for a in ref.agents]
+    assert any(a.category not in ("ego", "cyclist", "escooter") for a in ref.agents)
+    pd.testing.assert_frame_equal(mine.trajectories, ref.trajectories)
+    assert main(["catalogue", str(trafficmonitoring_root), "--out", str(tmp_path / "bad"),
+                 "--recording", name, "--interp", "spline"]) == 2  # fmt: skip

@@ -111,7 +111,13 @@ def test_bad_specs_are_refused(raw, message):
 def test_defaults_and_round_trip():
     m = parse_variation({})
     assert m.dimension_names[:2] == ("time_shift_s", "ego.cruise_speed_mps")
-    assert len(m.dimension_names) == 7  # + the rider population's five
+    # + the recorded rider's speed and the population's tau, look-ahead, acceleration limit
+    assert m.dimension_names[2:] == (
+        "rider.speed",
+        "rider.tau_s",
+        "rider.lookahead_m",
+        "rider.max_accel_mps2",
+    )
     again = parse_variation(m.to_dict())
     assert again == m and again.digest() == m.digest()
     names = {d.name for d in DEFAULTS}
@@ -129,8 +135,18 @@ def test_docs_show_todays_defaults_table():
     assert inner.strip() == defaults_table().strip()
 
 
+#: The defaults before issue 31 (population rider, within-drive cruise spread).
+OLD_DEFAULTS = {
+    "variation": {
+        "time_shift_s": {"dist": "uniform", "min": -2.0, "max": 2.0},
+        "ego.cruise_speed_mps": {"dist": "normal", "mean": "recorded", "cv": 0.22, "min": 1.0},
+        "rider": {"profile": "calibrated", "category": "auto"},
+    }
+}
+
+
 def test_space_maps_standard_normal_to_the_distributions():
-    m = parse_variation({})
+    m = parse_variation(OLD_DEFAULTS)
     space = resolve_space(m, recorded_cruise_mps=6.0, rider_category="cyclist")
     rng = np.random.default_rng(0)
     u = rng.standard_normal((40_000, space.dimension))
@@ -204,3 +220,92 @@ def test_continuations_reach_for_the_fast_end_of_the_sampled_cruise_speeds():
         {"variation": {"time_shift_s": {"dist": "uniform", "min": -1, "max": 1}}}
     )
     assert reach_speed_mps(shift_only, 5.0) is None
+
+
+def test_default_rider_is_centred_on_the_recorded_rider_and_bounded():
+    from vei.calibrate.profile import cruise_v0_mps, load_profile
+    from vei.risk.defaults import RIDER_MAX_SPEED_MPS, RIDER_SPEED_SIGMA_LOG
+
+    m = parse_variation({})
+    space = resolve_space(m, 6.0, "cyclist", rider_speed=(3.0, 4.5))
+    # u = 0: the rider's cruise speed is its recorded median, its limit 1.5 x that
+    p = space.to_params(np.zeros((1, space.dimension)))
+    med = load_profile("calibrated")["populations"]["cyclist"]
+    la = float(p["rider.lookahead_m"].iloc[0])
+    assert la == pytest.approx(np.exp(med["log_mean"][2]), rel=1e-9)
+    assert p["rider.v0_mps"].iloc[0] == pytest.approx(float(cruise_v0_mps(3.0, la, 1.0)))
+    assert p["rider.max_speed_mps"].iloc[0] == pytest.approx(4.5)
+    # one sigma up on rider.speed: exp(sigma) times faster
+    u = np.zeros((1, space.dimension))
+    u[0, space.names.index("rider.speed")] = 1.0
+    q = space.to_params(u)
+    assert q["rider.max_speed_mps"].iloc[0] == pytest.approx(4.5 * np.exp(RIDER_SPEED_SIGMA_LOG))
+    # the tails stay within the cyclist's bound
+    rng = np.random.default_rng(1)
+    big = space.to_params(rng.standard_normal((20_000, space.dimension)) * 3)
+    cap = RIDER_MAX_SPEED_MPS["cyclist"]
+    assert big["rider.v0_mps"].max() <= cap + 1e-9
+    assert big["rider.max_speed_mps"].max() <= cap + 1e-9
+    assert big["ego.cruise_speed_mps"].max() <= 15.3 + 1e-9
+
+
+def test_population_riders_are_bounded_too():
+    raw = {"variation": {"time_shift_s": {"dist": "uniform", "min": -1, "max": 1},
+                         "rider": {"profile": "calibrated", "category": "auto",
+                                   "max_speed_mps": {"cyclist": 6.0}}}}  # fmt: skip
+    space = resolve_space(parse_variation(raw), 6.0, "cyclist")
+    p = space.to_params(np.random.default_rng(2).standard_normal((5000, space.dimension)) * 3)
+    assert p["rider.v0_mps"].max() == pytest.approx(6.0)
+    assert p["rider.max_speed_mps"].max() == pytest.approx(6.0)
+
+
+@pytest.mark.parametrize(
+    ("rider", "message"),
+    [
+        ({"speed": "fast"}, "rider.speed must be population or recorded"),
+        ({"speed": "recorded"}, "rider.speed_sigma_log must be a number"),
+        ({"speed_sigma_log": 0.3}, "speed_sigma_log needs speed: recorded"),
+        ({"max_speed_mps": {"horse": 5}}, "unknown category 'horse'"),
+        ({"max_speed_mps": {"cyclist": 40}}, r"max_speed_mps.cyclist must be in \[0.5, 15\]"),
+        ({"colour": "red"}, "variation.rider: expected"),
+    ],
+)
+def test_bad_rider_specs_name_the_key(rider, message):
+    raw = {"variation": {"rider": {"profile": "calibrated", **rider}}}
+    with pytest.raises(ConfigError, match=message):
+        parse_variation(raw, "risk.yaml")
+
+
+def test_every_model_describes_itself():
+    d = parse_variation({}).description()
+    assert "vei default variation" in d and "leave-one-recording-out" in d and "8/9" in d
+    own = parse_variation({"variation": {"time_shift_s": 0.5, "cap.t_safe_s": {
+        "dist": "uniform", "min": 1, "max": 2}}}, "mine.yaml")  # fmt: skip
+    assert own.description() == (
+        "conditional on the variation model the risk spec mine.yaml; not validated against "
+        "held-out data"
+    )
+    assert own.to_dict()["model"]["description"] == own.description()
+
+
+def test_a_standing_rider_is_centred_on_the_population_median():
+    space = resolve_space(parse_variation({}), 6.0, "escooter", rider_speed=(float("nan"),) * 2)
+    assert any("does not move in its recording" in n for n in space.notes)
+    med, p99 = space.rider_speed
+    assert 0.5 < med <= p99
+
+
+def test_reconstruction_samples_are_one_more_dimension():
+    from vei.sweep.spec import SAMPLE_COLUMN
+
+    m = parse_variation({"reconstruction": {"samples": 4}})
+    assert m.dimension_names[-1] == "reconstruction.sample" and m.dimension == 7
+    assert parse_variation(m.to_dict()) == m
+    space = resolve_space(m, 6.0, "cyclist", rider_speed=(3.0, 4.5))
+    u = np.zeros((5, space.dimension))
+    # Phi(u) in [k/4, (k+1)/4) -> sample k: u = -1 (0.159) -> 0, 0 -> 2, 0.5 (0.69) -> 2,
+    # 1 (0.841) -> 3, 9 -> 3 (never 4)
+    u[:, -1] = [-1.0, 0.0, 0.5, 1.0, 9.0]
+    assert list(space.to_params(u)[SAMPLE_COLUMN]) == [0, 2, 2, 3, 3]
+    with pytest.raises(ConfigError, match="reconstruction.samples must be an integer >= 1"):
+        parse_variation({"reconstruction": {"samples": 0}}, "risk.yaml")

@@ -39,6 +39,9 @@ DEFAULT_SWEEP: dict[str, Any] = {
 DEFAULT_RISK: dict[str, Any] = {"budget": 20_000, "target_rel_ci": 0.2, "method": "auto"}
 RISK_RUN_KEYS: tuple[str, ...] = ("budget", "target_rel_ci", "method", "policies")
 
+#: What a TrafficMonitoring import keeps (vei import trafficmonitoring --road-users).
+ROAD_USERS: tuple[str, ...] = ("riders", "all")
+
 #: The case study's configurations (the paper's five).
 DEFAULT_CASES: tuple[str, ...] = ("replay", "normal", "aggressive", "normal-cap", "aggressive-cap")
 
@@ -62,6 +65,12 @@ class CatalogueConfig:
         risk: the per-encounter risk estimate (``vei risk``: a risk spec's keys and
             budget, target_rel_ci, method, policies), None = none; encounters are then
             ranked by collision share instead of expected harm.
+        road_users: which road users a TrafficMonitoring recording's import keeps:
+            'riders' (e-scooters and cyclists) or 'all' (also vehicles and pedestrians),
+            as ``vei import trafficmonitoring --road-users``; the reconstruction's
+            interpolation is ``recon: {interp: ...}`` (``vei reconstruct --interp``).
+            Both are recorded with every encounter (columns import_road_users,
+            recon_interp).
     """
 
     rule: EncounterRule = field(default_factory=EncounterRule)
@@ -75,8 +84,11 @@ class CatalogueConfig:
     max_encounters_per_recording: int | None = None
     figures: bool = True
     risk: dict[str, Any] | None = field(default_factory=lambda: dict(DEFAULT_RISK))
+    road_users: str = "riders"
 
     def __post_init__(self) -> None:
+        if self.road_users not in ROAD_USERS:
+            raise ConfigError(f"road_users must be riders or all, got {self.road_users!r}")
         rule = self.rule
         if isinstance(rule, Mapping):
             object.__setattr__(self, "rule", rule_from_mapping(rule))
@@ -190,7 +202,8 @@ class CatalogueConfig:
 
 def load_catalogue_config(path: str | Path | None, **overrides: Any) -> CatalogueConfig:
     """A CatalogueConfig from a YAML/JSON file (keys: rule, sweep, cases, annotation_rate_hz,
-    recon, map_source, max_encounters_per_recording, figures, risk; unknown keys are errors), with
+    recon, map_source, max_encounters_per_recording, figures, risk, road_users; unknown keys are
+    errors), with
     ``overrides`` (not None) applied on top. ``path`` None: the defaults."""
     raw: dict[str, Any] = {}
     if path is not None:
@@ -215,6 +228,7 @@ def load_catalogue_config(path: str | Path | None, **overrides: Any) -> Catalogu
         "max_encounters_per_recording",
         "figures",
         "risk",
+        "road_users",
     }
     unknown = sorted(set(raw) - known)
     if unknown:

@@ -133,7 +133,10 @@ def _recording(
 
             inter_dir = rec_dir / "interaction"
             if not (inter_dir / "interaction.json").is_file():
-                import_scenario(dataset, recording, inter_dir, rate_hz=config.annotation_rate_hz)
+                import_scenario(
+                    dataset, recording, inter_dir, rate_hz=config.annotation_rate_hz,
+                    road_users=config.road_users,
+                )  # fmt: skip
         else:
             inter_dir = dataset if (dataset / "interaction.json").is_file() else dataset / recording
         scenario = reconstruct(read_interaction(inter_dir), config.recon_config())
@@ -173,6 +176,8 @@ def _recording(
         "encounters": [e.as_dict() for e in found],
         "others": [e.as_dict() for e in others],
         "n_riders": n_riders,
+        "road_users": config.road_users if kind == KIND_TRAFFICMONITORING else "as given",
+        "interp": config.recon_config().interp,
         "duration_s": float(
             scenario.trajectories["t_s"].max() - scenario.trajectories["t_s"].min()
         ),
@@ -296,6 +301,12 @@ def _encounter(out: Path, enc: Encounter, config: CatalogueConfig) -> int:
         "rec_rider_speed_mps": enc.rider_speed_mps,
         "time_shift_auto_s": float(cs.time_shift_s),
         "miss_distance_m": _float(cs.time_shift.get("miss_distance_m")),
+        # how the encounter was imported and reconstructed (one answer per setting)
+        "import_road_users": config.road_users,
+        "recon_interp": config.recon_config().interp,
+        # 'recorded behaviour' where the recorded paths meet, else 'continuations' (the
+        # risk is continuation-driven: vei.risk.window)
+        "risk_basis": str(cs.time_shift.get("risk_basis", "")),
     }
     summary = cs.summary.rename(columns={"name": "config"}).copy()
     summary.insert(0, "kind", "casestudy")

@@ -145,10 +145,51 @@ def _decisions(
         typer.echo(f"written: {path}")
 
 
+def _variation(
+    root: Annotated[Path, typer.Option("--root", help=_ROOT_HELP)],
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            help="Write the fitted risk spec (YAML) here; the coverage "
+            "table goes beside it (<out stem>.coverage.json / .md).",
+        ),
+    ] = None,
+) -> None:
+    """Fit the risk spec's variation model (car cruise speed between encounters, the rider's
+    speed around its own, bounds) and validate it leaving one recording out."""
+    import time
+
+    from vei.calibrate.variation import calibrate_variation, spec_text
+    from vei.io.atomic import write_json, write_text
+
+    t0 = time.perf_counter()
+    fit, cov = calibrate_variation(root)
+    typer.echo(
+        f"ego cruise speed: cv {fit.cruise_cv:.4f} between {fit.n_encounters} encounters "
+        f"(median {fit.cruise_median_mps:.2f} m/s), max {fit.cruise_max_mps:.2f} m/s"
+    )
+    typer.echo(
+        f"rider speed: sigma_log {fit.rider_sigma_log:.4f} around its own "
+        f"({fit.n_windows} windows, {fit.n_riders} tracks); bounds "
+        + ", ".join(f"{k} {v:.2f} m/s" for k, v in fit.rider_bounds_mps.items())
+    )
+    typer.echo(cov.table().rstrip())
+    typer.echo(cov.summary())
+    if out is not None:
+        path = write_text(out, spec_text(fit, cov, Path(root).name))
+        stem = path.with_suffix("")
+        write_json(stem.with_name(stem.name + ".coverage.json"), cov.to_dict())
+        write_text(stem.with_name(stem.name + ".coverage.md"), cov.table())
+        typer.echo(f"spec: {path}")
+    typer.echo(f"time: {time.perf_counter() - t0:.1f} s")
+
+
 def register(app: typer.Typer) -> None:
     """Add the ``calibrate`` command group to the app."""
     cal = typer.Typer(help="Fit the rider model to real rider tracks.", no_args_is_help=True)
     cal.command("riders")(_riders)
     cal.command("validate")(_validate)
     cal.command("decisions")(_decisions)
+    cal.command("variation")(_variation)
     app.add_typer(cal, name="calibrate")

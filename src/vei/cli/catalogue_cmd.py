@@ -60,6 +60,22 @@ def catalogue(
         bool, typer.Option("--report/--no-report", help="Write report.html at the end.")
     ] = True,
     top: Annotated[int, typer.Option("--top", help="Rows of the ranked table printed.")] = 10,
+    road_users: Annotated[
+        str | None,
+        typer.Option(
+            "--road-users",
+            help="TrafficMonitoring import: 'riders' (default) or 'all' (also vehicles and "
+            "pedestrians), as vei import trafficmonitoring --road-users.",
+        ),
+    ] = None,
+    interp: Annotated[
+        str | None,
+        typer.Option(
+            "--interp",
+            help="Reconstruction interpolation (cubic, linear, smoothing, kalman), as "
+            "vei reconstruct --interp (overrides the settings' recon.interp).",
+        ),
+    ] = None,
 ) -> None:
     """Find, simulate, sweep, score and rank every car-rider encounter of a dataset."""
     import time
@@ -72,7 +88,12 @@ def catalogue(
     overrides: dict = {"figures": False if no_figures else None}
     if map_source is not None:
         overrides["map_source"] = str(map_source)
+    overrides["road_users"] = road_users
     config = load_catalogue_config(settings, **overrides)
+    if interp is not None:
+        import dataclasses
+
+        config = dataclasses.replace(config, recon={**config.recon, "interp": interp})
     if no_sweep or n_variants is not None:
         import dataclasses
 

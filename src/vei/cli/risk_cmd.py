@@ -120,6 +120,9 @@ def print_result(result, console) -> None:
         f"encounter {prob.scenario_id}, rider {prob.rider_id} ({prob.rider_category}); "
         f"variation over {', '.join(prob.space.names)}"
     )
+    console.print(f"variation model: {prob.model.description()}")
+    for line in prob.space.notes:
+        console.print(f"note: {line}")
     if prob.auto_shift is not None and not prob.auto_shift.paths_meet:
         console.print(f"note: {prob.auto_shift.message()}")
     for p in result.planners:

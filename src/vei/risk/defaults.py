@@ -44,12 +44,32 @@ class DefaultSetting:
     source: str
 
 
-#: Spread of the car's speed around its cruise speed: median over the 9 INS drives of the
-#: per-drive coefficient of variation of the speed while moving (> 0.5 m/s, the threshold
-#: of the recorded 'median-moving' cruise speed): vei.risk.fit.cruise_speed_spread.
-CRUISE_SPEED_CV = 0.22
+#: Spread of the car's cruise speed between encounters: the coefficient of variation of
+#: the 9 recordings' encounter cruise speeds (the instrumented car's median moving speed
+#: per INS drive) around their median, widened to a prediction interval for a new
+#: encounter (vei.calibrate.variation.fit_variation; the previous default, 0.22, was the
+#: spread within one drive).
+CRUISE_SPEED_CV = 0.3645
+#: Upper bound of the car's cruise speed [m/s]: the fastest the instrumented car drove at
+#: the site (INS, 9 drives); the urban limit 50 km/h = 13.9 m/s (StVO section 3 (3)).
+CRUISE_SPEED_MAX_MPS = 15.3
+#: Log spread of a rider's cruise speed around its own recorded speed (3 s windows of 15
+#: rider tracks, widened to a prediction interval; vei.calibrate.variation).
+RIDER_SPEED_SIGMA_LOG = 0.3429
+#: Upper bounds of a rider's cruise / desired speed and speed limit [m/s] per category.
+RIDER_MAX_SPEED_MPS = {"cyclist": 8.333, "escooter": 5.556}
 #: Half-width of the default arrival-offset window [s] (the catalogue's sweep range).
 ARRIVAL_HALF_WIDTH_S = 2.0
+
+#: What the default model is and how it was validated (every risk answer names it):
+#: ``vei calibrate variation --root <TrafficMonitoring>`` (docs/risk.md).
+DEFAULT_ABOUT: dict[str, str] = {
+    "name": "vei default variation (vei calibrate variation on the shared TrafficMonitoring data)",
+    "fitted_from": "9 TrafficMonitoring recordings (Ingolstadt 2021-02-09): 9 INS drives, "
+    "15 rider tracks",
+    "validation": "leave-one-recording-out, central 90 % interval: ego cruise speed 8/9 "
+    "(89 %); rider window speed 37/44 (84 %)",
+}
 
 DEFAULTS: tuple[DefaultSetting, ...] = (
     DefaultSetting(
@@ -70,22 +90,45 @@ DEFAULTS: tuple[DefaultSetting, ...] = (
     DefaultSetting(
         "ego.cruise_speed_mps",
         "m/s",
-        {"dist": "normal", "mean": "recorded", "cv": CRUISE_SPEED_CV, "min": 1.0},
-        "fitted: the recorded ego's median moving speed (the scenario's v_d) with a "
-        f"coefficient of variation of {CRUISE_SPEED_CV} = the median over the 9 "
-        "TrafficMonitoring INS drives (24,612 moving samples at 100 Hz) of each drive's "
-        "speed spread while moving (per drive 0.02-0.59); for comparison, between-driver "
-        "free-flow speeds have a CV of 0.13-0.15 (FHWA Speed Concepts, ch. 5). Truncated "
-        "at 1 m/s (a car that barely moves is not this encounter)",
+        {
+            "dist": "normal",
+            "mean": "recorded",
+            "cv": CRUISE_SPEED_CV,
+            "min": 1.0,
+            "max": CRUISE_SPEED_MAX_MPS,
+        },
+        "data: the recorded ego's median moving speed (the scenario's v_d) with the spread "
+        f"between encounters, CV {CRUISE_SPEED_CV} = the spread of the 9 TrafficMonitoring "
+        "recordings' encounter cruise speeds (one per recording: the instrumented car's "
+        "median moving speed over its INS drive, 4.7-14.5 m/s, median 8.6 m/s; CV 0.31 "
+        "widened by the Student-t prediction factor for 9 encounters); for comparison, "
+        "between-driver free-flow speeds have a CV of 0.13-0.15 (FHWA Speed Concepts, ch. 5). "
+        f"Truncated to [1, {CRUISE_SPEED_MAX_MPS}] m/s: a car that barely moves is not this "
+        f"encounter; {CRUISE_SPEED_MAX_MPS} m/s (55 km/h) is the fastest the instrumented "
+        "car drove at the site (INS, 9 drives); the urban limit is 50 km/h (StVO section 3 (3))",
     ),
     DefaultSetting(
         "rider",
         "-",
-        {"profile": "calibrated", "category": "auto"},
-        "the calibrated rider population (vei calibrate riders on the TrafficMonitoring "
-        "rider tracks: 15 tracks, 13 cyclists, 2 e-scooters; log-normal over v0, tau, "
-        "look-ahead, speed and acceleration limits, docs/riders.md); category auto = the "
-        "primary rider's (a category with < 10 tracks borrows the covariance of all)",
+        {
+            "profile": "calibrated",
+            "category": "auto",
+            "speed": "recorded",
+            "speed_sigma_log": RIDER_SPEED_SIGMA_LOG,
+            "max_speed_mps": dict(RIDER_MAX_SPEED_MPS),
+        },
+        "data: conditional on the recorded rider: its cruise speed is its own recorded median "
+        f"moving speed x exp({RIDER_SPEED_SIGMA_LOG} z) (the spread of 44 rider speeds over "
+        "3 s windows around their own rider's median, 15 TrafficMonitoring rider tracks, "
+        "widened to a prediction interval), its speed limit scales with its own recorded "
+        "p99 / median; tau, look-ahead and acceleration limit from the calibrated population "
+        "(vei calibrate riders: 15 tracks, 13 cyclists, 2 e-scooters; docs/riders.md), within "
+        "the fit's bounds: tau [0.1, 10] s, look-ahead [0.5, 20] m, acceleration limit "
+        "[0.3, 8] m/s2 (8 m/s2, about 0.8 g: the most a bicycle or e-scooter brakes before "
+        "skidding or lifting its rear wheel). "
+        "Bounds (cited): e-scooter <= 20 km/h (eKFV section 1 (1)), cyclist <= 30 km/h "
+        "(assumption bounded by Schleinitz et al. 2017, Safety Science 92: mean 15.3 km/h "
+        "conventional, 17.4 km/h pedelec, 24.5 km/h S-pedelec)",
     ),
 )
 
@@ -94,7 +137,7 @@ def default_variation() -> dict[str, Any]:
     """The default ``variation:`` mapping (YAML form)."""
     out: dict[str, Any] = {d.name: d.value for d in DEFAULTS if d.name != "rider"}
     rider = next(d for d in DEFAULTS if d.name == "rider")
-    out["rider"] = dict(rider.value)
+    out["rider"] = {k: dict(v) if isinstance(v, dict) else v for k, v in rider.value.items()}
     return out
 
 
@@ -110,7 +153,11 @@ def defaults_table() -> str:
     lines = ["| quantity | unit | default | source |", "|---|---|---|---|"]
     for d in DEFAULTS:
         if d.name == "rider":
-            text = ", ".join(f"{k}: {v}" for k, v in d.value.items())
+            text = ", ".join(
+                f"{k}: "
+                + (", ".join(f"{c} {b}" for c, b in v.items()) if isinstance(v, dict) else f"{v}")
+                for k, v in d.value.items()
+            )
         else:
             text = parse_distribution(d.value, d.name, allow_recorded=True).summary()
         lines.append(f"| `{d.name}` | {d.unit} | {text} | {d.source} |")

@@ -2,14 +2,15 @@
 
 - :func:`cruise_speed_spread`: the car's speed spread while moving, per INS drive: the
   coefficient of variation of the speed above 0.5 m/s (the threshold of the recorded
-  'median-moving' cruise speed) around that drive's median; the default uses the median
-  over the drives (vei.risk.defaults.CRUISE_SPEED_CV).
+  'median-moving' cruise speed) around that drive's median. The default used the median
+  over the drives until issue 31; it now uses the spread *between* encounters
+  (vei.calibrate.variation, ``vei calibrate variation``).
 - :func:`arrival_offsets`: the signed arrival offsets of every car-rider pair whose paths
   the roadside camera saw cross (closest approach of the two paths within
   ``crossing_m``): rider time at the crossing minus the car's. Their spread over the whole
   recordings, with no peak near 0, is what the uniform arrival-offset default rests on.
 
-A test checks that the declared defaults are these fits of the shared data.
+A test checks these figures on the shared data.
 """
 
 from __future__ import annotations

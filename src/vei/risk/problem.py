@@ -49,6 +49,12 @@ OUTCOMES: tuple[str, ...] = (
     "seen_too_late",
     "margin",
 )
+#: What every answer with reconstruction samples says about its run configurations.
+RECON_NOTE = (
+    "reconstruction.sample varies the rider's posterior reconstruction (kalman samples); a "
+    "run configuration cannot name a posterior sample, so vei run re-runs such a sample on "
+    "the mean reconstruction"
+)
 #: Most samples simulated in one engine call (memory: the compiled kernel keeps no series).
 BATCH = 8192
 #: Seconds between progress lines during long simulation.
@@ -121,15 +127,27 @@ class RiskProblem:
             perception=model.perception,
             v2x=model.v2x,
             sim=reach_sim(reach),
+            reconstruction_samples=model.reconstruction_samples,
+            sample_seed=model.seed,
         )
         prepared = evaluator.prepare(path)
         rider = scenario.agent(scenario.primary_threat)
         shift = None
         if model.time_shift_reference == "auto":
             shift = find_time_shift(scenario, sim=evaluator.sim)
+        from vei.risk.rider_space import recorded_rider_speeds
+
         space = resolve_space(
-            model, float(prepared.arrays.ego_median_moving_speed_mps), str(rider.category)
+            model,
+            float(prepared.arrays.ego_median_moving_speed_mps),
+            str(rider.category),
+            recorded_rider_speeds(scenario, str(rider.agent_id)),
+            shift,
         )
+        if model.reconstruction_samples:
+            import dataclasses
+
+            space = dataclasses.replace(space, notes=(*space.notes, RECON_NOTE))
         return cls(
             path, model, tuple(checked), evaluator, prepared, space, prepared.scenario_id,
             str(rider.agent_id), str(rider.category), shift,
@@ -190,7 +208,7 @@ class RiskProblem:
         for start in range(0, len(u), BATCH):
             chunk = u[start : start + BATCH]
             table = self.variants(chunk, pol)
-            metrics = self.evaluator.evaluate(self.prepared, table)
+            metrics = self._metrics(table)
             # the evaluator keeps the row order (equal samples, e.g. in a Sobol design,
             # are equal variants with one id: aligned by position, not by id)
             if not np.array_equal(metrics["variant_id"].to_numpy(), table["variant_id"].to_numpy()):
@@ -209,6 +227,26 @@ class RiskProblem:
         out["weight"] = 1.0 if weights is None else np.asarray(weights, dtype=np.float64)
         self.log.append(out)
         return out
+
+    def _metrics(self, table: pd.DataFrame) -> pd.DataFrame:
+        """The evaluator's metrics of a variants table, row for row; variants on a
+        reconstruction sample run on that sample's arrays (one batch per sample, put back
+        in the table's order: equal variants of a Sobol design keep their positions)."""
+        from vei.sweep.evaluator import PreparedScenario
+        from vei.sweep.spec import SAMPLE_COLUMN
+
+        if SAMPLE_COLUMN not in table.columns:
+            return self.evaluator.evaluate(self.prepared, table)
+        pr, parts = self.prepared, []
+        ks = table[SAMPLE_COLUMN].to_numpy()
+        for k in np.unique(ks):
+            at = np.flatnonzero(ks == k)
+            one = PreparedScenario(
+                pr.scenario_id, pr.path, pr.sample_arrays[int(k)], pr.auto_shift_s
+            )
+            rows = table.iloc[at].drop(columns=SAMPLE_COLUMN)
+            parts.append(self.evaluator.evaluate(one, rows).set_axis(at))
+        return pd.concat(parts).sort_index().reset_index(drop=True)
 
     def _report(self) -> None:
         import time

@@ -9,13 +9,19 @@ A risk spec (``vei risk --spec FILE``; the ``risk:`` section of catalogue settin
                                   # do not depend on it)
     variation:                    # one distribution per varied quantity (sweep names)
       time_shift_s: {dist: uniform, min: -2.0, max: 2.0}
-      ego.cruise_speed_mps: {dist: normal, mean: recorded, cv: 0.22, min: 1.0}
+      ego.cruise_speed_mps: {dist: normal, mean: recorded, cv: 0.36, min: 1.0, max: 15.3}
       cap.perception_delay_s: {dist: uniform, min: 0.0, max: 0.3}
-      rider: {profile: calibrated, category: auto}   # null: the base configuration's rider
+      rider: {profile: calibrated, category: auto,   # null: the base configuration's rider
+              speed: recorded, speed_sigma_log: 0.34,   # or speed: population
+              max_speed_mps: {cyclist: 8.33, escooter: 5.56}}
+    model: {name: ..., fitted_from: ..., validation: ...}   # optional: what the model is
+                                  # (vei calibrate variation writes it; every answer names it)
     fixed: {cap.t_safe_s: 2.0}    # optional: parameters held at a value (sweep names)
     perception: {enabled: true, position_noise_std_m: 0.3}   # optional sensor model
     v2x: {enabled: true, penetration_rate: 0.5}   # optional V2X (docs/v2x.md)
     injury_relevant_speed_mps: 5.56   # optional: the injury-relevant impact speed [m/s]
+    reconstruction: {samples: 50}   # optional: the rider's reconstruction uncertainty as a
+                                  # dimension (reconstruction.sample: one of N posterior samples)
 
 Without ``variation:`` the defaults of :mod:`vei.risk.defaults` apply (every default with
 its unit and source; docs/risk.md). The quantities are sweep parameters
@@ -25,6 +31,9 @@ theirs. ``rider`` is the calibrated population (:mod:`vei.calibrate.profile`): f
 correlated log-normal parameters, i.e. five standard-normal dimensions through the
 Cholesky factor of the population's log-covariance (dimension ``rider.<param>`` is the
 part of that parameter not explained by the ones before it).
+With ``speed: recorded`` the rider's speed is centred on the recorded rider's own and
+only tau, look-ahead and the acceleration limit come from the population
+(:mod:`vei.risk.rider_space`); ``max_speed_mps`` bounds every rider's speeds.
 """
 
 from __future__ import annotations
@@ -44,43 +53,28 @@ from vei.config.distributions import Distribution, parse_distribution
 from vei.config.perception import PerceptionConfig
 from vei.config.v2x import V2XConfig
 from vei.errors import ConfigError, InputError
-from vei.risk.defaults import INJURY_RELEVANT_SPEED_MPS, default_variation
+from vei.risk.defaults import DEFAULT_ABOUT, INJURY_RELEVANT_SPEED_MPS, default_variation
+from vei.risk.rider_space import RIDER_CATEGORIES as RIDER_CATEGORIES
+from vei.risk.rider_space import RiderVariation, parse_about, parse_rider, rider_dict
 
 FloatArray = npt.NDArray[np.float64]
 
 TIME_SHIFT_REFERENCES: tuple[str, ...] = ("auto", "zero")
-RIDER_CATEGORIES: tuple[str, ...] = ("auto", "escooter", "cyclist", "all")
 _SPEC_KEYS = {
     "base",
     "time_shift_reference",
+    "time_shift_window",
     "seed",
     "variation",
     "fixed",
     "perception",
     "v2x",
     "injury_relevant_speed_mps",
+    "model",
+    "reconstruction",
 }
-
-
-@dataclass(frozen=True)
-class RiderVariation:
-    """The rider population that varies the social-force rider.
-
-    Attributes:
-        profile: a rider profile file or 'calibrated' (the shipped profile).
-        category: 'auto' (the primary rider's category), 'escooter', 'cyclist' or 'all'.
-    """
-
-    profile: str = "calibrated"
-    category: str = "auto"
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.profile, str) or not self.profile:
-            raise ConfigError(f"rider.profile must be a file or 'calibrated', got {self.profile!r}")
-        if self.category not in RIDER_CATEGORIES:
-            raise ConfigError(
-                f"rider.category must be one of {', '.join(RIDER_CATEGORIES)}, got {self.category!r}"
-            )
+#: The dimension of the reconstruction's posterior sample (``reconstruction: {samples: N}``).
+RECON_DIMENSION = "reconstruction.sample"
 
 
 @dataclass(frozen=True)
@@ -93,12 +87,17 @@ class VariationModel:
         rider: the rider population, or None (the base configuration's rider).
         base: configuration preset (``vei.config.CASE_PRESETS``).
         time_shift_reference: 'auto' or 'zero'.
+        time_shift_window: 'recorded' (narrow a uniform time_shift_s to the offsets at
+            which the recorded rider meets the car's path, vei.risk.window) or 'full'.
         seed: sampling seed (>= 0).
         fixed: (sweep parameter name, value) held fixed.
         perception: the ego's sensor model for every sample, or None (the base's).
         v2x: V2X for every sample (docs/v2x.md), or None (the base's: off); a varied or
             fixed ``v2x.*`` needs it enabled.
         injury_relevant_speed_mps: a collision is injury-relevant at an impact speed >= this.
+        about: ((key, text), ...): what the model is and how it was validated (the spec's
+            ``model:`` mapping, e.g. name, fitted_from, validation; every risk answer
+            names it).
         source: the file it came from (for messages).
     """
 
@@ -106,11 +105,14 @@ class VariationModel:
     rider: RiderVariation | None = None
     base: str = "normal-cap"
     time_shift_reference: str = "auto"
+    time_shift_window: str = "recorded"
     seed: int = 0
     fixed: tuple[tuple[str, Any], ...] = ()
     perception: PerceptionConfig | None = None
     v2x: V2XConfig | None = None
     injury_relevant_speed_mps: float = INJURY_RELEVANT_SPEED_MPS
+    about: tuple[tuple[str, str], ...] = field(default=(), compare=False)
+    reconstruction_samples: int | None = None
     source: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -122,6 +124,10 @@ class VariationModel:
         if self.time_shift_reference not in TIME_SHIFT_REFERENCES:
             raise ConfigError(
                 f"{where}: time_shift_reference must be auto or zero, got {self.time_shift_reference!r}"
+            )
+        if self.time_shift_window not in ("recorded", "full"):
+            raise ConfigError(
+                f"{where}: time_shift_window must be recorded or full, got {self.time_shift_window!r}"
             )
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ConfigError(f"{where}: seed must be an integer >= 0, got {self.seed!r}")
@@ -153,15 +159,16 @@ class VariationModel:
     @property
     def rider_dimensions(self) -> tuple[str, ...]:
         """Names of the rider population's dimensions (empty without a population)."""
-        from vei.calibrate.profile import POP_PARAMETERS
+        from vei.risk.rider_space import rider_dimension_names
 
-        return tuple(f"rider.{p}" for p in POP_PARAMETERS) if self.rider is not None else ()
+        return rider_dimension_names(self.rider.speed) if self.rider is not None else ()
 
     @property
     def dimension_names(self) -> tuple[str, ...]:
-        """The standard-space dimensions, in order: the varied distributions, then the
-        rider population's five."""
-        return tuple(n for n, _ in self.varied) + self.rider_dimensions
+        """The standard-space dimensions, in order: the varied distributions, the rider's,
+        then the reconstruction sample's (RECON_DIMENSION, with reconstruction samples)."""
+        recon = (RECON_DIMENSION,) if self.reconstruction_samples else ()
+        return tuple(n for n, _ in self.varied) + self.rider_dimensions + recon
 
     @property
     def dimension(self) -> int:
@@ -173,23 +180,23 @@ class VariationModel:
         import dataclasses
 
         var: dict[str, Any] = {n: d.to_dict() for n, d in self.distributions}
-        var["rider"] = (
-            None
-            if self.rider is None
-            else {"profile": self.rider.profile, "category": self.rider.category}
-        )
+        var["rider"] = None if self.rider is None else rider_dict(self.rider)
         out: dict[str, Any] = {
             "base": self.base,
             "time_shift_reference": self.time_shift_reference,
+            "time_shift_window": self.time_shift_window,
             "seed": self.seed,
             "variation": var,
             "fixed": dict(self.fixed),
             "injury_relevant_speed_mps": self.injury_relevant_speed_mps,
         }
+        if self.reconstruction_samples:
+            out["reconstruction"] = {"samples": self.reconstruction_samples}
         if self.perception is not None:
             out["perception"] = dataclasses.asdict(self.perception)
         if self.v2x is not None:
             out["v2x"] = dataclasses.asdict(self.v2x)
+        out["model"] = {**dict(self.about), "description": self.description()}
         return out
 
     def digest(self) -> str:
@@ -199,6 +206,20 @@ class VariationModel:
 
         text = json.dumps(self.to_dict(), sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    def description(self) -> str:
+        """One line naming the variation model and its validation (every risk answer)."""
+        about = dict(self.about)
+        name = about.get("name") or (
+            "the built-in defaults (vei.risk.defaults)"
+            if self.source in (None, "risk spec")
+            else f"the risk spec {self.source}"
+        )
+        text = f"conditional on the variation model {name}"
+        if about.get("fitted_from"):
+            text += f", fitted from {about['fitted_from']}"
+        val = about.get("validation")
+        return text + (f"; validation: {val}" if val else "; not validated against held-out data")
 
 
 def _check_parameter(name: str, where: str) -> None:
@@ -248,7 +269,7 @@ def parse_variation(raw: Any, where: str = "risk spec") -> VariationModel:
         ConfigError: unknown keys, impossible distributions, an empty variation, values
             outside a parameter's bounds (each naming ``where`` and the key).
     """
-    from vei.sweep.params import PARAMETERS, parse_perception, parse_v2x
+    from vei.sweep.params import PARAMETERS, parse_perception, parse_reconstruction, parse_v2x
 
     if raw is None:
         raw = {}
@@ -261,6 +282,7 @@ def parse_variation(raw: Any, where: str = "risk spec") -> VariationModel:
             f"{', '.join(sorted(_SPEC_KEYS))}"
         )
     var = default_variation() if "variation" not in raw else raw["variation"]
+    about_raw = raw.get("model", DEFAULT_ABOUT if "variation" not in raw else None)
     if var is None or (isinstance(var, Mapping) and not var):
         raise ConfigError(
             f"{where}: variation is empty: nothing varies (give at least one distribution, "
@@ -274,14 +296,8 @@ def parse_variation(raw: Any, where: str = "risk spec") -> VariationModel:
         name = str(key)
         loc = f"{where}: variation.{name}"
         if name == "rider":
-            if val is None:
-                continue
-            if not isinstance(val, Mapping) or set(map(str, val)) - {"profile", "category"}:
-                raise ConfigError(f"{loc}: expected {{profile: calibrated, category: auto}}")
-            try:
-                rider = RiderVariation(**{str(k): v for k, v in val.items()})
-            except ConfigError as exc:
-                raise ConfigError(f"{where}: variation.{exc}") from None
+            if val is not None:
+                rider = parse_rider(val, where)
             continue
         _check_parameter(name, loc)
         dist = parse_distribution(val, loc, allow_recorded=name == "ego.cruise_speed_mps")
@@ -306,11 +322,14 @@ def parse_variation(raw: Any, where: str = "risk spec") -> VariationModel:
         rider=rider,
         base=raw.get("base", "normal-cap"),
         time_shift_reference=raw.get("time_shift_reference", "auto"),
+        time_shift_window=raw.get("time_shift_window", "recorded"),
         seed=seed,
         fixed=tuple(sorted(fixed.items(), key=lambda kv: order.index(kv[0]))),
         perception=parse_perception(raw.get("perception"), where),
         v2x=parse_v2x(raw.get("v2x"), where),
         injury_relevant_speed_mps=raw.get("injury_relevant_speed_mps", INJURY_RELEVANT_SPEED_MPS),
+        about=parse_about(about_raw, where),
+        reconstruction_samples=parse_reconstruction(raw.get("reconstruction"), where),
         source=where,
     )
     return model
@@ -352,6 +371,10 @@ class ScenarioSpace:
             population (empty arrays without one).
         rider_profile: the loaded rider profile (None without one).
         category: the rider population used.
+        rider_speed: (median moving speed, p99 speed) of the recorded rider [m/s] (what
+            ``speed: recorded`` centres on; nan when unknown).
+        notes: lines every answer on this scenario carries (the time-shift window, a
+            rider without a speed of its own).
     """
 
     model: VariationModel
@@ -361,6 +384,8 @@ class ScenarioSpace:
     rider_chol: FloatArray
     rider_profile: Any = None
     category: str = ""
+    rider_speed: tuple[float, float] = (math.nan, math.nan)
+    notes: tuple[str, ...] = ()
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -384,19 +409,23 @@ class ScenarioSpace:
             cols[name] = dist.from_standard(u[:, j])
         for name, value in self.fixed.items():
             cols[name] = [value] * len(u)
-        if self.rider_profile is not None:
-            from vei.calibrate.profile import POP_PARAMETERS, SAMPLE_BOUNDS, population_params
+        if self.rider_profile is not None and self.model.rider is not None:
+            from vei.risk.rider_space import rider_params
 
-            z = u[:, len(self.distributions) :]
-            logs = self.rider_mean[None, :] + z @ self.rider_chol.T
-            vals = {
-                n: np.clip(np.exp(logs[:, i]), *SAMPLE_BOUNDS[n])
-                for i, n in enumerate(POP_PARAMETERS)
-            }
-            riders = population_params(self.rider_profile, vals, len(u))
+            nd = len(self.distributions)
+            z = u[:, nd : nd + len(self.model.rider_dimensions)]
+            riders = rider_params(self, z, dict(self.model.rider.max_speed_mps))
             for fname, arr in riders.items():
                 if fname != "tau_s":
                     cols[f"rider.{fname}"] = arr
+        n_rec = self.model.reconstruction_samples
+        if n_rec:  # u -> Phi(u) -> one of the N posterior samples, equally likely
+            from scipy.special import ndtr
+
+            from vei.sweep.spec import SAMPLE_COLUMN
+
+            k = np.floor(ndtr(u[:, -1]) * n_rec).astype(np.int64)
+            cols[SAMPLE_COLUMN] = np.clip(k, 0, n_rec - 1)
         return pd.DataFrame(cols, index=pd.RangeIndex(len(u)))
 
     def normalised(self, u: npt.ArrayLike) -> FloatArray:
@@ -431,7 +460,11 @@ def reach_speed_mps(model: VariationModel, recorded_cruise_mps: float) -> float 
 
 
 def resolve_space(
-    model: VariationModel, recorded_cruise_mps: float, rider_category: str
+    model: VariationModel,
+    recorded_cruise_mps: float,
+    rider_category: str,
+    rider_speed: tuple[float, float] = (math.nan, math.nan),
+    auto_shift: Any = None,
 ) -> ScenarioSpace:
     """The model's standard space for one scenario.
 
@@ -441,18 +474,28 @@ def resolve_space(
             ``mean: recorded`` means).
         rider_category: the primary rider's category ('escooter' / 'cyclist'), used by
             ``category: auto``.
+        rider_speed: (median moving, p99) speed of the recorded rider [m/s]
+            (vei.risk.rider_space.recorded_rider_speeds), needed by ``speed: recorded``.
+        auto_shift: the scenario's automatic TimeShiftResult (reference 'auto'): the
+            time-shift window (vei.risk.window).
     Raises:
         ConfigError: a resolved distribution is impossible (e.g. its truncation window
             holds no probability for this scenario's recorded speed); the rider profile
             cannot be read.
     """
     from vei.calibrate.profile import load_profile
+    from vei.risk.window import narrow_time_shift
 
     dists = tuple((n, d.resolve(recorded_cruise_mps)) for n, d in model.varied)
+    ts = dict(dists).get("time_shift_s")
+    narrowed, note = narrow_time_shift(ts, auto_shift, model.time_shift_window)
+    dists = tuple((n, narrowed if n == "time_shift_s" else d) for n, d in dists)
     fixed = dict(model.fixed)
     fixed.update({n: d.value for n, d in model.distributions if d.is_fixed})
     if model.rider is None:
-        return ScenarioSpace(model, dists, fixed, np.zeros(0), np.zeros((0, 0)))
+        return ScenarioSpace(
+            model, dists, fixed, np.zeros(0), np.zeros((0, 0)), notes=(note,) if note else ()
+        )
     try:
         profile = load_profile(model.rider.profile)
     except InputError as exc:
@@ -465,4 +508,13 @@ def resolve_space(
     # Cholesky of the (positive semi-definite) covariance; a tiny ridge where singular
     scale = max(float(np.trace(cov)) / len(mean), 1e-12)
     chol = np.linalg.cholesky(cov + 1e-12 * scale * np.eye(len(mean)))
-    return ScenarioSpace(model, dists, fixed, mean, chol, profile, cat if cat in pops else "all")
+    notes = (note,) if note else ()
+    if model.rider.speed == "recorded":
+        from vei.risk.rider_space import centre_speed
+
+        rider_speed, rnote = centre_speed(profile, cat, rider_speed)
+        notes += (rnote,) if rnote else ()
+    return ScenarioSpace(
+        model, dists, fixed, mean, chol, profile, cat if cat in pops else "all", rider_speed,
+        notes,
+    )  # fmt: skip

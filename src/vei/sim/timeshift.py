@@ -77,6 +77,18 @@ class TimeShiftResult:
         """The rider's centre comes within meet_tolerance_m of the ego's front centre."""
         return bool(self.miss_distance_m <= self.meet_tolerance_m)
 
+    def recorded_window_s(self) -> tuple[float, float]:
+        """(lo, hi) [s]: the offsets from this shift (rider later by delta) that keep the
+        rider on its *recorded* span when the car reaches the meeting point: at the
+        meeting the rider is at recording time ``r_m - delta`` (``r_m = meet_time_s -
+        time_shift_s``), on the recording for ``r_m - delta`` in ``rider_span_s``. Empty
+        (lo > hi) where the paths never meet (nan then)."""
+        if not self.paths_meet:
+            return (float("nan"), float("nan"))
+        r_m = self.meet_time_s - self.time_shift_s
+        r0, r1 = self.rider_span_s
+        return (float(r_m - r1), float(r_m - r0))
+
     def __float__(self) -> float:
         return self.time_shift_s
 
@@ -95,6 +107,8 @@ class TimeShiftResult:
             "paths_meet": self.paths_meet,
             "rider_id": self.rider_id,
             "rider_span_s": list(self.rider_span_s),
+            "recorded_window_s": list(self.recorded_window_s()),
+            "risk_basis": "recorded behaviour" if self.paths_meet else "continuations",
         }
 
     def message(self) -> str:
