@@ -250,8 +250,23 @@ def _risk_map(rows: pd.DataFrame) -> dict[str, Any] | None:
         "y_label": "ego cruise speed [m/s]",
         "n": int(len(sw)),
         "n_flagged": int(flag.sum()),
-        "points": {"x": xs_all, "y": ys_all, "collision": coll_all, "flagged": flag},
+        "points": _thin({"x": xs_all, "y": ys_all, "collision": coll_all, "flagged": flag}),
     }
+
+
+#: Most sweep variants marked on an encounter's risk map (issue 35.0: the heatmap is binned
+#: to at most 15 x 15 cells; the markers are every variant up to this many, else an evenly
+#: spaced subset of them).
+MAX_MAP_POINTS = 2000
+
+
+def _thin(points: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """``points`` (equal-length arrays) cut to at most MAX_MAP_POINTS evenly spaced rows."""
+    n = len(points["x"])
+    if n <= MAX_MAP_POINTS:
+        return points
+    idx = np.unique(np.linspace(0, n - 1, MAX_MAP_POINTS).round().astype(int))
+    return {k: np.asarray(v)[idx] for k, v in points.items()}
 
 
 #: Overview columns of the risk estimate (issue 23), shown when the catalogue has one.
