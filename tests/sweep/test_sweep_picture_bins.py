@@ -86,6 +86,16 @@ def test_a_large_grid_is_drawn_from_at_most_400_cells_of_whole_grid_values(tmp_p
     assert g["p"][0, -1] == 0.0 and g["known"][0, -1]  # slow ego, late rider: no collision
     assert g["p"][-1, 0] == 1.0 and g["known"][-1, 0]
     assert list(maps) == [""] and (tmp_path / "severity_map.png").stat().st_size > 10_000
+    # the known P = 0 cells are drawn green (ZERO_COLOUR), not a near-white red or grey
+    from PIL import Image
+
+    from vei.report.riskmap import ZERO_COLOUR
+
+    img = np.asarray(Image.open(tmp_path / "probability_map.png").convert("RGB"), dtype=int)
+    green = np.array([int(ZERO_COLOUR[k : k + 2], 16) for k in (1, 3, 5)])
+    n_zero_cells = int((g["known"] & (g["p"] == 0)).sum())
+    assert n_zero_cells > 50
+    assert (np.abs(img - green).sum(axis=2) < 10).sum() > 50 * n_zero_cells  # pixels of them
     assert took < 60  # drawn from 400 cells (before issue 35: one hatched cell per value)
 
 
