@@ -321,8 +321,8 @@
       key("known: P = 0", PROB.zero), key("not known (95 % CI wider than \u00b10.1)", PROB.unknown)
     ];
     Plotly.newPlot(el, traces, lay({ xaxis: { title: { text: m.x_label } }, yaxis: { title: { text: m.y_label } }, showlegend: true,
-      legend: { x: 0, y: -0.2, yanchor: "top", orientation: "h" }, margin: { l: 50, r: 10, t: 30, b: 100 },
-      annotations: [{ text: note, xref: "paper", yref: "paper", x: 0, y: -0.36, xanchor: "left", yanchor: "top", showarrow: false, font: { size: 10 } }] }), CONF);
+      legend: { x: 0, y: -0.2, yanchor: "top", orientation: "h" }, margin: { l: 50, r: 10, t: 30, b: 115 },
+      annotations: [{ text: note, xref: "paper", yref: "paper", x: 0, y: -0.33, xanchor: "left", yanchor: "top", showarrow: false, font: { size: 10 } }] }), CONF);
   }
   window.veiReport.PROB = PROB;
 
