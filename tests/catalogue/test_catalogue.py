@@ -214,7 +214,9 @@ def test_cli_catalogue_and_report(tmp_path, trafficmonitoring_root):
                  "--recording", "marktkauf_05_klinikum_geradeaus",
                  "--n-variants", "8", "--no-figures"])  # fmt: skip
     assert code == 0
-    assert (out / "report.html").stat().st_size > 1_000_000  # plotly embedded
+    assert (out / "report.html").is_file()  # the index; plotly and the encounters beside it
+    assert (out / "report_files" / "plotly.min.js").stat().st_size > 1_000_000
+    assert len(list((out / "report_files" / "enc").glob("*.js"))) >= 1
     rows = pd.read_parquet(out / "catalogue.parquet")
     assert len(rows) == 5 + 8
     assert main(["catalogue", str(trafficmonitoring_root), "--out", str(tmp_path / "x"),

@@ -6,6 +6,7 @@ VEI_REQUIRE_BROWSER=1 (set by .ci/run) it fails instead.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import tempfile
@@ -100,9 +101,19 @@ def test_report_is_offline(small_catalogue):
     text = write_report(small_catalogue, small_catalogue / "offline.html").read_text()
     import re
 
-    # no element loads anything from elsewhere: scripts, styles and data are inline
+    # no element loads anything from elsewhere; the page adds plotly.js and the encounters'
+    # scripts itself, from the folder beside it
     assert re.findall(r"<(?:script|link|img|iframe)\b[^>]*\b(?:src|href)\s*=", text, re.I) == []
-    assert "Plotly" in text and 'id="vei-data"' in text  # library and data embedded
+    assert (small_catalogue / "offline_files" / "plotly.min.js").is_file()
+    assert 'id="vei-data"' in text
+    data = json.loads(
+        re.search(r'id="vei-data" type="application/json">(.*?)</script>', text, re.S).group(1)
+    )
+    table = data["encounters"]
+    assert table["files"] == "offline_files/enc/" and len(table["ids"]) == 3
+    assert data["plotly"] == "offline_files/plotly.min.js"
+    for i in range(len(table["ids"])):
+        assert (small_catalogue / f"{table['files']}{i:05d}.js").is_file()
 
 
 def test_loads_without_console_error(loaded):

@@ -80,9 +80,53 @@ def test_risk_map_bins_are_the_mean_safety_index(data, trafficmonitoring_root):
 
 
 def test_page_lists_every_encounter_and_recording(data):
-    page = render(data)
-    ids = re.findall(r'<tr data-encounter="([^"]+)"', page)
-    assert ids == [e["id"] for e in data["encounters"]]
-    assert len(ids) == 3
+    from vei.report.html_site import index_rows
+
+    table = {**index_rows(data["encounters"], data["columns"]), "files": "f/enc/"}
+    page = render({**data, "encounters": table}, files="f")
+    m = re.search(r'id="vei-data" type="application/json">(.*?)</script>', page, re.S)
+    embedded = json.loads(m.group(1))["encounters"]
+    assert embedded["ids"] == [e["id"] for e in data["encounters"]] and len(embedded["ids"]) == 3
+    keys = [c["key"] for c in data["columns"]]
+    # the rows' values in the columns' order, floats to 4-5 significant digits
+    first = data["encounters"][0]["row"]
+    for k, v in zip(keys, embedded["values"][0], strict=True):
+        w = first[k]
+        assert v == (pytest.approx(w, rel=1e-3) if isinstance(w, float) and np.isfinite(w) else
+                     (None if isinstance(w, float) else w))  # fmt: skip
     for r in data["recordings"]:
         assert r["recording"] in page
+
+
+def test_site_writes_one_script_per_encounter_and_drops_stale_ones(data, tmp_path):
+    from vei.report.html_site import write_site
+
+    index = {k: v for k, v in data.items() if k != "encounters"}
+    stats = write_site(index, iter(data["encounters"]), tmp_path / "report.html")
+    scripts = sorted(p.name for p in (tmp_path / "report_files" / "enc").iterdir())
+    assert scripts == ["00000.js", "00001.js", "00002.js"] and stats.n_encounters == 3
+    text = (tmp_path / "report_files" / "enc" / "00001.js").read_text()
+    assert text.startswith("window.veiReport.receive(1,") and text.rstrip().endswith(");")
+    body = json.loads(text[len("window.veiReport.receive(1,") : text.rstrip().rindex(")")])
+    assert body["id"] == data["encounters"][1]["id"] and len(body["replay"]["configs"]) == 5
+    assert (tmp_path / "report_files" / "plotly.min.js").stat().st_size > 1_000_000
+    page = stats.index.read_text()
+    assert '"plotly":"report_files/plotly.min.js"' in page  # loaded by the page after its table
+    # a smaller report in the same folder replaces the scripts of the larger one
+    write_site(index, iter(data["encounters"][:1]), tmp_path / "report.html")
+    assert [p.name for p in (tmp_path / "report_files" / "enc").iterdir()] == ["00000.js"]
+    assert stats.total_bytes > stats.opened_bytes > stats.index_bytes > 0
+
+
+def test_probability_cells_are_known_positive_known_zero_or_not_known():
+    from vei.catalogue.report_maps import cells
+
+    # by hand: 3 cells; p 0.5 with a narrow interval (known > 0), 0 known, 0.2 of few samples
+    grid = {"x_centres": np.array([0.0, 1.0, 2.0]), "y_centres": np.array([5.0]),
+            "p": np.array([[0.5, 0.0, 0.2]]), "lo": np.array([[0.45, 0.0, 0.01]]),
+            "hi": np.array([[0.55, 0.03, 0.6]]), "known": np.array([[True, True, False]])}  # fmt: skip
+    c = cells(grid, "x", "y", "note")
+    assert np.isfinite(c["z"]).tolist() == [[True, False, False]]
+    assert np.isfinite(c["zero"]).tolist() == [[False, True, False]]
+    assert np.isfinite(c["unknown"]).tolist() == [[False, False, True]]
+    assert c["text"][0][2].endswith("(not known)") and c["text"][0][1].startswith("P 0.000")

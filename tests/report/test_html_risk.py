@@ -31,8 +31,10 @@ def test_collect_ranks_by_expected_harm_with_intervals(small_catalogue):  # noqa
     assert maps, "a probability map from the risk samples"
     m = maps[0]
     z, unknown = np.asarray(m["z"], float), np.asarray(m["unknown"], float)
-    # every cell is either shown (known) or marked unknown, never both
-    assert np.all(np.isfinite(z) ^ np.isfinite(unknown))
+    zero = np.asarray(m["zero"], float)
+    # every cell is exactly one of: known P > 0, known P = 0, not known (issue 35)
+    kinds = np.isfinite(z).astype(int) + np.isfinite(zero) + np.isfinite(unknown)
+    assert (kinds == 1).all()
 
 
 def test_page_shows_probabilities_and_marks_the_unknown(loaded):  # noqa: F811
@@ -45,6 +47,7 @@ def test_page_shows_probabilities_and_marks_the_unknown(loaded):  # noqa: F811
     has_map = loaded.execute_script("return !!window.veiReport.state.enc.probmap")
     if has_map:
         n = loaded.execute_script("return document.getElementById('risk-plot').data.length")
-        assert n == 2  # the known probabilities and the grey 'not known' layer
+        # known P > 0, known P = 0, not known, and the legend keys of the last two
+        assert n == 5
     severe = [e for e in loaded.get_log("browser") if e["level"] == "SEVERE"]
     assert severe == [], severe

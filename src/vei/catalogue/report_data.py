@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from vei.catalogue.report_maps import catalogue_map, probability_map, risk_map
 from vei.catalogue.store import MANIFEST, TABLE, encounter_dir, encounter_scores, read_json
 from vei.errors import InputError
 
@@ -213,47 +214,6 @@ def _replay(
     }
 
 
-def _risk_map(rows: pd.DataFrame) -> dict[str, Any] | None:
-    x, y = "p.time_shift_s", "p.ego.cruise_speed_mps"
-    sw = rows[rows["kind"] == "sweep"]
-    if len(sw) < 4 or x not in sw or y not in sw or sw[x].isna().all() or sw[y].isna().all():
-        return None
-    from vei.metrics.seen import flagged_mask
-
-    flag = flagged_mask(sw)  # never coloured by: marked (points.flagged)
-    xs_all, ys_all = sw[x].to_numpy(float), sw[y].to_numpy(float)
-    n = int(np.clip(np.sqrt(len(sw) / 6.0), 3, 15))
-    xe = np.linspace(xs_all.min(), xs_all.max(), n + 1)
-    ye = np.linspace(ys_all.min(), ys_all.max(), n + 1)
-    coll_all = sw["collision"].astype(bool).to_numpy()
-    sw = sw[~flag]
-    xs, ys = sw[x].to_numpy(float), sw[y].to_numpy(float)
-    si = sw["safety_index"].to_numpy(float)
-    fin = np.isfinite(si)  # NaN: the shifted rider never met the ego in the simulated span
-    num, _, _ = np.histogram2d(xs[fin], ys[fin], bins=[xe, ye], weights=si[fin])
-    n_si, _, _ = np.histogram2d(xs[fin], ys[fin], bins=[xe, ye])
-    cnt, _, _ = np.histogram2d(xs, ys, bins=[xe, ye])
-    col, _, _ = np.histogram2d(
-        xs, ys, bins=[xe, ye], weights=sw["collision"].astype(float).to_numpy()
-    )
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.where(n_si > 0, num / n_si, np.nan)
-        share = np.where(cnt > 0, col / cnt, np.nan)
-    return {
-        "x": 0.5 * (xe[:-1] + xe[1:]),
-        "y": 0.5 * (ye[:-1] + ye[1:]),
-        "z": mean.T,
-        "share": share.T,
-        "count": cnt.T,
-        "count_si": n_si.T,
-        "x_label": "time-shift offset to the automatic shift [s]",
-        "y_label": "ego cruise speed [m/s]",
-        "n": int(len(sw)),
-        "n_flagged": int(flag.sum()),
-        "points": {"x": xs_all, "y": ys_all, "collision": coll_all, "flagged": flag},
-    }
-
-
 #: Overview columns of the risk estimate (issue 23), shown when the catalogue has one.
 RISK_COLUMNS: tuple[tuple[str, str, str, str], ...] = (
     ("risk_expected_harm", "expected harm", ".2e",
@@ -322,48 +282,20 @@ def _risk_panel(edir: Path) -> tuple[dict[str, Any] | None, dict[str, Any] | Non
             f"{v['name']}: {v['distribution']}" for v in doc.get("variation_resolved", [])
         ],
     }
-    return risk, _probability_map(edir / "risk" / "samples.parquet", doc)
+    return risk, probability_map(edir / "risk" / "samples.parquet", doc)
 
 
-def _probability_map(path: Path, doc: dict[str, Any]) -> dict[str, Any] | None:
-    """P(collision | cell) over the first two varied quantities from the risk estimate's
-    final sample of its first planner; cells whose 95 % CI is wider than +-0.1 unknown."""
-    from vei.sweep.riskmap import probability_grid
+def collect_index(
+    catalogue_dir: str | Path,
+) -> tuple[dict[str, Any], list[dict[str, Any]], pd.DataFrame]:
+    """What the report's index page shows, without the encounters' own data.
 
-    dims = [d for d in doc.get("dimensions", []) if not d.startswith("rider.")]
-    planners = doc.get("planners") or []
-    if len(dims) < 2 or not planners or not path.is_file():
-        return None
-    x, y = (
-        ("time_shift_s", "ego.cruise_speed_mps")
-        if {"time_shift_s", "ego.cruise_speed_mps"} <= set(dims)
-        else dims[:2]
-    )
-    s = pd.read_parquet(path, columns=[x, y, "failure", "weight", "in_estimate", "policy"])
-    s = s[s["in_estimate"] & (s["policy"] == planners[0]["policy"])]
-    if len(s) < 50:
-        return None
-    xs, ys = s[x].to_numpy(float), s[y].to_numpy(float)
-    nb = int(np.clip(np.sqrt(len(s) / 100.0), 3, 12))
-    xe = np.linspace(xs.min(), xs.max(), nb + 1)
-    ye = np.linspace(ys.min(), ys.max(), nb + 1)
-    g = probability_grid(xs, ys, s["failure"].to_numpy(bool), xe, ye,
-                         weights=s["weight"].to_numpy(float))  # fmt: skip
-    known = g["known"]
-    text = [[(f"P {g['p'][j, i]:.3f} [{g['lo'][j, i]:.3f}, {g['hi'][j, i]:.3f}]"
-              if np.isfinite(g["p"][j, i]) else "no sample") + ("" if known[j, i] else " (not known)")
-             for i in range(known.shape[1])] for j in range(known.shape[0])]  # fmt: skip
-    return {
-        "x": g["x_centres"], "y": g["y_centres"],
-        "z": np.where(known, g["p"], np.nan), "unknown": np.where(known, np.nan, 1.0),
-        "text": text, "x_label": x, "y_label": y, "policy": planners[0]["policy"],
-        "n": int(len(s)),
-    }  # fmt: skip
-
-
-def collect(catalogue_dir: str | Path) -> dict[str, Any]:
-    """Everything the report shows, as one JSON-ready mapping (see the module docstring).
-
+    Returns:
+        (index, records, rows): ``index`` holds dataset, status, n_rows, settings,
+        recordings, failed_encounters, columns, ranked_by and ``catalogue_map``
+        (:func:`vei.catalogue.report_maps.catalogue_map`); ``records`` the ranked
+        encounters (one mapping each, the overview's columns filled); ``rows``
+        catalogue.parquet.
     Raises:
         InputError: not a catalogue folder (no catalogue.json / catalogue.parquet).
     """
@@ -384,66 +316,17 @@ def collect(catalogue_dir: str | Path) -> dict[str, Any]:
     if "risk_expected_harm" in enc:
         columns = (OVERVIEW_COLUMNS[0], OVERVIEW_COLUMNS[1], OVERVIEW_COLUMNS[2],
                    *RISK_COLUMNS, *OVERVIEW_COLUMNS[3:])  # fmt: skip
-    encounters = []
-    for rec in enc.to_dict("records"):
-        eid = rec["encounter_id"]
-        edir = encounter_dir(root, eid)
-        summary = read_json(edir / "casestudy" / "summary.json")
-        mcfg = summary.get("metrics_config", {})
-        scen = read_json(edir / "scenario" / "scenario.json")
-        dims = {a["agent_id"]: (a["length_m"], a["width_m"]) for a in scen["agents"]}
-        er = rows[rows["encounter_id"] == eid]
-        risk, probmap = _risk_panel(edir)  # issue 23
+    records = enc.to_dict("records")
+    for rec in records:
         if "risk_expected_harm" in rec:
             rec["risk_harm_ci"] = _ci_text(rec, "risk_expected_harm")
             rec["risk_p_collision_ci"] = _ci_text(rec, "risk_p_collision")
-        encounters.append(
-            {
-                "id": eid,
-                "risk": risk,
-                "probmap": probmap,
-                "row": {c: rec.get(c) for c, *_ in columns},
-                "rider_id": rec["rider_id"],
-                "recording": rec["recording"],
-                "tracks": _tracks(edir / "scenario"),
-                "roads": _roads(edir / "scenario"),
-                "road_layers": _road_layers(edir / "scenario"),
-                "replay": _replay(
-                    edir,
-                    rec["rider_id"],
-                    dims,
-                    mcfg.get("safe_ttc_s", 2.0),
-                    mcfg.get("alert_ttc_s", 1.0),
-                ),
-                "summary": [
-                    {
-                        k: c.get(k)
-                        for k in (
-                            "name",
-                            "collision",
-                            "collision_time_s",
-                            "safety_index",
-                            "safety_index_rel",
-                            "min_gap_m",
-                            "min_ttc_s",
-                            "peak_decel_mps2",
-                            "ego_speed_std_mps",
-                            "first_seen_gap_m",
-                            "seen_too_late",
-                        )
-                    }
-                    for c in summary["configs"]
-                ],  # fmt: skip
-                "time_shift_s": summary.get("time_shift_s"),
-                "riskmap": _risk_map(er),
-            }
-        )
     recs = [
         {"recording": k, **{f: v.get(f) for f in ("status", "reason", "n_riders")},
          "encounters": ", ".join(e.split("__", 1)[-1] for e in v.get("encounters", []))}
         for k, v in sorted(manifest.get("recordings", {}).items())
     ]  # fmt: skip
-    return {
+    index = {
         "dataset": manifest.get("dataset"),
         "status": manifest.get("status"),
         "n_rows": int(len(rows)),
@@ -452,21 +335,89 @@ def collect(catalogue_dir: str | Path) -> dict[str, Any]:
         "failed_encounters": manifest.get("failed_encounters", []),
         "columns": [{"key": k, "label": lab, "fmt": f, "title": t} for k, lab, f, t in columns],
         "ranked_by": "expected harm" if "risk_expected_harm" in enc else "criticality",
-        "encounters": encounters,
+        "catalogue_map": catalogue_map(rows),
+    }
+    return index, records, rows
+
+
+_SUMMARY_KEYS = ("name", "collision", "collision_time_s", "safety_index", "safety_index_rel",
+                 "min_gap_m", "min_ttc_s", "peak_decel_mps2", "ego_speed_std_mps",
+                 "first_seen_gap_m", "seen_too_late")  # fmt: skip
+
+
+def encounter_data(
+    root: Path, rec: dict[str, Any], rows: pd.DataFrame, columns: list[dict[str, Any]]
+) -> dict[str, Any]:
+    """One encounter's data (the page loads it when the encounter is opened): its overview
+    row, recorded tracks, map layers, replay, case-study summary, risk panel and maps.
+
+    Args:
+        root: the catalogue folder; rec: the encounter's record of :func:`collect_index`;
+        rows: its catalogue rows; columns: the index's columns.
+    """
+    eid = rec["encounter_id"]
+    edir = encounter_dir(root, eid)
+    summary = read_json(edir / "casestudy" / "summary.json")
+    mcfg = summary.get("metrics_config", {})
+    scen = read_json(edir / "scenario" / "scenario.json")
+    dims = {a["agent_id"]: (a["length_m"], a["width_m"]) for a in scen["agents"]}
+    risk, probmap = _risk_panel(edir)  # issue 23
+    return {
+        "id": eid,
+        "risk": risk,
+        "probmap": probmap,
+        "row": {c["key"]: rec.get(c["key"]) for c in columns},
+        "rider_id": rec["rider_id"],
+        "recording": rec["recording"],
+        "tracks": _tracks(edir / "scenario"),
+        "roads": _roads(edir / "scenario"),
+        "road_layers": _road_layers(edir / "scenario"),
+        "replay": _replay(
+            edir, rec["rider_id"], dims, mcfg.get("safe_ttc_s", 2.0), mcfg.get("alert_ttc_s", 1.0)
+        ),  # fmt: skip
+        "summary": [{k: c.get(k) for k in _SUMMARY_KEYS} for c in summary["configs"]],
+        "time_shift_s": summary.get("time_shift_s"),
+        "riskmap": risk_map(rows),
     }
 
 
+def _encounters(root: Path, records: list[dict[str, Any]], rows: pd.DataFrame, columns: list):
+    """Yield :func:`encounter_data` of each record in rank order (rows grouped once)."""
+    groups = rows.groupby("encounter_id", sort=False).indices if len(rows) else {}
+    for rec in records:
+        idx = groups.get(rec["encounter_id"], [])
+        yield encounter_data(root, rec, rows.iloc[idx], columns)
+
+
+def collect(catalogue_dir: str | Path) -> dict[str, Any]:
+    """Everything the report shows, as one JSON-ready mapping: :func:`collect_index`'s
+    index with ``encounters``, the :func:`encounter_data` of every encounter in rank order
+    (held in memory: for a large catalogue :func:`write_report` streams them instead).
+
+    Raises:
+        InputError: not a catalogue folder (no catalogue.json / catalogue.parquet).
+    """
+    index, records, rows = collect_index(catalogue_dir)
+    index["encounters"] = list(_encounters(Path(catalogue_dir), records, rows, index["columns"]))
+    return index
+
+
 def write_report(catalogue_dir: str | Path, out: str | Path | None = None) -> Path:
-    """Write the catalogue's report.html (atomically); returns its path.
+    """Write the catalogue's report (:mod:`vei.report.html_site`): the index page
+    ``report.html`` and beside it ``report_files/`` (plotly.js, one script per encounter),
+    streamed encounter by encounter (one encounter's data in memory at a time); returns
+    the index page's path.
 
     Args:
         catalogue_dir: a catalogue folder (vei catalogue --out).
-        out: HTML file; default ``catalogue_dir/report.html``.
+        out: the index page; default ``catalogue_dir/report.html``.
     Raises:
         InputError: not a catalogue folder.
     """
-    from vei.report.html_report import write_html
+    from vei.report.html_site import write_site
 
-    data = collect(catalogue_dir)
-    path = Path(out) if out is not None else Path(catalogue_dir) / "report.html"
-    return write_html(data, path)
+    root = Path(catalogue_dir)
+    index, records, rows = collect_index(root)
+    path = Path(out) if out is not None else root / "report.html"
+    encounters = _encounters(root, records, rows, index["columns"])
+    return write_site(index, encounters, path).index

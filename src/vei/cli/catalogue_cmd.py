@@ -57,7 +57,11 @@ def catalogue(
         bool, typer.Option("--no-figures", help="No PNG/PDF figures per encounter.")
     ] = False,
     report: Annotated[
-        bool, typer.Option("--report/--no-report", help="Write report.html at the end.")
+        bool,
+        typer.Option(
+            "--report/--no-report",
+            help="Write report.html (and report_files/ beside it) at the end.",
+        ),
     ] = True,
     top: Annotated[int, typer.Option("--top", help="Rows of the ranked table printed.")] = 10,
     road_users: Annotated[
@@ -222,10 +226,14 @@ def report_cmd(
         Path, typer.Argument(help="A catalogue folder (vei catalogue --out).")
     ],
     out: Annotated[
-        Path | None, typer.Option("--out", help="HTML file (default CATALOGUE_DIR/report.html).")
+        Path | None,
+        typer.Option(
+            "--out",
+            help="Index page (default CATALOGUE_DIR/report.html; its scripts go to <name>_files/ beside it).",
+        ),
     ] = None,
 ) -> None:
-    """Write the self-contained HTML report of a catalogue (works offline)."""
+    """Write the HTML report of a catalogue: an index page and one script per encounter beside it, loaded on demand (works offline from the folder)."""
     from vei.catalogue.report_data import write_report
 
     path = write_report(catalogue_dir, out)

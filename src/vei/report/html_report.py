@@ -1,12 +1,16 @@
-"""The catalogue's HTML report: one self-contained file that works offline.
+"""The catalogue's HTML report: an index page that loads each encounter on demand, offline.
 
-:func:`render` turns the report data (collected from a catalogue folder by
-:func:`vei.catalogue.report_data.collect`) into ``report.html`` holding, embedded:
+:func:`render` turns the index data (collected from a catalogue folder by
+:func:`vei.catalogue.report_data.collect_index`) into ``report.html`` holding, embedded,
+the page's own script (``report/html/assets/report.js``), its style sheet and the index
+as JSON; plotly.js (the copy that ships in the ``plotly`` Python wheel; no CDN) and one
+script per encounter lie beside it in ``report_files/`` (:mod:`vei.report.html_site`
+writes them). The page shows:
 
-- plotly.js (the copy that ships in the ``plotly`` Python wheel; no CDN), the page's own
-  script (``report/html/assets/report.js``) and style sheet, and the data as JSON;
 - an overview table of the encounters, sortable by any column (criticality rank first),
-  the recordings with their status (failed ones with the importer's reason);
+  a page of rows at a time, the catalogue's risk map (P(collision | cell) over every
+  encounter's sweep; known P = 0, known P > 0 and not known in colours far apart), the
+  recordings with their status (failed ones with the importer's reason);
 - per encounter: the map of all recorded tracks (the encounter's rider highlighted), an
   animated bird's-eye replay of each configuration (play / pause / time slider; ego and
   rider boxes, the other riders, the ego box coloured by the TTC zone, the CAP's state),
@@ -37,12 +41,16 @@ import numpy as np
 import pandas as pd
 
 from vei.errors import DependencyError
-from vei.io.atomic import write_text
 
 ASSETS = Path(__file__).parent / "html" / "assets"
 
 
-def _plotly_js() -> str:
+def plotly_js_path() -> Path:
+    """plotly.min.js of the installed ``plotly`` wheel (the report copies it beside the page).
+
+    Raises:
+        DependencyError: plotly is not installed or lacks the bundle.
+    """
     try:
         import plotly
     except ImportError as exc:
@@ -50,7 +58,18 @@ def _plotly_js() -> str:
     path = Path(plotly.__file__).parent / "package_data" / "plotly.min.js"
     if not path.is_file():
         raise DependencyError(f"plotly.min.js not found in the plotly package ({path})")
-    return path.read_text(encoding="utf-8")
+    return path
+
+
+def _round4(a: np.ndarray) -> np.ndarray:
+    """4 decimals, but 4 significant digits below 0.01 (a probability of 2.6e-4 or 4e-7
+    must not become 0.0003 or 0: a known 0 is drawn apart from a small P)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mag = np.abs(a)
+        exp = np.floor(np.log10(np.where(mag > 0, mag, 1.0)))
+        scale = 10.0 ** (3 - exp)
+        small = np.round(a * scale) / scale
+    return np.where((mag < 0.01) & (mag > 0), small, np.round(a, 4))
 
 
 def _clean(v: Any) -> Any:
@@ -58,12 +77,20 @@ def _clean(v: Any) -> Any:
         return {str(k): _clean(x) for k, x in v.items()}
     if isinstance(v, list | tuple):
         return [_clean(x) for x in v]
+    if isinstance(v, np.ndarray) and v.dtype.kind == "f":  # at once: 10^4 encounters' arrays
+        a = _round4(v.astype(np.float64))
+        bad = ~np.isfinite(a)
+        if not bad.any():
+            return a.tolist()
+        obj = a.astype(object)
+        obj[bad] = None
+        return obj.tolist()
     if isinstance(v, np.ndarray):
         return [_clean(x) for x in v.tolist()]
     if isinstance(v, np.generic):
         v = v.item()
     if isinstance(v, float):
-        return round(v, 4) if math.isfinite(v) else None
+        return float(_round4(np.float64(v))) if math.isfinite(v) else None
     if v is pd.NA:
         return None
     return v
@@ -74,16 +101,6 @@ def _script_json(obj: Any) -> str:
     text = json.dumps(_clean(obj), separators=(",", ":"), allow_nan=False)
     # \u003c etc. are valid JSON escapes: no '</script>' or '<!--' can end the element
     return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
-
-
-def _fmt(v: Any, f: str) -> str:
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "-"
-    if f == "s":
-        return html.escape(str(v))
-    if f == "d":
-        return str(int(v))
-    return format(float(v), f)
 
 
 def _ranking_note(data: dict[str, Any]) -> str:
@@ -99,8 +116,13 @@ def _ranking_note(data: dict[str, Any]) -> str:
     )
 
 
-def render(data: dict[str, Any]) -> str:
-    """The report's HTML text for the data of :func:`collect`."""
+def render(data: dict[str, Any], files: str = "report_files") -> str:
+    """The index page's HTML text: the ranked table, the catalogue's risk map and the
+    encounter panels, for ``data`` = :func:`vei.catalogue.report_data.collect_index`'s
+    index with ``encounters`` = :func:`vei.report.html_site.index_rows` (the table; the
+    scripts the page loads on demand lie in its ``files`` folder, relative to the page).
+    The table is drawn first; plotly.js is then loaded from ``files``/plotly.min.js (the
+    maps and plots follow once it is)."""
     css = (ASSETS / "report.css").read_text(encoding="utf-8")
     js = (ASSETS / "report.js").read_text(encoding="utf-8")
     head = "".join(
@@ -108,13 +130,6 @@ def render(data: dict[str, Any]) -> str:
         f'title="{html.escape(c["title"])}">{html.escape(c["label"])}</th>'
         for c in data["columns"]
     )
-    body = []
-    for e in data["encounters"]:
-        cells = "".join(
-            f'<td data-value="{html.escape(str(e["row"].get(c["key"])))}">{_fmt(e["row"].get(c["key"]), c["fmt"])}</td>'
-            for c in data["columns"]
-        )
-        body.append(f'<tr data-encounter="{html.escape(e["id"])}">{cells}</tr>')
     recs = "".join(
         f'<tr class="{html.escape(str(r["status"]))}"><td>{html.escape(r["recording"])}</td>'
         f"<td>{html.escape(str(r['status']))}</td><td>{html.escape(r['encounters'] or '-')}</td>"
@@ -125,30 +140,29 @@ def render(data: dict[str, Any]) -> str:
         f"<li>{html.escape(f['encounter_id'])}: {html.escape(f['reason'])}</li>"
         for f in data["failed_encounters"]
     )
-    options = "".join(
-        f'<option value="{html.escape(e["id"])}">#{e["row"]["rank"]} {html.escape(e["id"])}</option>'
-        for e in data["encounters"]
-    )
+    data = {**data, "plotly": f"{files}/plotly.min.js"}
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
 <title>vei risk catalogue</title>
 <style>{css}</style>
-<script>{_plotly_js()}</script>
 </head><body>
 <header><h1>vei risk catalogue</h1>
-<p>dataset <code>{html.escape(str(data["dataset"]))}</code> &middot; {len(data["encounters"])} encounters &middot;
+<p>dataset <code>{html.escape(str(data["dataset"]))}</code> &middot; {len(data["encounters"]["ids"])} encounters &middot;
 {data["n_rows"]} rows (encounter &times; configuration) &middot; status {html.escape(str(data["status"]))}</p></header>
 <section id="overview-section"><h2>Encounters ranked by {html.escape(data.get("ranked_by", "criticality"))}</h2>
 <p class="note">Click a column header to sort; click a row to open the encounter. {_ranking_note(data)}</p>
-<table id="overview"><thead><tr>{head}</tr></thead><tbody>{"".join(body)}</tbody></table>
-<h3>Recordings</h3>
+<div class="pager"><button id="page-prev" type="button">&lsaquo; previous</button>
+<span id="page-label"></span><button id="page-next" type="button">next &rsaquo;</button></div>
+<table id="overview"><thead><tr>{head}</tr></thead><tbody></tbody></table>
+<div class="grid"><div class="panel"><h3>Risk map of the catalogue</h3><div id="catalogue-map" class="plot"></div></div>
+<div class="panel"><h3>Recordings</h3>
 <table id="recordings"><thead><tr><th>recording</th><th>status</th><th>encounters</th><th>reason</th></tr></thead>
 <tbody>{recs}</tbody></table>
-{"<h3>Failed encounters</h3><ul>" + failed + "</ul>" if failed else ""}
+{"<h3>Failed encounters</h3><ul>" + failed + "</ul>" if failed else ""}</div></div>
 </section>
 <section id="encounter-section">
-<h2>Encounter <select id="encounter-select">{options}</select></h2>
+<h2>Encounter <select id="encounter-select"></select> <span id="encounter-status" class="note"></span></h2>
 <div class="grid">
 <div class="panel"><h3>Map: all recorded tracks</h3><div id="map-plot" class="plot"></div></div>
 <div class="panel"><h3>Bird's-eye replay</h3>
@@ -167,8 +181,3 @@ def render(data: dict[str, Any]) -> str:
 <script>{js}</script>
 </body></html>
 """
-
-
-def write_html(data: dict[str, Any], path: str | Path) -> Path:
-    """Write the report page for ``data`` (vei.catalogue.report_data.collect) atomically."""
-    return write_text(Path(path), render(data))

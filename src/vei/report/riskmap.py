@@ -120,11 +120,22 @@ def _edges(centres: np.ndarray) -> np.ndarray:
     return np.concatenate([[c[0] - (mid[0] - c[0])], mid, [c[-1] + (c[-1] - mid[-1])]])
 
 
+#: Colour of the cells known to have P = 0 (the report's too: report.js PROB.zero).
+ZERO_COLOUR = "#41ab5d"
+
+
+def _zero_cmap():
+    from matplotlib.colors import ListedColormap
+
+    return ListedColormap([ZERO_COLOUR])
+
+
 def write_probability_map(
     path: str | Path, *, grid: dict, x_label: str, y_label: str, title: str = ""
 ) -> Path:
     """A probability map (PNG, atomically): P(collision | cell) where it is known (its 95 %
-    interval within the grid's limit), the other cells hatched grey and labelled 'not
+    interval within the grid's limit; gid 'probability'), known P = 0 cells green
+    (ZERO_COLOUR, gid 'known_zero'), the other cells hatched grey and labelled 'not
     known' (gid 'unknown'), each known cell annotated with its interval.
 
     Args:
@@ -141,9 +152,15 @@ def write_probability_map(
     fig = Figure(figsize=(7.0, 5.2), dpi=110)
     ax = fig.add_subplot(1, 1, 1)
     xe, ye = _edges(xc), _edges(yc)
-    mesh = ax.pcolormesh(xe, ye, np.ma.masked_where(~known, p), cmap="Reds", vmin=0.0,
+    zero = known & (p == 0.0)
+    mesh = ax.pcolormesh(xe, ye, np.ma.masked_where(~known | zero, p), cmap="Reds", vmin=0.0,
                          vmax=1.0, shading="flat")  # fmt: skip
     mesh.set_gid("probability")
+    # known P = 0 in its own colour, far from the hatched grey of the cells not known and
+    # from the white end of the red scale (issue 35)
+    z = ax.pcolormesh(xe, ye, np.ma.masked_where(~zero, np.ones_like(p)), cmap=_zero_cmap(),
+                      vmin=0.0, vmax=1.0, shading="flat")  # fmt: skip
+    z.set_gid("known_zero")
     fig.colorbar(mesh, ax=ax, label="P(collision | cell)")
     unknown = np.where(known, np.nan, 1.0)
     hatch = ax.pcolor(xe, ye, np.ma.masked_invalid(unknown), cmap="Greys", vmin=0, vmax=4,
@@ -157,7 +174,8 @@ def write_probability_map(
     ax.set_ylim(ye[0], ye[-1])
     ax.set_xlabel(x_label)
     ax.set_ylabel(y_label)
-    ax.legend(handles=[Patch(facecolor="lightgrey", hatch="///",
+    ax.legend(handles=[Patch(facecolor=ZERO_COLOUR, label="known: P = 0 (95 % CI within +-0.1)"),
+                       Patch(facecolor="lightgrey", hatch="///",
                              label="not known (95 % CI wider than +-0.1)")],
               loc="upper right", fontsize=7, framealpha=0.8)  # fmt: skip
     ax.set_title(title or "P(collision | cell)", fontsize=9)

@@ -296,17 +296,46 @@ def share_edges(
     return np.array(segs, dtype=float).reshape(-1, 2, 2)
 
 
+#: Most cells per axis of the share map (issue 35.0: at most 400 cells whatever the design).
+MAX_CELLS_PER_AXIS = 20
+
+
+def _binned_share(per_point, x: str, y: str) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(x centres [Kx], y centres [Ky], mean collision share [Ky, Kx]) of the design points:
+    one cell per distinct value up to MAX_CELLS_PER_AXIS per axis, beyond that that many
+    equal cells over the values' span (NaN where a cell holds no design point)."""
+    xs, ys = per_point[x].to_numpy(float), per_point[y].to_numpy(float)
+    share = per_point["collision_share"].to_numpy(float)
+
+    def axis(v: FloatArray) -> tuple[FloatArray, npt.NDArray[np.intp]]:
+        u = np.unique(v)
+        if u.size <= MAX_CELLS_PER_AXIS:
+            return u, np.searchsorted(u, v)
+        e = np.linspace(u[0], u[-1], MAX_CELLS_PER_AXIS + 1)
+        idx = np.clip(np.searchsorted(e, v, side="right") - 1, 0, MAX_CELLS_PER_AXIS - 1)
+        return 0.5 * (e[:-1] + e[1:]), idx
+
+    xc, bi = axis(xs)
+    yc, bj = axis(ys)
+    flat = bj * xc.size + bi
+    cnt = np.bincount(flat, minlength=xc.size * yc.size)
+    tot = np.bincount(flat, weights=share, minlength=xc.size * yc.size)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(cnt > 0, tot / np.maximum(cnt, 1), np.nan)
+    return xc, yc, mean.reshape(yc.size, xc.size)
+
+
 def write_sample_share_map(per_point, x: str, y: str, path, title: str = ""):
     """Heatmap of the share of reconstruction samples without collision per design point
-    (x, y: two swept parameters; with more, the cells average over the others). Cells
+    (x, y: two swept parameters; with more, the cells average over the others; beyond
+    MAX_CELLS_PER_AXIS values per axis, equal cells of consecutive values). Cells
     strictly between 0 and 1 are design points whose outcome depends on where the rider
     really was; the black staircase separates cells where most samples collide from the
     others (:func:`share_edges` at 0.5). Written atomically; returns the path."""
     from vei.report.riskmap import write_risk_map
 
-    cell = per_point.groupby([y, x], sort=True)["collision_share"].mean().unstack(x)
-    xc, yc = cell.columns.to_numpy(float), cell.index.to_numpy(float)
-    value = 1.0 - cell.to_numpy(float)
+    xc, yc, share = _binned_share(per_point, x, y)
+    value = 1.0 - share
     return write_risk_map(
         path,
         x_centres=xc,

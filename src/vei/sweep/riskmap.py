@@ -33,9 +33,26 @@ def plane_axes(
     return x, y
 
 
+#: Most cells per axis of any sweep picture: a map is drawn from at most
+#: MAX_BINS_PER_AXIS^2 = 400 cells whatever the number of variants (issue 35.0).
+MAX_BINS_PER_AXIS = 20
+
+
 def default_bins(n_rows: int) -> int:
-    """Equal bins per axis for ``n_rows`` variants: about 10 variants per bin, 4 to 25."""
-    return int(np.clip(np.sqrt(n_rows / 10.0), 4, 25))
+    """Equal bins per axis for ``n_rows`` variants: about 10 variants per bin, 4 to
+    MAX_BINS_PER_AXIS (20)."""
+    return int(np.clip(np.sqrt(n_rows / 10.0), 4, MAX_BINS_PER_AXIS))
+
+
+def grid_edges(values: np.ndarray, max_bins: int = MAX_BINS_PER_AXIS) -> np.ndarray:
+    """Cell edges for an equally spaced grid axis ``values`` [K] (increasing): one cell
+    per value (edges half a step beyond the ends) when K <= ``max_bins``, else
+    ``max_bins`` equal cells over the same span, each holding about K / max_bins values
+    (10,000 time-shift values -> 20 cells of 500). Returns [min(K, max_bins) + 1]."""
+    e = _centre_edges(np.asarray(values, float))
+    if len(values) <= max_bins:
+        return e
+    return np.linspace(e[0], e[-1], max_bins + 1)
 
 
 def _binned(
@@ -52,7 +69,7 @@ def _binned(
             return np.linspace(v.min(), v.max(), bins + 1)
         p = spec.param(name)
         if p.num is not None and p.num >= 2:
-            return _centre_edges(np.linspace(p.min, p.max, p.num))
+            return grid_edges(np.linspace(p.min, p.max, p.num))
         return np.linspace(p.min, p.max, bins + 1)
 
     return binned_risk(
@@ -77,8 +94,11 @@ def sweep_risk_map(
     """Risk map of a finished sweep over two range parameters (:func:`plane_axes`).
 
     Variants are binned in the (x, y) plane: a grid design's own values are the bins (one
-    variant per bin per other setting), other designs use ``bins`` equal bins per axis
-    (default: about 10 variants per bin, 4 to 25 bins per axis). The heatmap is the mean
+    variant per bin per other setting) up to MAX_BINS_PER_AXIS values per axis, beyond
+    that MAX_BINS_PER_AXIS equal bins of consecutive values (:func:`grid_edges`); other
+    designs use ``bins`` equal bins per axis (default: about 10 variants per bin, 4 to
+    MAX_BINS_PER_AXIS bins per axis). At most 400 cells are drawn whatever the number of
+    variants. The heatmap is the mean
     safety index per bin, the boundary the 0.5 level of the collision share (marching
     squares, linear interpolation; :func:`vei.sweep.lattice.share_boundary`).
 
@@ -252,6 +272,20 @@ def wilson_interval(k: int, n: int, z: float = 1.959963984540054) -> tuple[float
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
+def wilson_intervals(
+    p: np.ndarray, n: np.ndarray, z: float = 1.959963984540054
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`wilson_interval` of many cells at once: p [...] observed shares, n [...]
+    (effective) sample sizes, both rounded as the scalar form rounds them (k = max(1,
+    round(n)) trials, round(p k) successes). Returns (lo, hi), arrays shaped like p."""
+    k = np.maximum(1.0, np.round(np.asarray(n, float)))
+    q = np.round(np.asarray(p, float) * k) / k
+    den = 1.0 + z * z / k
+    centre = (q + z * z / (2 * k)) / den
+    half = z * np.sqrt(q * (1 - q) / k + z * z / (4 * k * k)) / den
+    return np.maximum(0.0, centre - half), np.minimum(1.0, centre + half)
+
+
 def probability_grid(
     x: np.ndarray,
     y: np.ndarray,
@@ -285,11 +319,8 @@ def probability_grid(
     with np.errstate(invalid="ignore", divide="ignore"):
         p = np.where(sw > 0, swf / sw, np.nan).T
         n = np.where(sw2 > 0, sw * sw / sw2, 0.0).T
-    lo = np.full_like(p, np.nan)
-    hi = np.full_like(p, np.nan)
-    for idx in zip(*np.nonzero(n > 0), strict=True):
-        k = max(1, int(round(n[idx])))
-        lo[idx], hi[idx] = wilson_interval(int(round(p[idx] * k)), k)
+    lo, hi = wilson_intervals(np.where(n > 0, p, 0.0), n)
+    lo, hi = np.where(n > 0, lo, np.nan), np.where(n > 0, hi, np.nan)
     known = np.isfinite(p) & ((hi - lo) / 2 <= max_half_width)
     xe, ye = bins
     return {

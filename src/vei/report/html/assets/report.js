@@ -1,7 +1,9 @@
 /* vei catalogue report: sortable overview, per-encounter plots, bird's-eye replay. */
 (function () {
   "use strict";
+  var T0 = performance.now();  /* plotly.js and the page are parsed by now */
   var DATA = JSON.parse(document.getElementById("vei-data").textContent);
+  var T_JSON = performance.now();
   var COLOURS = { "replay": "#7f7f7f", "normal": "#1f77b4", "aggressive": "#d62728",
                   "normal-cap": "#2ca02c", "aggressive-cap": "#ff7f0e" };
   var PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b"];
@@ -13,33 +15,96 @@
   function colour(name, i) { return COLOURS[name] || PALETTE[i % PALETTE.length]; }
   function num(v) { return (v === null || v === undefined || v === "None" || v === "nan" || v === "") ? NaN : Number(v); }
 
-  /* ---------------- overview table ---------------- */
+  /* ---------------- overview table (a page of rows at a time) ---------------- */
+  var PAGE = 25;
+  /* DATA.encounters: {ids [N], values [N][C] in the columns' order, files}: rows as objects */
+  var COLS = DATA.columns, INDEX = {};
+  var ROWS = DATA.encounters.ids.map(function (id, i) {
+    var row = {}, v = DATA.encounters.values[i];
+    for (var c = 0; c < COLS.length; c++) { row[COLS[c].key] = v[c]; }
+    INDEX[id] = i;
+    return { id: id, row: row, file: DATA.encounters.files + String(i).padStart(5, "0") + ".js" };
+  });
+  window.veiReport.rows = ROWS;
+  var view = { order: ROWS.map(function (_, i) { return i; }), page: 0 };
+  function fmt(v, f) {
+    if (v === null || v === undefined || (typeof v === "number" && !isFinite(v))) { return "-"; }
+    if (f === "s") { return String(v); }
+    if (f === "d") { return String(Math.trunc(Number(v))); }
+    var m = /^\.(\d+)([fe])$/.exec(f);
+    if (!m) { return String(v); }
+    return m[2] === "e" ? Number(v).toExponential(Number(m[1])) : Number(v).toFixed(Number(m[1]));
+  }
+  function renderPage() {
+    var n = ROWS.length, pages = Math.max(1, Math.ceil(n / PAGE));
+    view.page = Math.max(0, Math.min(view.page, pages - 1));
+    var lo = view.page * PAGE, hi = Math.min(n, lo + PAGE), h = [];
+    for (var k = lo; k < hi; k++) {
+      var r = ROWS[view.order[k]];
+      var sel = state.enc && state.enc.id === r.id ? " class=\"selected\"" : "";
+      h.push("<tr data-encounter=\"" + esc(r.id) + "\"" + sel + ">" + COLS.map(function (c) {
+        var v = r.row[c.key];
+        return "<td data-value=\"" + esc(v === null || v === undefined ? "None" : v) + "\">" + esc(fmt(v, c.fmt)) + "</td>";
+      }).join("") + "</tr>");
+    }
+    document.querySelector("#overview tbody").innerHTML = h.join("");
+    document.getElementById("page-label").textContent = n ? " rows " + (lo + 1) + "-" + hi + " of " + n + " " : " no encounter ";
+    document.getElementById("page-prev").disabled = view.page === 0;
+    document.getElementById("page-next").disabled = view.page >= pages - 1;
+  }
   function sortTable(th) {
-    var table = document.getElementById("overview");
-    var idx = Array.prototype.indexOf.call(th.parentNode.children, th);
-    var asc = !th.classList.contains("asc");
+    var key = th.getAttribute("data-key"), asc = !th.classList.contains("asc");
     Array.prototype.forEach.call(th.parentNode.children, function (h) { h.classList.remove("asc", "desc"); });
     th.classList.add(asc ? "asc" : "desc");
     var text = th.getAttribute("data-type") === "text";
-    var body = table.tBodies[0];
-    var rows = Array.prototype.slice.call(body.rows);
-    rows.sort(function (a, b) {
-      var va = a.cells[idx].getAttribute("data-value"), vb = b.cells[idx].getAttribute("data-value");
-      if (text) { return asc ? va.localeCompare(vb) : vb.localeCompare(va); }
+    view.order.sort(function (a, b) {
+      var va = ROWS[a].row[key], vb = ROWS[b].row[key];
+      if (text) { va = String(va); vb = String(vb); return asc ? va.localeCompare(vb) : vb.localeCompare(va); }
       var na = num(va), nb = num(vb);
       if (isNaN(na) && isNaN(nb)) { return 0; }
       if (isNaN(na)) { return 1; }
       if (isNaN(nb)) { return -1; }
       return asc ? na - nb : nb - na;
     });
-    rows.forEach(function (r) { body.appendChild(r); });
+    view.page = 0;
+    renderPage();
   }
   Array.prototype.forEach.call(document.querySelectorAll("#overview th"), function (th) {
     th.addEventListener("click", function () { sortTable(th); });
   });
-  Array.prototype.forEach.call(document.querySelectorAll("#overview tbody tr"), function (tr) {
-    tr.addEventListener("click", function () { showEncounter(tr.getAttribute("data-encounter")); });
+  document.querySelector("#overview tbody").addEventListener("click", function (ev) {
+    var tr = ev.target.closest("tr");
+    if (tr) { showEncounter(tr.getAttribute("data-encounter")); }
   });
+  document.getElementById("page-prev").addEventListener("click", function () { view.page -= 1; renderPage(); });
+  document.getElementById("page-next").addEventListener("click", function () { view.page += 1; renderPage(); });
+
+  /* ---------------- encounters, loaded on demand ---------------- */
+  /* Each encounter's data is a script beside the page (report_files/enc/NNNNN.js) that
+     calls veiReport.receive(i, data): a <script src> loads from a file:// folder, where
+     Chromium blocks fetch() of a JSON file. At most CACHE encounters are kept. */
+  var CACHE = 20, cache = {}, cached = [], waiting = {};
+  function receive(i, e) {
+    cache[i] = e; cached.push(i);
+    while (cached.length > CACHE) { delete cache[cached.shift()]; }
+    var then = waiting[i]; delete waiting[i];
+    if (then) { then(e); }
+  }
+  function load(i, then) {
+    if (cache[i]) { then(cache[i]); return; }
+    var first = !waiting[i];
+    waiting[i] = then;
+    if (!first) { return; }
+    var s = document.createElement("script");
+    s.src = ROWS[i].file;
+    s.onload = function () { s.remove(); };
+    s.onerror = function () {
+      s.remove(); delete waiting[i];
+      document.getElementById("encounter-status").textContent = "could not load " + ROWS[i].file + " (is the report_files folder beside the page?)";
+    };
+    document.head.appendChild(s);
+  }
+  window.veiReport.receive = receive;
 
   /* ---------------- geometry ---------------- */
   function box(x, y, yaw, L, W) {
@@ -218,7 +283,9 @@
     document.getElementById("summary-table").innerHTML = h;
   }
 
-  function esc(v) { var span = document.createElement("span"); span.textContent = String(v); return span.innerHTML; }
+  function esc(v) {
+    return String(v).replace(/&/g, "&amp;").replace(/</g, "&lt;").replace(/>/g, "&gt;").replace(/"/g, "&quot;");
+  }
   function drawProbabilities(e) {
     var el = document.getElementById("prob-table"), r = e.risk;
     if (!r) { el.textContent = "no risk estimate (catalogue setting risk: null)"; return; }
@@ -234,22 +301,34 @@
     r.comparisons.forEach(function (c) { h += "<p>" + esc(c) + "</p>"; });
     el.innerHTML = h;
   }
-  function drawProbMap(e, el) {
-    var m = e.probmap;
-    el.textContent = "";
-    var traces = [
-      { type: "heatmap", x: m.x, y: m.y, z: m.z, zmin: 0, zmax: 1, colorscale: "Reds", colorbar: { title: { text: "P(collision | cell)" } },
-        text: m.text, hovertemplate: "%{x:.2f}, %{y:.2f}<br>%{text}<extra></extra>" },
-      { type: "heatmap", x: m.x, y: m.y, z: m.unknown, zmin: 0, zmax: 1, showscale: false, opacity: 0.45,
-        colorscale: [[0, "#9e9e9e"], [1, "#9e9e9e"]], text: m.text, hovertemplate: "%{text}<extra>not known</extra>", name: "not known" }
-    ];
-    Plotly.newPlot(el, traces, lay({ xaxis: { title: { text: m.x_label } }, yaxis: { title: { text: m.y_label } },
-      annotations: [{ text: "grey: not known (95 % CI wider than +-0.1); " + m.n + " samples of " + m.policy, xref: "paper", yref: "paper", x: 0, y: 1.08, showarrow: false, font: { size: 10 } }] }), CONF);
+  /* Probability maps: known P > 0 on a red scale, known P = 0 green, not known grey:
+     colours far apart (issue 35; known P = 0 was the white end of the scale under a grey veil). */
+  var PROB = { scale: [[0, "#fcbba1"], [1, "#67000d"]], zero: "#41ab5d", unknown: "#bdbdbd" };
+  function key(name, colour) {
+    return { x: [null], y: [null], mode: "markers", name: name, hoverinfo: "skip",
+             marker: { symbol: "square", size: 12, color: colour, line: { color: "#666", width: 1 } } };
   }
+  function drawProbMap(m, el, note) {
+    el.textContent = "";
+    var flat = function (c) { return [[0, c], [1, c]]; };
+    var traces = [
+      { type: "heatmap", x: m.x, y: m.y, z: m.z, zmin: 0, zmax: 1, colorscale: PROB.scale, name: "known: P > 0",
+        colorbar: { title: { text: "P(collision | cell)" } }, text: m.text, hovertemplate: "%{x:.2f}, %{y:.2f}<br>%{text}<extra></extra>" },
+      { type: "heatmap", x: m.x, y: m.y, z: m.zero, zmin: 0, zmax: 1, showscale: false, colorscale: flat(PROB.zero), name: "known: P = 0",
+        text: m.text, hovertemplate: "%{text}<extra>known: P = 0</extra>" },
+      { type: "heatmap", x: m.x, y: m.y, z: m.unknown, zmin: 0, zmax: 1, showscale: false, colorscale: flat(PROB.unknown), name: "not known",
+        text: m.text, hovertemplate: "%{text}<extra>not known</extra>" },
+      key("known: P = 0", PROB.zero), key("not known (95 % CI wider than \u00b10.1)", PROB.unknown)
+    ];
+    Plotly.newPlot(el, traces, lay({ xaxis: { title: { text: m.x_label } }, yaxis: { title: { text: m.y_label } }, showlegend: true,
+      legend: { x: 0, y: -0.2, yanchor: "top", orientation: "h" }, margin: { l: 50, r: 10, t: 30, b: 115 },
+      annotations: [{ text: note, xref: "paper", yref: "paper", x: 0, y: -0.33, xanchor: "left", yanchor: "top", showarrow: false, font: { size: 10 } }] }), CONF);
+  }
+  window.veiReport.PROB = PROB;
 
   function drawRisk(e) {
     var m = e.riskmap, el = document.getElementById("risk-plot");
-    if (e.probmap) { drawProbMap(e, el); return; }
+    if (e.probmap) { drawProbMap(e.probmap, el, "P(collision | cell) of the risk estimate: " + e.probmap.note); return; }
     if (!m) { Plotly.purge(el); el.textContent = "no sweep over time shift and cruise speed"; return; }
     el.textContent = "";
     var coll = m.points.collision;
@@ -283,14 +362,12 @@
     }, 1000 / 10);
   }
 
-  function showEncounter(id) {
-    var e = DATA.encounters.filter(function (x) { return x.id === id; })[0];
-    if (!e) { return; }
+  function draw(e) {
     stop();
     state.enc = e; state.k = 0;
-    document.getElementById("encounter-select").value = id;
+    document.getElementById("encounter-status").textContent = "";
     Array.prototype.forEach.call(document.querySelectorAll("#overview tbody tr"), function (tr) {
-      tr.classList.toggle("selected", tr.getAttribute("data-encounter") === id);
+      tr.classList.toggle("selected", tr.getAttribute("data-encounter") === e.id);
     });
     var sel = document.getElementById("config-select");
     sel.innerHTML = "";
@@ -300,13 +377,48 @@
     slider.max = String(e.replay.t.length - 1); slider.value = "0";
     drawMap(e); drawSpeed(e); drawTTC(e); drawSummary(e); drawRisk(e); drawProbabilities(e); drawReplay();
   }
+  function showEncounter(id, then) {
+    var i = INDEX[id];
+    if (i === undefined) { return; }
+    document.getElementById("encounter-select").value = id;
+    state.wanted = id;
+    document.getElementById("encounter-status").textContent = "loading ...";
+    load(i, function (e) {
+      if (state.wanted === id) { draw(e); }
+      if (then) { then(e); }
+    });
+  }
 
+  (function () {  /* the select box: every encounter, by rank */
+    var sel = document.getElementById("encounter-select"), frag = document.createDocumentFragment();
+    ROWS.forEach(function (r) {
+      var o = document.createElement("option"); o.value = r.id; o.textContent = "#" + r.row.rank + " " + r.id; frag.appendChild(o);
+    });
+    sel.appendChild(frag);
+  })();
   document.getElementById("encounter-select").addEventListener("change", function (ev) { showEncounter(ev.target.value); });
   document.getElementById("config-select").addEventListener("change", function (ev) { state.cfg = Number(ev.target.value); drawReplay(); setFrame(state.k); });
   document.getElementById("time-slider").addEventListener("input", function (ev) { stop(); setFrame(Number(ev.target.value)); });
   document.getElementById("play-button").addEventListener("click", play);
   window.veiReport.showEncounter = showEncounter;
   window.veiReport.setFrame = setFrame;
-  if (DATA.encounters.length) { showEncounter(DATA.encounters[0].id); }
-  window.veiReport.ready = true;
+  /* the table first; plotly.js (4.6 MB) loads after it, then the maps and the first encounter */
+  renderPage();
+  window.veiReport.timing = { script_start_ms: T0, json_parsed_ms: T_JSON, table_ms: performance.now() };
+  function done() { window.veiReport.timing.ready_ms = performance.now(); window.veiReport.ready = true; }
+  function plots() {
+    var cmap = document.getElementById("catalogue-map");
+    if (DATA.catalogue_map) {
+      drawProbMap(DATA.catalogue_map, cmap, "P(collision | cell) over the sweeps: " + DATA.catalogue_map.note);
+    } else { cmap.textContent = "no sweep over time shift and cruise speed"; }
+    window.veiReport.timing.index_ms = performance.now();
+    if (ROWS.length) { showEncounter(ROWS[view.order[0]].id, done); } else { done(); }
+  }
+  var lib = document.createElement("script");
+  lib.src = DATA.plotly;
+  lib.onload = plots;
+  lib.onerror = function () {
+    document.getElementById("catalogue-map").textContent = "could not load " + DATA.plotly + " (is the report_files folder beside the page?)";
+  };
+  document.head.appendChild(lib);
 })();

@@ -1,0 +1,144 @@
+"""Writing the catalogue's report as a small site that works offline from its folder.
+
+``report.html`` (the index page, :func:`vei.report.html_report.render`) and beside it
+``report_files/``:
+
+- ``plotly.min.js``: the plotting library (the copy in the ``plotly`` wheel);
+- ``enc/00000.js``, ``enc/00001.js``, ...: one script per encounter in rank order, each a
+  single call ``window.veiReport.receive(i, {...})`` with that encounter's data.
+
+The page loads an encounter's script when the encounter is opened, by adding a
+``<script src>`` element: unlike ``fetch`` or XMLHttpRequest of a JSON file, which Chromium
+blocks on ``file://`` pages, a script element loads from the page's own folder, so the
+report opens from a local folder, a zip unpacked anywhere or a web server alike. The index
+holds only the ranked table and the catalogue's risk map, so its size grows by a row per
+encounter (about 300 bytes), not by the encounter's tracks and replay (issue 35: the single
+file of a 10^4-encounter catalogue would have held more than a gigabyte).
+
+Encounter scripts are written first, one at a time (:func:`write_site` takes an iterator,
+so one encounter's data is in memory at a time), into a fresh folder that replaces
+``enc/`` whole once every script is written (a previous report's scripts go with it); the
+index page last, atomically.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import shutil
+import tempfile
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from vei.io.atomic import atomic_path, write_text
+from vei.report.html_report import _script_json, plotly_js_path, render
+
+#: Name of an encounter's script in ``<files>/enc/``.
+ENCOUNTER_FILE = "{:05d}.js"
+
+
+@dataclasses.dataclass(frozen=True)
+class SiteStats:
+    """What :func:`write_site` wrote.
+
+    Attributes:
+        index: the index page; files: its folder of scripts.
+        n_encounters: encounter scripts written.
+        index_bytes: the index page's size [bytes]; opened_bytes: what opening the page
+            loads (index + plotly.min.js + the first encounter's script) [bytes];
+        total_bytes: the page and its whole folder [bytes].
+    """
+
+    index: Path
+    files: Path
+    n_encounters: int
+    index_bytes: int
+    opened_bytes: int
+    total_bytes: int
+
+
+def files_dir(index: Path) -> Path:
+    """The folder of an index page's scripts: ``<stem>_files`` beside it."""
+    return index.parent / f"{index.stem}_files"
+
+
+def encounter_script(i: int, enc: dict[str, Any]) -> str:
+    """The text of encounter ``i``'s script: one ``window.veiReport.receive`` call."""
+    return f"window.veiReport.receive({int(i)},{_script_json(enc)});\n"
+
+
+def _sig(v: Any) -> Any:
+    """A table value for the index: floats to 5 significant digits (1.2346e-07 stays)."""
+    if isinstance(v, float | np.floating):
+        v = float(v)
+        return float(f"{v:.5g}") if math.isfinite(v) else None
+    if isinstance(v, np.generic):
+        return v.item()
+    return v
+
+
+def index_rows(encounters: list[dict[str, Any]], columns: list[dict[str, Any]]) -> dict[str, Any]:
+    """The index page's table in a compact form: {'ids' [N], 'values' [N][C] (the
+    ``columns``' values in order, floats to 5 significant digits), 'files' (the scripts'
+    folder relative to the page, set by :func:`write_site`)}; encounter i's script is
+    ``files`` + ENCOUNTER_FILE.format(i)."""
+    keys = [c["key"] for c in columns]
+    return {
+        "ids": [e["id"] for e in encounters],
+        "values": [[_sig(e["row"].get(k)) for k in keys] for e in encounters],
+    }
+
+
+def write_site(
+    index: dict[str, Any], encounters: Iterable[dict[str, Any]], path: str | Path
+) -> SiteStats:
+    """Write the report site (module docstring) atomically, file by file.
+
+    Args:
+        index: :func:`vei.catalogue.report_data.collect_index`'s index.
+        encounters: the encounters' data in rank order
+            (:func:`vei.catalogue.report_data.encounter_data`), consumed one at a time.
+        path: the index page (e.g. ``DIR/report.html``).
+    Returns:
+        :class:`SiteStats`.
+    """
+    path = Path(path)
+    files = files_dir(path)
+    files.mkdir(parents=True, exist_ok=True)
+    with atomic_path(files / "plotly.min.js") as tmp:
+        tmp.write_bytes(plotly_js_path().read_bytes())
+    # the scripts go to a fresh folder, swapped in whole once every one is written (one
+    # rename instead of a synced rename per file: 10^4 encounters)
+    fresh = Path(tempfile.mkdtemp(prefix=".enc.", dir=files))
+    listed: list[dict[str, Any]] = []
+    try:
+        for i, enc in enumerate(encounters):
+            name = ENCOUNTER_FILE.format(i)
+            (fresh / name).write_text(encounter_script(i, enc), encoding="utf-8")
+            listed.append({"id": enc["id"], "row": enc["row"]})
+        fresh.chmod(0o755)
+        enc_dir, old = files / "enc", files / f".enc.old.{os.getpid()}"
+        if enc_dir.exists():
+            enc_dir.rename(old)
+        fresh.rename(enc_dir)
+        shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(fresh, ignore_errors=True)
+        raise
+    table = {**index_rows(listed, index["columns"]), "files": f"{files.name}/enc/"}
+    write_text(path, render({**index, "encounters": table}, files=files.name))
+    size = path.stat().st_size
+    first = (files / "enc" / ENCOUNTER_FILE.format(0)).stat().st_size if listed else 0
+    total = size + sum(p.stat().st_size for p in files.rglob("*") if p.is_file())
+    return SiteStats(
+        index=path,
+        files=files,
+        n_encounters=len(listed),
+        index_bytes=size,
+        opened_bytes=size + (files / "plotly.min.js").stat().st_size + first,
+        total_bytes=total,
+    )
