@@ -96,6 +96,11 @@ def test_page_lists_every_encounter_and_recording(data):
                      (None if isinstance(w, float) else w))  # fmt: skip
     for r in data["recordings"]:
         assert r["recording"] in page
+    # issue 31: the overview says what the recorded behaviour supports
+    assert {"recorded_collision_share", "recorded_share_ci", "collisions_on_recorded"} <= set(keys)
+    for e in data["encounters"]:
+        share = e["row"]["recorded_collision_share"]
+        assert 0.0 <= share <= 1.0 and e["row"]["recorded_share_ci"].startswith("[")
 
 
 def test_site_writes_one_script_per_encounter_and_drops_stale_ones(data, tmp_path):

@@ -51,6 +51,26 @@ OVERVIEW_COLUMNS: tuple[tuple[str, str, str, str], ...] = (
         ".3f",
         "share of the unflagged configurations that collide",
     ),
+    (
+        "recorded_collision_share",
+        "on recorded",
+        ".3f",
+        "share of the unflagged configurations that collide with the rider on its recorded "
+        "behaviour (not on vei's run-in or run-out)",
+    ),
+    (
+        "recorded_share_ci",
+        "on recorded 95 % CI",
+        "s",
+        "95 % Wilson interval of the share colliding on recorded behaviour",
+    ),
+    (
+        "collisions_on_recorded",
+        "of collisions on recorded",
+        ".2f",
+        "share of the collisions that happen on the rider's recorded behaviour; the rest "
+        "happen on vei's synthetic continuations",
+    ),
     ("mean_safety_index", "mean SI", ".3f", "mean safety index over the unflagged configurations"),
     ("worst_min_gap_m", "worst gap [m]", ".2f", "smallest simulated box gap"),
     ("casestudy_collisions", "case-study collisions", "d", "of the paper's five configurations"),
@@ -316,8 +336,14 @@ def collect_index(
     if "risk_expected_harm" in enc:
         columns = (OVERVIEW_COLUMNS[0], OVERVIEW_COLUMNS[1], OVERVIEW_COLUMNS[2],
                    *RISK_COLUMNS, *OVERVIEW_COLUMNS[3:])  # fmt: skip
+    if "recorded_collision_share" not in enc:  # rows written before issue 31
+        keep = {"recorded_collision_share", "recorded_share_ci", "collisions_on_recorded"}
+        columns = tuple(c for c in columns if c[0] not in keep)
     records = enc.to_dict("records")
     for rec in records:
+        if "recorded_collision_share" in rec:
+            lo, hi = rec["recorded_collision_share_lo"], rec["recorded_collision_share_hi"]
+            rec["recorded_share_ci"] = f"[{lo:.3f}, {hi:.3f}]" if lo == lo else "-"
         if "risk_expected_harm" in rec:
             rec["risk_harm_ci"] = _ci_text(rec, "risk_expected_harm")
             rec["risk_p_collision_ci"] = _ci_text(rec, "risk_p_collision")
