@@ -128,12 +128,21 @@ def print_result(result, console) -> None:
         console.print(f"{p.policy}: {p.method}, {p.n_simulations:,} simulations{prec}")
         for label, e in (
             ("P(collision)", p.p_collision),
+            ("P(collision on recorded)", p.p_collision_recorded),
             ("P(injury-relevant collision)", p.p_injury_relevant),
             ("expected injury risk", p.expected_injury),
             ("P(seen too late)", p.p_seen_too_late),
         ):
+            if e is None:
+                continue
             flag = "" if e.reliable else "  (unreliable: see notes)"
             console.print(f"  {label:30s} {e.text()}{flag}")
+        if p.share_synthetic is not None:
+            from vei.risk.weighted import share_sentence
+
+            text = share_sentence(p.share_synthetic)
+            if text:
+                console.print(f"  {text}")
         for note in dict.fromkeys(p.notes + list(p.p_collision.notes)):
             console.print(f"  note: {note}")
         modes = result.modes.get(p.policy, {})
@@ -147,14 +156,18 @@ def print_result(result, console) -> None:
     for c in result.comparisons:
         console.print(c.sentence())
     if result.sobol:
-        from vei.risk.sensitivity import driver
+        from vei.risk.sensitivity import driver, few_failures_note
 
         top = driver(result.sobol)
+        few = few_failures_note(result.sobol)
         if top:
+            of = "of the minimum gap " if few else ""
             console.print(
-                f"largest total Sobol index: {top} (planner {result.sobol['policy']}, "
-                f"{result.sobol['n_simulations']:,} simulations)"
+                f"largest total Sobol index {of}: {top} (planner {result.sobol['policy']}, "
+                f"{result.sobol['n_simulations']:,} simulations)".replace(" :", ":")
             )
+        for note in result.sobol.get("notes", []):
+            console.print(f"  note (Sobol): {note}")
     console.print(
         f"{result.n_simulations:,} simulations in {result.timings.get('total', 0):.1f} s; "
         f"results in {result.out_dir}"

@@ -59,7 +59,11 @@ _SPEC_KEYS = {
     "perception",
     "v2x",
     "injury_relevant_speed_mps",
+    "failure",
 }
+#: ``failure: {count: ...}``: which collisions count as failures: every collision, or
+#: only those on the primary rider's recorded behaviour (vei.metrics.where).
+FAILURE_COUNTS: tuple[str, ...] = ("all", "recorded")
 
 
 @dataclass(frozen=True)
@@ -99,6 +103,9 @@ class VariationModel:
         v2x: V2X for every sample (docs/v2x.md), or None (the base's: off); a varied or
             fixed ``v2x.*`` needs it enabled.
         injury_relevant_speed_mps: a collision is injury-relevant at an impact speed >= this.
+        failure_count: 'all' (every collision is a failure) or 'recorded' (only a
+            collision on the primary rider's recorded behaviour; spec ``failure: {count:
+            recorded}``).
         source: the file it came from (for messages).
     """
 
@@ -111,6 +118,7 @@ class VariationModel:
     perception: PerceptionConfig | None = None
     v2x: V2XConfig | None = None
     injury_relevant_speed_mps: float = INJURY_RELEVANT_SPEED_MPS
+    failure_count: str = "all"
     source: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -128,6 +136,11 @@ class VariationModel:
         v = self.injury_relevant_speed_mps
         if isinstance(v, bool) or not isinstance(v, int | float) or not (0 < v < math.inf):
             raise ConfigError(f"{where}: injury_relevant_speed_mps must be > 0, got {v!r}")
+        if self.failure_count not in FAILURE_COUNTS:
+            raise ConfigError(
+                f"{where}: failure.count must be one of {', '.join(FAILURE_COUNTS)}, got "
+                f"{self.failure_count!r}"
+            )
         from vei.sweep.params import check_v2x_spec
 
         check_v2x_spec([n for n, _ in (*self.distributions, *self.fixed)], self.v2x, where)
@@ -186,6 +199,8 @@ class VariationModel:
             "fixed": dict(self.fixed),
             "injury_relevant_speed_mps": self.injury_relevant_speed_mps,
         }
+        if self.failure_count != "all":  # the default stays out (digests unchanged)
+            out["failure"] = {"count": self.failure_count}
         if self.perception is not None:
             out["perception"] = dataclasses.asdict(self.perception)
         if self.v2x is not None:
@@ -311,9 +326,31 @@ def parse_variation(raw: Any, where: str = "risk spec") -> VariationModel:
         perception=parse_perception(raw.get("perception"), where),
         v2x=parse_v2x(raw.get("v2x"), where),
         injury_relevant_speed_mps=raw.get("injury_relevant_speed_mps", INJURY_RELEVANT_SPEED_MPS),
+        failure_count=_failure_count(raw.get("failure"), where),
         source=where,
     )
     return model
+
+
+def _failure_count(raw: Any, where: str) -> str:
+    """``failure: {count: all | recorded}`` -> the count (default 'all').
+
+    Raises:
+        ConfigError: not a mapping, an unknown key (named), an unknown value.
+    """
+    if raw is None:
+        return "all"
+    if not isinstance(raw, Mapping):
+        raise ConfigError(f"{where}: failure must be a mapping such as {{count: recorded}}")
+    unknown = sorted(set(map(str, raw)) - {"count"})
+    if unknown:
+        raise ConfigError(f"{where}: failure: unknown key(s) {', '.join(unknown)}; expected count")
+    value = raw.get("count", "all")
+    if value not in FAILURE_COUNTS:
+        raise ConfigError(
+            f"{where}: failure.count must be one of {', '.join(FAILURE_COUNTS)}, got {value!r}"
+        )
+    return str(value)
 
 
 def load_variation(path: str | Path) -> VariationModel:
