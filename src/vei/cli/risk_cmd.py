@@ -35,7 +35,8 @@ def risk(
         typer.Option(
             "--spec",
             help="Risk spec (YAML): base, time_shift_reference, seed, variation, fixed, "
-            "perception (docs/risk.md). Default: the documented default variation.",
+            "perception, failure: {count: all|recorded} (docs/risk.md). Default: the "
+            "documented default variation.",
         ),
     ] = None,
     policy: Annotated[
@@ -76,8 +77,8 @@ def risk(
         str,
         typer.Option(
             "--configs",
-            help="Which samples get a `vei run --config` file: failures (every collision "
-            "and 20 others), all, none.",
+            help="Which samples get a `vei run --config` file: failures (up to 200 "
+            "collisions, those the final estimate rests on first, and 20 others), all, none.",
         ),
     ] = "failures",
     progress: Annotated[
