@@ -175,3 +175,20 @@ def test_comparison_sentence_states_the_difference_in_its_order():
     assert text.startswith("none is safer than paper-cap: P(none) - P(paper-cap) = -0.2")
     assert "no significant difference" in _cmp("no significant difference", 0.1, -0.1,
                                                 0.3).sentence()  # fmt: skip
+
+
+def test_independent_runs_combine_by_hand():
+    from vei.risk.subset import SubsetRun, combine, lognormal_interval
+
+    a, b = SubsetRun(1e-3, 0.1), SubsetRun(3e-3, 0.1)
+    # Au & Beck: var = (0.1e-3)^2 + (0.3e-3)^2 = 1e-7 ... the runs' spread is larger:
+    # ((1e-3 - 2e-3)^2 + (3e-3 - 2e-3)^2) x 2 / 1 = 4e-6 -> CoV = 2e-3 / 4e-3 = 0.5, 1 dof
+    p, cov, df = combine([a, b])
+    assert (p, cov, df) == pytest.approx((2e-3, 0.5, 1.0))
+    # close runs: Au & Beck's coefficients hold: CoV = sqrt(2 (0.1 x 2e-3)^2) / 4e-3
+    p, cov, df = combine([SubsetRun(2e-3, 0.1), SubsetRun(2e-3, 0.1)])
+    assert cov == pytest.approx(math.sqrt(2) * 0.1 / 2) and math.isinf(df)
+    lo, hi = lognormal_interval(1.0, math.sqrt(math.e - 1))  # sqrt(ln(1 + cov^2)) = 1
+    assert (lo, hi) == pytest.approx((math.exp(-1.959964), math.exp(1.959964)), rel=1e-6)
+    lo, _ = lognormal_interval(1.0, math.sqrt(math.e - 1), 1.0)  # t_1 quantile 12.706
+    assert lo == pytest.approx(math.exp(-12.7062), rel=1e-4)

@@ -21,7 +21,8 @@ The rest of the budget: when a run reaches the failure level before the budget e
 its relative CI misses the target, further independent runs are made while a whole run
 still fits the budget; the answer is their mean, with CoV^2 = sum_i delta_i^2 p_i^2 /
 (sum_i p_i)^2 (independent runs), or the runs' own spread where that is larger (it
-holds the correlation between levels too). A run the budget ends before its failure level
+holds the correlation between levels too; then the interval takes Student's t quantile
+with m - 1 degrees of freedom). A run the budget ends before its failure level
 still gives an estimate when its last level holds failures: p0^j x (failures / N) (an
 estimate that stopped short of the target); without any failure it gives no estimate.
 """
@@ -37,7 +38,7 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
-from vei.risk.estimators import Estimate, z_value
+from vei.risk.estimators import CONFIDENCE, Estimate, z_value
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -216,30 +217,41 @@ def one_run(
     return run
 
 
-def combine(runs: list[SubsetRun]) -> tuple[float, float]:
-    """(mean p, its CoV) of independent runs with estimates.
+def combine(runs: list[SubsetRun]) -> tuple[float, float, float]:
+    """(mean p, its CoV, degrees of freedom) of independent runs with estimates.
 
     CoV^2 = max(sum_i delta_i^2 p_i^2, sum_i (p_i - p)^2 m / (m - 1)) / (sum_i p_i)^2:
     the Au & Beck coefficients of the runs, or, where larger, the runs' own spread
-    (which also holds the correlation between levels that Au & Beck neglect).
+    (which also holds the correlation between levels that Au & Beck neglect); the
+    degrees of freedom are m - 1 where the spread is used (a Student t interval), else
+    infinite.
     """
     ok = [r for r in runs if r.probability > 0 and math.isfinite(r.cov)]
     if not ok:
-        return math.nan, math.nan
+        return math.nan, math.nan, math.inf
     m = len(ok)
     ps = np.array([r.probability for r in ok])
     tot = float(ps.sum())
     var = sum((r.cov * r.probability) ** 2 for r in ok)
+    df = math.inf
     if m >= 2:
-        var = max(var, float(np.sum((ps - ps.mean()) ** 2)) * m / (m - 1))
-    return tot / m, math.sqrt(var) / tot
+        spread = float(np.sum((ps - ps.mean()) ** 2)) * m / (m - 1)
+        if spread > var:
+            var, df = spread, float(m - 1)
+    return tot / m, math.sqrt(var) / tot, df
 
 
-def lognormal_interval(p: float, cov: float) -> tuple[float, float]:
-    """p exp(+-z sqrt(ln(1 + cov^2))): the 95 % interval of a log-normal estimate."""
+def lognormal_interval(p: float, cov: float, df: float = math.inf) -> tuple[float, float]:
+    """p exp(+-q sqrt(ln(1 + cov^2))): the 95 % interval of a log-normal estimate, q the
+    normal quantile (1.96) or Student's t quantile with ``df`` degrees of freedom."""
     s = math.sqrt(math.log1p(cov * cov))
-    z = z_value()
-    return p * math.exp(-z * s), p * math.exp(z * s)
+    if math.isfinite(df):
+        from scipy.stats import t
+
+        q = float(t.ppf(0.5 + CONFIDENCE / 2.0, df))
+    else:
+        q = z_value()
+    return p * math.exp(-q * s), p * math.exp(q * s)
 
 
 def subset_estimate(
@@ -276,12 +288,12 @@ def subset_estimate(
                     initial=initial if not runs else None)  # fmt: skip
         runs.append(r)
         used += r.n_simulations
-        p, cov = combine(runs)
-        if p > 0 and 0.5 * np.diff(lognormal_interval(p, cov))[0] / p <= target_rel_ci:
+        p, cov, df = combine(runs)
+        if p > 0 and 0.5 * np.diff(lognormal_interval(p, cov, df))[0] / p <= target_rel_ci:
             break
         if not r.reached:
             break
-    p, cov = combine(runs)
+    p, cov, df = combine(runs)
     notes = [
         "interval: log-normal with the Au & Beck (2001) coefficient of variation (the "
         "Markov chains' correlation), or the independent runs' spread where larger"
@@ -290,11 +302,11 @@ def subset_estimate(
         est = Estimate(math.nan, 0.0, math.nan, used, "subset-simulation", 0, bound=True,
                        reliable=False, notes=tuple(notes))  # fmt: skip
         return est, runs, used
-    lo, hi = lognormal_interval(p, cov)
+    lo, hi = lognormal_interval(p, cov, df)
     reached = all(r.reached for r in runs)
     stalled = any(r.stalled for r in runs)
     fails = sum(int(r.last["failure"].sum()) for r in runs if len(r.last))
-    diag: dict[str, float] = {"cov": cov, "runs": float(len(runs)),
+    diag: dict[str, float] = {"cov": cov, "runs": float(len(runs)), "dof": df,
                               "levels": float(np.mean([len(r.thresholds) for r in runs]))}  # fmt: skip
     est = Estimate(p, lo, hi, used, "subset-simulation", fails, reliable=reached and not stalled,
                    diagnostics=diag, notes=tuple(notes))  # fmt: skip
