@@ -192,3 +192,17 @@ def test_independent_runs_combine_by_hand():
     assert (lo, hi) == pytest.approx((math.exp(-1.959964), math.exp(1.959964)), rel=1e-6)
     lo, _ = lognormal_interval(1.0, math.sqrt(math.e - 1), 1.0)  # t_1 quantile 12.706
     assert lo == pytest.approx(math.exp(-12.7062), rel=1e-4)
+
+
+def test_a_mixture_proposal_of_one_component_is_the_normal_proposal():
+    from vei.risk.compare import _log_q
+
+    rng = np.random.default_rng(2)
+    u = rng.standard_normal((50, 3))
+    mu, sd = np.array([1.0, -0.5, 0.0]), np.array([0.8, 1.2, 1.0])
+    assert np.allclose(_log_q(u, [(mu, sd, 1.0)]), _log_q(u, (mu, sd)))
+    # two equal halves of the same normal: the same density
+    assert np.allclose(_log_q(u, [(mu, sd, 0.5), (mu, sd, 0.5)]), _log_q(u, (mu, sd)))
+    # by hand at u = 0 for q = N(mu, sd^2): log q - log phi = sum(-z^2/2 - log sd)
+    z = -mu / sd
+    assert _log_q(np.zeros((1, 3)), (mu, sd))[0] == pytest.approx(np.sum(-0.5 * z * z - np.log(sd)))

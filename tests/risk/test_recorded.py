@@ -134,3 +134,17 @@ def test_recorded_collisions_on_a_shared_recording(tmp_path, trafficmonitoring_r
     q = only.planners[0].p_collision
     assert q.value == pytest.approx(rec.value) and (q.lo, q.hi) == pytest.approx((rec.lo, rec.hi))
     assert only.planners[0].share_synthetic.value == 0.0
+    from vei.cli.risk_cmd import print_result
+
+    lines: list[str] = []
+
+    class _Console:
+        def print(self, text: str) -> None:
+            lines.append(text)
+
+    print_result(every, _Console())
+    assert any("P(collision on recorded)" in ln for ln in lines)
+    assert any("synthetic run-in or run-out" in ln for ln in lines)
+    lines.clear()
+    print_result(only, _Console())
+    assert any("only collisions on the rider's recorded behaviour count" in ln for ln in lines)

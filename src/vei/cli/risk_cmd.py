@@ -121,6 +121,11 @@ def print_result(result, console) -> None:
         f"encounter {prob.scenario_id}, rider {prob.rider_id} ({prob.rider_category}); "
         f"variation over {', '.join(prob.space.names)}"
     )
+    if getattr(prob.model, "failure_count", "all") == "recorded":
+        console.print(
+            "failures: only collisions on the rider's recorded behaviour count "
+            "(failure: {count: recorded}); those on vei's run-in / run-out are misses"
+        )
     if prob.auto_shift is not None and not prob.auto_shift.paths_meet:
         console.print(f"note: {prob.auto_shift.message()}")
     for p in result.planners:
