@@ -156,6 +156,7 @@ def cross_entropy(
     while len(stages) < MAX_STAGES and flat < STALL_STAGES:
         if not stages and initial is not None:
             u, rows = np.asarray(initial[0], dtype=np.float64), initial[1]
+            rng.standard_normal(u.shape)  # the stream moves on as if it had drawn them
         elif used + stage_size <= budget:
             u = mu + sigma * rng.standard_normal((stage_size, dim))
             rows = evaluate(u, f"ce-{len(stages)}")

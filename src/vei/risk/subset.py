@@ -130,6 +130,7 @@ def one_run(
     if initial is not None:
         u, rows = initial
         u = np.asarray(u, dtype=np.float64)
+        rng.standard_normal(u.shape)  # the stream moves on as if it had drawn them
         used = 0
     else:
         u = rng.standard_normal((n, dim))
