@@ -76,4 +76,4 @@ def test_subset_simulation_known_answer():
     assert r.reached
     e = r.probability
     assert e.lo <= truth <= e.hi, (e.text(), truth)
-    assert "approximate" in e.notes[0]
+    assert "Au & Beck" in e.notes[0]

@@ -35,7 +35,8 @@ def risk(
         typer.Option(
             "--spec",
             help="Risk spec (YAML): base, time_shift_reference, seed, variation, fixed, "
-            "perception (docs/risk.md). Default: the documented default variation.",
+            "perception, failure: {count: all|recorded} (docs/risk.md). Default: the "
+            "documented default variation.",
         ),
     ] = None,
     policy: Annotated[
@@ -76,8 +77,8 @@ def risk(
         str,
         typer.Option(
             "--configs",
-            help="Which samples get a `vei run --config` file: failures (every collision "
-            "and 20 others), all, none.",
+            help="Which samples get a `vei run --config` file: failures (up to 200 "
+            "collisions, those the final estimate rests on first, and 20 others), all, none.",
         ),
     ] = "failures",
     progress: Annotated[
@@ -123,6 +124,11 @@ def print_result(result, console) -> None:
     console.print(f"variation model: {prob.model.description()}")
     for line in prob.space.notes:
         console.print(f"note: {line}")
+    if getattr(prob.model, "failure_count", "all") == "recorded":
+        console.print(
+            "failures: only collisions on the rider's recorded behaviour count "
+            "(failure: {count: recorded}); those on vei's run-in / run-out are misses"
+        )
     if prob.auto_shift is not None and not prob.auto_shift.paths_meet:
         console.print(f"note: {prob.auto_shift.message()}")
     for p in result.planners:
@@ -131,12 +137,21 @@ def print_result(result, console) -> None:
         console.print(f"{p.policy}: {p.method}, {p.n_simulations:,} simulations{prec}")
         for label, e in (
             ("P(collision)", p.p_collision),
+            ("P(collision on recorded)", p.p_collision_recorded),
             ("P(injury-relevant collision)", p.p_injury_relevant),
             ("expected injury risk", p.expected_injury),
             ("P(seen too late)", p.p_seen_too_late),
         ):
+            if e is None:
+                continue
             flag = "" if e.reliable else "  (unreliable: see notes)"
             console.print(f"  {label:30s} {e.text()}{flag}")
+        if p.share_synthetic is not None:
+            from vei.risk.weighted import share_sentence
+
+            text = share_sentence(p.share_synthetic)
+            if text:
+                console.print(f"  {text}")
         for note in dict.fromkeys(p.notes + list(p.p_collision.notes)):
             console.print(f"  note: {note}")
         modes = result.modes.get(p.policy, {})
@@ -150,14 +165,18 @@ def print_result(result, console) -> None:
     for c in result.comparisons:
         console.print(c.sentence())
     if result.sobol:
-        from vei.risk.sensitivity import driver
+        from vei.risk.sensitivity import driver, few_failures_note
 
         top = driver(result.sobol)
+        few = few_failures_note(result.sobol)
         if top:
+            of = "of the minimum gap " if few else ""
             console.print(
-                f"largest total Sobol index: {top} (planner {result.sobol['policy']}, "
-                f"{result.sobol['n_simulations']:,} simulations)"
+                f"largest total Sobol index {of}: {top} (planner {result.sobol['policy']}, "
+                f"{result.sobol['n_simulations']:,} simulations)".replace(" :", ":")
             )
+        for note in result.sobol.get("notes", []):
+            console.print(f"  note (Sobol): {note}")
     console.print(
         f"{result.n_simulations:,} simulations in {result.timings.get('total', 0):.1f} s; "
         f"results in {result.out_dir}"

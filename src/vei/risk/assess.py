@@ -35,6 +35,7 @@ import pandas as pd
 from vei.errors import ConfigError
 from vei.risk import estimators as est
 from vei.risk.estimators import Estimate
+from vei.risk.weighted import share_of as _ratio
 
 METHODS: tuple[str, ...] = ("auto", "mc", "ce", "subset")
 #: Fewest collisions in the pilot for auto to trust plain Monte Carlo.
@@ -56,10 +57,14 @@ class PlannerRisk:
             share_no_approach: the estimates.
         rows: the final sample the figures rest on (``weight`` = importance weight).
         rare: the rare-event run (None for Monte Carlo).
-        proposal: the sampling density of ``rows`` as (mean [d], std [d]); None = the
-            variation itself (plain Monte Carlo).
+        proposal: the sampling density of ``rows`` as (mean [d], std [d]), or a normal
+            mixture [(mean, std, share), ...] (cross-entropy stages that never reached
+            the region); None = the variation itself (plain Monte Carlo).
         target_reached: P(collision)'s relative CI reached the target.
         notes: what could not be reached, and why.
+        p_collision_recorded: P(collision on the rider's recorded behaviour) from the same
+            sample. share_synthetic: the share of P(collision) on the rider's synthetic
+            run-in / run-out.
     """
 
     policy: str
@@ -72,9 +77,11 @@ class PlannerRisk:
     share_no_approach: Estimate
     rows: pd.DataFrame
     rare: Any = None
-    proposal: tuple[np.ndarray, np.ndarray] | None = None
+    proposal: Any = None
     target_reached: bool = False
     notes: list[str] = field(default_factory=list)
+    p_collision_recorded: Estimate | None = None
+    share_synthetic: Estimate | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready summary."""
@@ -90,6 +97,10 @@ class PlannerRisk:
             "share_of_collisions_without_approach": self.share_no_approach.as_dict(),
             "notes": list(self.notes),
         }
+        if self.p_collision_recorded is not None:
+            out["p_collision_recorded"] = self.p_collision_recorded.as_dict()
+        if self.share_synthetic is not None:
+            out["share_of_p_collision_synthetic"] = self.share_synthetic.as_dict()
         if self.rare is not None:
             out["adaptive_stages"] = self.rare.stages
             if self.rare.proposal:
@@ -116,47 +127,52 @@ def check_budget(budget: int, target_rel_ci: float) -> None:
         )
 
 
-def figures(rows: pd.DataFrame, weighted: bool) -> dict[str, Estimate]:
-    """The five estimates of a final sample (weighted: importance sampling)."""
+def figures(
+    rows: pd.DataFrame, weighted: bool, pilot: pd.DataFrame | None = None
+) -> dict[str, Estimate]:
+    """The estimates of a final sample (weighted: importance sampling): P(collision),
+    P(collision on recorded behaviour), P(injury-relevant collision), the expected injury
+    risk, P(seen too late), the share of collisions without approach and the share of
+    P(collision) on the rider's synthetic run-in / run-out. An importance sample that
+    holds no sample of a secondary event gives an honest upper bound
+    (:mod:`vei.risk.weighted`; ``pilot``: a Monte Carlo sample of the variation for events
+    outside the failure event)."""
+    from vei.risk import weighted as wt
+
     fail = rows["failure"].to_numpy(bool)
     late = rows["seen_too_late"].to_numpy(bool)
     rel = rows["injury_relevant"].to_numpy(bool)
     inj = rows["injury"].to_numpy(np.float64)
     noap = rows["no_approach"].to_numpy(bool)
+    rec = wt.recorded_column(rows)
     if weighted:
         w = rows["weight"].to_numpy(np.float64)
+        pc = est.importance_sampling(fail, w, fail)
+        pilot_late = None
+        if pilot is not None and len(pilot):
+            pilot_late = est.mc_probability(pilot["seen_too_late"].to_numpy(bool))
         out = {
-            "p_collision": est.importance_sampling(fail, w, fail),
-            "p_injury_relevant": est.importance_sampling(rel, w, fail),
-            "expected_injury": est.importance_sampling(inj, w, fail),
-            "p_seen_too_late": est.importance_sampling(late, w, late),
+            "p_collision": pc,
+            "p_collision_recorded": wt.weighted_figure(rec, w, fail, pc, part_of_failure=True),
+            "p_injury_relevant": wt.weighted_figure(rel, w, fail, pc, part_of_failure=True),
+            "expected_injury": wt.weighted_figure(inj, w, fail, pc, part_of_failure=True),
+            "p_seen_too_late": wt.weighted_figure(
+                late, w, late, pc, part_of_failure=False, pilot=pilot_late
+            ),  # fmt: skip
         }
         share = _ratio(noap, fail, w)
     else:
         out = {
             "p_collision": est.mc_probability(fail),
+            "p_collision_recorded": est.mc_probability(rec),
             "p_injury_relevant": est.mc_probability(rel),
             "expected_injury": est.mc_mean(inj, fail),
             "p_seen_too_late": est.mc_probability(late),
         }
         share = _ratio(noap, fail, None)
     out["share_no_approach"] = share
+    out["share_synthetic"] = wt.synthetic_share(rows, weighted)
     return out
-
-
-def _ratio(part: np.ndarray, whole: np.ndarray, w: np.ndarray | None) -> Estimate:
-    """Share of ``whole`` that is ``part`` (weighted), with a Wilson interval on the
-    effective count."""
-    ww = np.ones(len(whole)) if w is None else w
-    tot = float(np.sum(ww[whole]))
-    if tot <= 0:
-        return Estimate(math.nan, 0.0, 1.0, int(whole.sum()), "wilson", 0, bound=True,
-                        notes=("no collision",))  # fmt: skip
-    share = float(np.sum(ww[part & whole]) / tot)
-    wf = ww[whole]
-    n_eff = tot * tot / float(np.sum(wf * wf))
-    lo, hi = est.wilson_interval(round(share * n_eff), max(1, round(n_eff)))
-    return Estimate(share, lo, hi, int(whole.sum()), "wilson", int((part & whole).sum()))
 
 
 def _draw(rng: np.random.Generator, n: int, d: int) -> np.ndarray:
@@ -200,8 +216,9 @@ def monte_carlo(
 def _result(
     policy: str, method: str, rows: pd.DataFrame, n_sim: int, target: float, *,
     weighted: bool, rare: Any = None, proposal: Any = None, notes: list[str] | None = None,
+    pilot: pd.DataFrame | None = None,
 ) -> PlannerRisk:  # fmt: skip
-    f = figures(rows, weighted)
+    f = figures(rows, weighted, pilot)
     notes = list(notes or [])
     reached = f["p_collision"].rel_ci <= target
     if not reached and not f["p_collision"].bound:
@@ -214,6 +231,7 @@ def _result(
     return PlannerRisk(
         policy, method, n_sim, f["p_collision"], f["p_injury_relevant"], f["expected_injury"],
         f["p_seen_too_late"], f["share_no_approach"], rows, rare, proposal, reached, notes,
+        f["p_collision_recorded"], f["share_synthetic"],
     )  # fmt: skip
 
 
@@ -248,61 +266,62 @@ def assess_planner(
     if method == "mc":
         return monte_carlo(problem, policy, budget=budget, target_rel_ci=target_rel_ci,
                            seed=seed, pilot=stage)  # fmt: skip
-    pilot_rows = None
+    # the Monte Carlo pilot: the first samples of the planner's stream; auto decides on
+    # it, and every rare-event method reuses it as its first stage (not re-simulated)
+    pilot_u = _draw(np.random.default_rng(seed), stage, d)
+    pilot_rows = problem.evaluate(pilot_u, policy, stage="mc")
     if method == "auto":
-        pilot_rows = problem.evaluate(_draw(np.random.default_rng(seed), stage, d), policy,
-                                      stage="mc")  # fmt: skip
         k = int(pilot_rows["failure"].sum())
         p = k / len(pilot_rows)
         if k >= MIN_PILOT_FAILURES and est.needed_samples(p, target_rel_ci) <= budget:
             return monte_carlo(problem, policy, budget=budget, target_rel_ci=target_rel_ci,
                                seed=seed, pilot=stage, already=pilot_rows)  # fmt: skip
-    used = 0 if pilot_rows is None else len(pilot_rows)
+    used = len(pilot_rows)
 
     def evaluate(u: np.ndarray, label: str) -> pd.DataFrame:
         return problem.evaluate(u, policy, stage=label)
 
     if method == "subset":
         r = rare.subset_simulation(evaluate, d, level_size=stage, budget=budget - used,
-                                   seed=seed)  # fmt: skip
+                                   seed=seed, target_rel_ci=target_rel_ci,
+                                   initial=(pilot_u, pilot_rows))  # fmt: skip
     else:
         r = rare.cross_entropy(evaluate, d, stage_size=stage, budget=budget - used,
-                               target_rel_ci=target_rel_ci, seed=seed)  # fmt: skip
+                               target_rel_ci=target_rel_ci, seed=seed,
+                               initial=(pilot_u, pilot_rows))  # fmt: skip
     n_sim = used + r.n_simulations
+    if r.method == "ce" and r.mixture is not None:
+        # the stages held failures but never reached the region: the mixture estimate
+        return _result(policy, "ce (mixture of its stages)", r.rows, n_sim, target_rel_ci,
+                       weighted=True, rare=r, proposal=r.mixture, notes=list(r.notes),
+                       pilot=pilot_rows)  # fmt: skip
     if not r.reached:
-        notes = list(r.notes)
-        if pilot_rows is not None:
-            # the rest of the budget as plain Monte Carlo (the pilot's stream, continued):
-            # the tightest honest answer, an estimate or an upper bound
-            left = budget - n_sim
-            mc = monte_carlo(problem, policy, budget=len(pilot_rows) + max(left, 0),
-                             target_rel_ci=target_rel_ci, seed=seed, pilot=stage,
-                             already=pilot_rows)  # fmt: skip
-            mc.n_simulations = n_sim + (len(mc.rows) - len(pilot_rows))
-            mc.notes = notes + [n.replace(f"in {len(mc.rows):,} simulations",
-                                          f"in {len(mc.rows):,} Monte Carlo simulations")
-                                for n in mc.notes]  # fmt: skip
-            mc.rare = r
-            mc.method = f"mc ({r.method} did not reach a failure region)"
-            return mc
-        return _rare_unreached(policy, r, n_sim, notes)
+        # no failure in any stage: the rest of the budget as plain Monte Carlo (the
+        # pilot's stream, continued): the tightest honest answer, an estimate or a bound
+        left = budget - n_sim
+        mc = monte_carlo(problem, policy, budget=len(pilot_rows) + max(left, 0),
+                         target_rel_ci=target_rel_ci, seed=seed, pilot=stage,
+                         already=pilot_rows)  # fmt: skip
+        mc.n_simulations = n_sim + (len(mc.rows) - len(pilot_rows))
+        mc.notes = list(r.notes) + [n.replace(f"in {len(mc.rows):,} simulations",
+                                              f"in {len(mc.rows):,} Monte Carlo simulations")
+                                    for n in mc.notes]  # fmt: skip
+        mc.rare = r
+        mc.method = f"mc ({r.method} did not reach a failure region)"
+        return mc
     if r.method == "ce":
         mu, sd = (np.asarray(r.proposal["mean"]), np.asarray(r.proposal["std"]))
-        res = _result(policy, "ce", r.rows, n_sim, target_rel_ci, weighted=True, rare=r,
-                      proposal=(mu, sd), notes=list(r.notes))  # fmt: skip
-        return res
+        return _result(policy, "ce", r.rows, n_sim, target_rel_ci, weighted=True, rare=r,
+                       proposal=(mu, sd), notes=list(r.notes), pilot=pilot_rows)  # fmt: skip
     return _subset_result(policy, r, n_sim, target_rel_ci)
 
 
-def _rare_unreached(policy: str, r: Any, n_sim: int, notes: list[str]) -> PlannerRisk:
-    none = r.probability
-    return PlannerRisk(policy, r.method, n_sim, none, none, none, none, none, r.rows, r,
-                       None, False, notes)  # fmt: skip
-
-
 def _subset_result(policy: str, r: Any, n_sim: int, target: float) -> PlannerRisk:
-    """Subset simulation's figures: P(F) from OpenTURNS; the other outcomes as P(F) times
-    their share among the failing samples of the run (approximately f(. | F))."""
+    """Subset simulation's figures: P(F) (:mod:`vei.risk.subset`); the other outcomes as
+    P(F) times their share among the failing samples of the last levels (approximately
+    f(. | F)); P(seen too late) from the Monte Carlo pilot (level 0)."""
+    from vei.risk import weighted as wt
+
     p = r.probability
     rows = r.rows
     fail = rows["failure"].to_numpy(bool) if len(rows) else np.zeros(0, bool)
@@ -320,11 +339,14 @@ def _subset_result(policy: str, r: Any, n_sim: int, target: float) -> PlannerRis
     inj = Estimate(p.value * inj_share, p.lo * inj_share, p.hi * inj_share, n_sim,
                    "subset-simulation", reliable=p.reliable,
                    notes=("P(collision) x mean injury risk of the failing samples",))  # fmt: skip
-    late = est.mc_probability(np.zeros(0, bool))
-    late = late.with_note("subset simulation does not estimate P(seen too late)")
+    first = r.first if r.first is not None else pd.DataFrame()
+    late = est.mc_probability(first["seen_too_late"].to_numpy(bool) if len(first) else [])
+    late = late.with_note("from the Monte Carlo pilot (level 0 of subset simulation)")
     noap = _ratio(rows["no_approach"].to_numpy(bool) & fail, fail, None)
+    rec = scaled(wt.recorded_column(rows), "collisions on recorded behaviour")
+    syn = wt.synthetic_share(rows, False) if len(rows) else _ratio(fail, fail, None)
     res = PlannerRisk(policy, "subset", n_sim, p, rel, inj, late, noap, rows, r, None,
-                      p.rel_ci <= target, list(r.notes))  # fmt: skip
+                      p.rel_ci <= target, list(r.notes), rec, syn)  # fmt: skip
     if not res.target_reached:
         res.notes.append(f"target relative CI {target:g} not reached (reached {p.rel_ci:.3g})")
     return res

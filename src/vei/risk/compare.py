@@ -69,13 +69,17 @@ class Comparison:
         }
 
     def sentence(self) -> str:
-        """One line: '<a> is safer than <b>: P difference ... [lo, hi]' or no difference."""
+        """One line that states the difference in the order it names the planners:
+        '<safer> is safer than <other>: P_<safer> - P_<other> = -0.3 [...]', or no
+        significant difference (A - B)."""
         d = self.collision
-        rng = f"P_a - P_b = {d.value:+.3g} [{d.lo:+.3g}, {d.hi:+.3g}]"
-        if self.verdict == "A safer":
-            return f"{self.a} is safer than {self.b}: {rng} ({self.n:,} common samples)"
+        first, second, sign = self.a, self.b, 1.0
         if self.verdict == "B safer":
-            return f"{self.b} is safer than {self.a}: {rng} ({self.n:,} common samples)"
+            first, second, sign = self.b, self.a, -1.0
+        lo, hi = sorted((sign * d.lo, sign * d.hi))
+        rng = f"P({first}) - P({second}) = {sign * d.value:+.3g} [{lo:+.3g}, {hi:+.3g}]"
+        if self.verdict in ("A safer", "B safer"):
+            return f"{first} is safer than {second}: {rng} ({self.n:,} common samples)"
         return (
             f"{self.a} vs {self.b}: no significant difference ({rng}, the interval contains 0;"
             f" {self.n:,} common samples)"
@@ -94,10 +98,15 @@ def _u(rows: pd.DataFrame) -> np.ndarray:
     return rows[[c for c in rows.columns if c.startswith("u.")]].to_numpy(np.float64)
 
 
-def _log_q(u: np.ndarray, proposal: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
-    """log q(u) - log phi(u) [N] of a proposal (0 for the variation itself)."""
+def _log_q(u: np.ndarray, proposal: Any) -> np.ndarray:
+    """log q(u) - log phi(u) [N] of a proposal: (mean, std), a normal mixture
+    [(mean, std, share), ...], or None (the variation itself: 0)."""
     if proposal is None:
         return np.zeros(len(u))
+    if isinstance(proposal, list):
+        from vei.risk.rare import mixture_log_ratio
+
+        return mixture_log_ratio(u, proposal)
     mu, sd = proposal
     z = (u - mu) / sd
     return np.sum(-0.5 * z * z - np.log(sd) + 0.5 * u * u, axis=1)

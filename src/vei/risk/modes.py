@@ -110,7 +110,7 @@ def failure_regions(rows: pd.DataFrame, names: Sequence[str], weighted: bool) ->
         weighted: use the importance weights (else every sample weighs 1).
     """
     names = [n for n in names if n in rows.columns]
-    if not names or not rows["failure"].any():
+    if not names or rows.empty or "failure" not in rows or not rows["failure"].any():
         return []
     x = rows[names].to_numpy(np.float64)
     y = rows["failure"].to_numpy(np.float64)
@@ -143,7 +143,10 @@ def failure_regions(rows: pd.DataFrame, names: Sequence[str], weighted: bool) ->
 
 def failure_kinds(rows: pd.DataFrame, weighted: bool) -> list[dict[str, Any]]:
     """Shares of P(collision) by kind (striking / impact side; without approach),
-    largest first; kinds under MIN_MODE_SHARE are summed into 'other'."""
+    largest first; kinds under MIN_MODE_SHARE are summed into 'other'. [] for a sample
+    without failures (or without rows: a run that found no failure)."""
+    if rows.empty or "failure" not in rows:
+        return []
     fail = rows["failure"].to_numpy(bool)
     if not fail.any():
         return []

@@ -17,8 +17,9 @@
                               cruise speed (or the first two varied quantities), shown
                               where its 95 % CI is within +-0.1, the rest hatched
 ``configs/<variant_id>.yaml`` run configurations (``vei run SCENARIO --config FILE``
-                              re-runs the sample alone and gives its row): the first
-                              200 collisions and the first 20 other samples
+                              re-runs the sample alone and gives its row): up to
+                              200 collisions, those the final estimates rest on first,
+                              and the first 20 other samples
                               (``--configs failures``, default), every sample
                               (``all``, ~3 ms each), none
 ============================  ==========================================================
@@ -93,10 +94,14 @@ def summary_rows(result: Any) -> pd.DataFrame:
                                "n_simulations": p.n_simulations}  # fmt: skip
         for name, e in (
             ("p_collision", p.p_collision),
+            ("p_collision_recorded", p.p_collision_recorded),
+            ("share_synthetic", p.share_synthetic),
             ("p_injury_relevant", p.p_injury_relevant),
             ("expected_injury_risk", p.expected_injury),
             ("p_seen_too_late", p.p_seen_too_late),
         ):
+            if e is None:
+                continue
             rec[name] = e.value
             rec[f"{name}_lo"] = e.lo
             rec[f"{name}_hi"] = e.hi
@@ -121,10 +126,14 @@ def encounter_columns(result: Any) -> dict[str, Any]:
     }
     for name, e in (
         ("p_collision", p.p_collision),
+        ("p_collision_recorded", p.p_collision_recorded),
+        ("share_synthetic", p.share_synthetic),
         ("p_injury_relevant", p.p_injury_relevant),
         ("expected_harm", p.expected_injury),
         ("p_seen_too_late", p.p_seen_too_late),
     ):
+        if e is None:
+            continue
         out[f"risk_{name}"] = float(e.value)
         out[f"risk_{name}_lo"] = float(e.lo)
         out[f"risk_{name}_hi"] = float(e.hi)
@@ -170,14 +179,26 @@ def risk_document(result: Any) -> dict[str, Any]:
 
 
 def config_rows(samples: pd.DataFrame, which: str) -> pd.DataFrame:
-    """The samples that get a run configuration (module docstring), unique by id."""
+    """The samples that get a run configuration (module docstring), unique by id.
+
+    ``failures``: the collisions the final estimates rest on (``in_estimate``) first, the
+    other collisions after them, at most MAX_FAILURE_CONFIGS, and OTHER_CONFIGS samples
+    without collision."""
     if which == "none" or samples.empty:
         return samples.iloc[:0]
-    uniq = samples.drop_duplicates("variant_id")
     if which == "all":
-        return uniq
-    fail = uniq[uniq["collision"].to_numpy(bool)].head(MAX_FAILURE_CONFIGS)
-    other = uniq[~uniq["collision"].to_numpy(bool)].head(OTHER_CONFIGS)
+        return samples.drop_duplicates("variant_id")
+    if "in_estimate" in samples:  # a sample simulated twice counts where it is used
+        samples = samples.sort_values("in_estimate", ascending=False, kind="stable")
+    uniq = samples.drop_duplicates("variant_id")
+    coll = uniq["collision"].to_numpy(bool)
+    used = (
+        uniq["in_estimate"].fillna(False).to_numpy(bool)
+        if "in_estimate" in uniq
+        else np.zeros(len(uniq), bool)
+    )
+    fail = pd.concat([uniq[coll & used], uniq[coll & ~used]]).head(MAX_FAILURE_CONFIGS)
+    other = uniq[~coll].head(OTHER_CONFIGS)
     return pd.concat([fail, other])
 
 

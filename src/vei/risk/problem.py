@@ -221,7 +221,8 @@ class RiskProblem:
                 frame[f"u.{name}"] = chunk[:, j]
             parts.append(frame)
         out = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
-        out = add_outcomes(out, self.model.injury_relevant_speed_mps)
+        out = add_outcomes(out, self.model.injury_relevant_speed_mps,
+                           only_recorded=self.model.failure_count == "recorded")  # fmt: skip
         out["stage"] = stage
         out["policy"] = pol
         out["weight"] = 1.0 if weights is None else np.asarray(weights, dtype=np.float64)
@@ -266,10 +267,15 @@ class RiskProblem:
         return pd.concat(self.log, ignore_index=True) if self.log else pd.DataFrame()
 
 
-def add_outcomes(frame: pd.DataFrame, injury_relevant_speed_mps: float) -> pd.DataFrame:
+def add_outcomes(
+    frame: pd.DataFrame, injury_relevant_speed_mps: float, *, only_recorded: bool = False
+) -> pd.DataFrame:
     """The :data:`OUTCOMES` columns of a metrics table [N rows] (a copy).
 
     ``seen_too_late`` is read where the table has it (issue 22) and False otherwise.
+    ``only_recorded`` (risk spec ``failure: {count: recorded}``): only a collision on the
+    primary rider's recorded behaviour (``collision_recorded``) is a failure; the others
+    count as misses with margin 0.
     """
     out = frame.copy()
     n = len(out)
@@ -287,6 +293,13 @@ def add_outcomes(frame: pd.DataFrame, injury_relevant_speed_mps: float) -> pd.Da
         else np.zeros(n, bool)
     )
     fail = coll & ~late
+    if only_recorded:
+        rec = (
+            out["collision_recorded"].fillna(False).to_numpy(bool)
+            if "collision_recorded" in out
+            else np.zeros(n, bool)
+        )
+        fail = fail & rec
     out["collision"] = coll
     out["failure"] = fail
     out["no_approach"] = fail & ~np.isfinite(speed)

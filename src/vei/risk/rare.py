@@ -1,9 +1,8 @@
-"""Rare events: cross-entropy importance sampling (vei) and subset simulation (OpenTURNS).
+"""Rare events: cross-entropy importance sampling and subset simulation (both vei's own).
 
 Both work in standard normal space on the limit-state ``margin`` of
 :mod:`vei.risk.problem` (failure: margin < 0) and evaluate the engine in batches: a
-stage of 1,000 samples is one engine call, never 1,000 (OpenTURNS: ``setBlockSize`` =
-the stage size, one outer sample).
+stage of 1,000 samples is one engine call, never 1,000.
 
 - **Cross-entropy importance sampling** (``ce``; Rubinstein & Kroese 2004; Zhao et al.
   2017 for automated-vehicle testing): a normal proposal q = N(mu, diag sigma^2) is
@@ -21,18 +20,15 @@ the stage size, one outer sample).
   it spent 12 stages with the level stuck at 0.34 m). vei refits only
   the mean while the level moves, the standard deviations once the mean stagnates (a
   narrow rather than far failure region) and, at the end, to the failing samples.
-- **Subset simulation** (``subset``; Au & Beck 2001): ``openturns.SubsetSampling``
-  writes P(F) as a product of conditional probabilities p0 = 0.1 of nested levels, each
-  sampled by modified Metropolis from the level before. Its coefficient of variation
-  (OpenTURNS' estimate, with the within-level chain correlation) gives the interval
-  p (1 +- 1.96 CoV); vei marks it approximate (the levels' correlation is neglected).
-  The other outcomes are P(F) times their share among the last level's failing samples.
+- **Subset simulation** (``subset``; Au & Beck 2001): vei's own (:mod:`vei.risk.subset`):
+  nested levels of conditional probability p0 = 0.1 sampled by modified Metropolis,
+  the interval from the Au & Beck coefficient of variation with the chains'
+  correlation, independent runs until the target or the budget. The other outcomes are
+  P(F) times their share among the last levels' failing samples.
 
-Subset simulation is OpenTURNS': maintained and documented, in standard space, with
-batch evaluation and a stop callback (the budget). It can
-stall on a very narrow failure region (the Metropolis chains stop moving; seen on a
-1-D interval of probability 1e-5 in 7 dimensions), which is why ``auto`` uses the
-cross-entropy method and subset simulation is offered as a choice.
+When a method ends without an estimate (no failure in any stage), the caller
+(:func:`vei.risk.assess.assess_planner`) continues the first stage, a sample of the
+variation itself, as plain Monte Carlo: an estimate or an honest upper bound.
 """
 
 from __future__ import annotations
@@ -46,7 +42,6 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
-from vei.errors import DependencyError
 from vei.risk.estimators import Estimate, importance_sampling
 
 FloatArray = npt.NDArray[np.float64]
@@ -63,19 +58,12 @@ SIGMA_FLOOR = 1e-6
 #: STALL_STAGES stages in a row.
 STALL_STAGES = 4
 STALL_GAIN = 0.01
+#: Cross-entropy: a stage with this many failures (but fewer than rho N) takes its
+#: failures as the elite.
+MIN_ELITE_FAILURES = 10
 
 #: evaluate(u [N, d], stage label) -> the rows (with 'margin', 'failure' and outcomes).
 Evaluate = Callable[[FloatArray, str], pd.DataFrame]
-
-
-def _openturns() -> Any:
-    try:
-        import openturns as ot
-    except ImportError as exc:  # pragma: no cover - the extra is installed in CI
-        raise DependencyError(
-            "the rare-event estimators need OpenTURNS: pip install 'vei[risk]'"
-        ) from exc
-    return ot
 
 
 @dataclass
@@ -92,6 +80,10 @@ class RareResult:
         reached: the failure region was reached (else the estimate is a partial answer).
         proposal: ce: the final proposal's mean and standard deviation per dimension.
         notes: plain-language remarks.
+        mixture: an estimate from the mixture of every stage (the stages held failures
+            but never reached the region): its components (mean, std, share).
+        first: the first stage's rows (a sample of the variation itself) when no
+            estimate was reached, for an honest Monte Carlo bound.
     """
 
     method: str
@@ -102,35 +94,8 @@ class RareResult:
     reached: bool = True
     proposal: dict[str, list[float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
-
-
-class _Tracked:
-    """The limit-state as an OpenTURNS function of whole samples, each call one stage,
-    stopping (via the stop callback) when the budget is spent."""
-
-    def __init__(self, evaluate: Evaluate, dim: int, prefix: str, budget: int) -> None:
-        self.evaluate = evaluate
-        self.prefix = prefix
-        self.budget = budget
-        self.used = 0
-        self.frames: list[pd.DataFrame] = []
-        self.dim = dim
-
-    def __call__(self, x: Any) -> Any:
-        u = np.asarray(x, dtype=np.float64).reshape(-1, self.dim)
-        rows = self.evaluate(u, f"{self.prefix}-{len(self.frames)}")
-        self.frames.append(rows)
-        self.used += len(u)
-        return rows["margin"].to_numpy(np.float64).reshape(-1, 1)
-
-    def stop(self) -> bool:
-        return self.used >= self.budget
-
-
-def _event(ot: Any, tracked: _Tracked, dim: int) -> Any:
-    fn = ot.PythonFunction(dim, 1, func_sample=tracked)
-    vec = ot.CompositeRandomVector(fn, ot.RandomVector(ot.Normal(dim)))
-    return ot.ThresholdEvent(vec, ot.Less(), 0.0)
+    mixture: list[tuple[FloatArray, FloatArray, float]] | None = None
+    first: pd.DataFrame | None = None
 
 
 def _log_ratio(u: FloatArray, mu: FloatArray, sigma: FloatArray) -> FloatArray:
@@ -147,6 +112,7 @@ def cross_entropy(
     budget: int,
     target_rel_ci: float,
     seed: int,
+    initial: tuple[FloatArray, pd.DataFrame] | None = None,
 ) -> RareResult:
     """Cross-entropy importance sampling with a normal proposal N(mu, diag sigma^2)
     (module docstring).
@@ -158,9 +124,15 @@ def cross_entropy(
     deviations stay: refitting them too shrinks them geometrically and the proposal
     stalls before a failure region more than ~3 sigma away); they are refitted once the
     mean stagnates (moves < STAGNATION in standard units: a failure region that is
-    narrow rather than far) and, finally, to the failing samples. Then the final
-    importance sample is drawn from the fitted proposal in stages until the target
-    relative CI or the budget.
+    narrow rather than far) and, finally, to the failing samples. A stage that holds at
+    least MIN_ELITE_FAILURES failures but fewer than rho N takes its failures as the
+    elite (the margin quantile may point elsewhere: a near miss is not on the way to a
+    collision). Then the final importance sample is drawn from the fitted proposal in
+    stages until the target relative CI or the budget.
+
+    When the stages end before the failure region (budget, stall) but some stage held
+    failures, the estimate is the deterministic-mixture importance sample of every
+    stage (each stage's proposal, balance heuristic): an estimate, not a bound.
 
     Args:
         evaluate: simulates u [N, d] under a stage label, returns rows with 'margin',
@@ -168,36 +140,53 @@ def cross_entropy(
         dim: d. stage_size: samples per stage (one engine batch). budget: simulations at
             most. target_rel_ci: stop drawing when P(failure)'s relative CI is below it.
         seed: NumPy's seed (same seed, same result).
+        initial: (u [n, d], rows) already simulated from the variation itself (a Monte
+            Carlo pilot): the first stage, reused rather than re-simulated, and not
+            counted in ``budget``.
     """
     rng = np.random.default_rng(seed)
     mu = np.zeros(dim)
     sigma = np.ones(dim)
     used = 0
     stages: list[dict[str, Any]] = []
+    history: list[tuple[FloatArray, pd.DataFrame, FloatArray, FloatArray]] = []
     reached = False
     best = math.inf
     flat = 0
-    while len(stages) < MAX_STAGES and used + stage_size <= budget and flat < STALL_STAGES:
-        u = mu + sigma * rng.standard_normal((stage_size, dim))
-        rows = evaluate(u, f"ce-{len(stages)}")
-        used += stage_size
+    while len(stages) < MAX_STAGES and flat < STALL_STAGES:
+        if not stages and initial is not None:
+            u, rows = np.asarray(initial[0], dtype=np.float64), initial[1]
+            rng.standard_normal(u.shape)  # the stream moves on as if it had drawn them
+        elif used + stage_size <= budget:
+            u = mu + sigma * rng.standard_normal((stage_size, dim))
+            rows = evaluate(u, f"ce-{len(stages)}")
+            used += stage_size
+        else:
+            break
+        history.append((u, rows, mu.copy(), sigma.copy()))
         margin = rows["margin"].to_numpy(np.float64)
         q = float(np.quantile(margin, RHO))
         level = max(q, 0.0)
+        fail = margin < 0
+        n_fail = int(fail.sum())
         elite = margin <= level
+        by_failures = not q <= 0.0 and n_fail >= MIN_ELITE_FAILURES
+        if by_failures:
+            elite = fail
         w = np.exp(_log_ratio(u[elite], mu, sigma))
         w = w / w.sum()
         mu_fit = w @ u[elite]
         sd_fit = np.sqrt(np.maximum(w @ (u[elite] - mu_fit) ** 2, SIGMA_FLOOR**2))
         moved = float(np.linalg.norm(mu_fit - mu))
         reached = q <= 0.0
-        stages.append({"stage": len(stages), "level": level, "samples": stage_size,
-                       "mean_moved": moved, "failures": int((margin < 0).sum())})  # fmt: skip
+        stages.append({"stage": len(stages), "level": level, "samples": len(u),
+                       "mean_moved": moved, "failures": n_fail,
+                       "reused": bool(len(stages) == 0 and initial is not None),
+                       "elite": "failures" if by_failures else "quantile"})  # fmt: skip
         if reached:
             reach_rows = rows.copy()  # an importance sample of the proposal it came from
             reach_rows["weight"] = np.exp(_log_ratio(u, mu, sigma))
             reach_q = (mu.copy(), sigma.copy())
-            fail = margin < 0
             wf = np.exp(_log_ratio(u[fail], mu, sigma))
             wf = wf / wf.sum()
             mu = wf @ u[fail]
@@ -207,24 +196,11 @@ def cross_entropy(
             sigma = sd_fit
         mu = mu_fit
         # the level stalls (no failure region within reach): give up, keep the budget
-        flat = flat + 1 if level > best * (1.0 - STALL_GAIN) else 0
+        flat = 0 if by_failures else (flat + 1 if level > best * (1.0 - STALL_GAIN) else 0)
         best = min(best, level)
     notes: list[str] = []
     if not reached:
-        last = stages[-1]["level"] if stages else math.nan
-        why = (
-            f"the level stalled for {STALL_STAGES} stages (no failure region within reach)"
-            if flat >= STALL_STAGES
-            else f"the budget ({budget:,} simulations) ended"
-        )
-        notes.append(
-            f"partial answer: {why} after {len(stages)} adaptive stages before the proposal "
-            f"reached the failure region (last margin quantile {last:.3g} m > 0): no estimate"
-        )
-        est = Estimate(math.nan, 0.0, math.nan, used, "importance-sampling", bound=True,
-                       reliable=False, notes=tuple(notes))  # fmt: skip
-        return RareResult("ce", pd.DataFrame(), est, used, stages, False,
-                          {"mean": mu.tolist(), "std": sigma.tolist()}, notes)  # fmt: skip
+        return _unreached(history, stages, used, budget, flat, mu, sigma)
     frames: list[pd.DataFrame] = []
     est = _is_failure(reach_rows)
     if used + stage_size > budget:  # no budget for a stage of the fitted proposal
@@ -249,11 +225,64 @@ def cross_entropy(
                       {"mean": mu.tolist(), "std": sigma.tolist()}, notes)  # fmt: skip
 
 
-def _u(rows: pd.DataFrame, dim: int) -> FloatArray:
-    cols = [c for c in rows.columns if c.startswith("u.")]
-    if len(cols) != dim:
-        raise ValueError(f"rows carry {len(cols)} u.* columns, expected {dim}")
-    return rows[cols].to_numpy(np.float64)
+def _unreached(
+    history: list[tuple[FloatArray, pd.DataFrame, FloatArray, FloatArray]],
+    stages: list[dict[str, Any]], used: int, budget: int, flat: int,
+    mu: FloatArray, sigma: FloatArray,
+) -> RareResult:  # fmt: skip
+    """The stages ended before the failure region: the mixture estimate of every stage
+    where some stage held failures, else no estimate (``probability.bound``)."""
+    last = stages[-1]["level"] if stages else math.nan
+    why = (
+        f"the level stalled for {STALL_STAGES} stages (no failure region within reach)"
+        if flat >= STALL_STAGES
+        else f"the budget ({budget:,} simulations) ended"
+    )
+    proposal = {"mean": mu.tolist(), "std": sigma.tolist()}
+    n_fail = sum(int(r["failure"].sum()) for _, r, _, _ in history)
+    if n_fail:
+        rows, comps = mixture_sample(history)
+        est = _is_failure(rows).with_note(
+            f"{why} after {len(stages)} adaptive stages before the proposal reached the "
+            f"failure region; the estimate is the mixture importance sample of all "
+            f"{len(stages)} stages ({n_fail:,} failures)"
+        )
+        return RareResult("ce", rows, est, used, stages, False, proposal, list(est.notes),
+                          mixture=comps)  # fmt: skip
+    note = (
+        f"partial answer: {why} after {len(stages)} adaptive stages before the proposal "
+        f"reached the failure region (last margin quantile {last:.3g} m > 0): no estimate"
+    )
+    est = Estimate(math.nan, 0.0, math.nan, used, "importance-sampling", 0, bound=True,
+                   reliable=False, notes=(note,))  # fmt: skip
+    first = history[0][1] if history else pd.DataFrame()
+    return RareResult("ce", pd.DataFrame(), est, used, stages, False, proposal, [note],
+                      first=first)  # fmt: skip
+
+
+def mixture_sample(
+    history: list[tuple[FloatArray, pd.DataFrame, FloatArray, FloatArray]],
+) -> tuple[pd.DataFrame, list[tuple[FloatArray, FloatArray, float]]]:
+    """Every stage's samples weighted by the deterministic mixture (balance heuristic,
+    Owen & Zhou 2000): w = phi(u) / sum_k (n_k / N) q_k(u), q_k = N(mu_k, sigma_k^2).
+
+    Returns:
+        (the rows with ``weight``, the mixture's components (mean [d], std [d], share)).
+    """
+    n_tot = sum(len(u) for u, _, _, _ in history)
+    comps = [(m, s, len(u) / n_tot) for u, _, m, s in history]
+    u_all = np.vstack([u for u, _, _, _ in history])
+    rows = pd.concat([r for _, r, _, _ in history], ignore_index=True).copy()
+    rows["weight"] = np.exp(-mixture_log_ratio(u_all, comps))
+    return rows, comps
+
+
+def mixture_log_ratio(
+    u: FloatArray, comps: list[tuple[FloatArray, FloatArray, float]]
+) -> FloatArray:
+    """log q(u) - log phi(u) [N] of a normal mixture sum_k share_k N(mu_k, sigma_k^2)."""
+    terms = np.stack([-_log_ratio(u, m, s) + math.log(c) for m, s, c in comps])
+    return np.logaddexp.reduce(terms, axis=0)
 
 
 def _is_failure(rows: pd.DataFrame) -> Estimate:
@@ -262,59 +291,33 @@ def _is_failure(rows: pd.DataFrame) -> Estimate:
 
 
 def subset_simulation(
-    evaluate: Evaluate, dim: int, *, level_size: int, budget: int, seed: int
+    evaluate: Evaluate,
+    dim: int,
+    *,
+    level_size: int,
+    budget: int,
+    seed: int,
+    target_rel_ci: float = 0.1,
+    initial: tuple[FloatArray, pd.DataFrame] | None = None,
 ) -> RareResult:
-    """Subset simulation (module docstring): ``level_size`` samples per level.
+    """Subset simulation (:mod:`vei.risk.subset`): ``level_size`` samples per level,
+    independent runs until the target relative CI or the budget; the last level's
+    samples of every run are the rows of the secondary outcomes."""
+    from vei.risk import subset
 
-    The estimate's interval is p (1 +- 1.96 CoV) from OpenTURNS' coefficient of
-    variation, marked approximate; when the budget ends before the failure level, the
-    answer is partial (no estimate).
-    """
-    from vei.risk.estimators import z_value
-
-    ot = _openturns()
-    ot.RandomGenerator.SetSeed(int(seed))
-    tracked = _Tracked(evaluate, dim, "ss", budget)
-    algo = ot.SubsetSampling(_event(ot, tracked, dim))
-    # 1 / p0 outer samples per level (the Metropolis chains' steps; with one outer sample
-    # OpenTURNS' estimate was biased low by 2-8x on P(u > 4) = 3.2e-5), each a batch
-    chains = round(1 / RHO)
-    algo.setMaximumOuterSampling(chains)
-    algo.setBlockSize(max(1, int(level_size) // chains))
-    algo.setConditionalProbability(RHO)
-
-    def stop() -> bool:
-        return tracked.stop() or len(tracked.frames) >= MAX_STAGES * chains
-
-    algo.setStopCallback(stop)  # a named function: OpenTURNS keeps no reference of its own
-    algo.run()
-    res = algo.getResult()
-    thresholds = [float(t) for t in algo.getThresholdPerStep()]
-    stages = [{"stage": i, "threshold": t} for i, t in enumerate(thresholds)]
-    reached = bool(thresholds) and thresholds[-1] <= 0.0
-    p = float(res.getProbabilityEstimate())
-    cov = float(res.getCoefficientOfVariation())
-    # the last level's samples (its 1 / p0 batches)
-    last = (
-        pd.concat(tracked.frames[-chains:], ignore_index=True) if tracked.frames else pd.DataFrame()
-    )
-    notes = ["approximate interval: p (1 +- 1.96 CoV) with OpenTURNS' CoV of the subset estimate"]
-    if not reached or not p > 0:
-        notes.append(
-            f"partial answer: the budget ({budget:,} simulations) ended before subset "
-            "simulation reached the failure level: no estimate"
-        )
-        est = Estimate(math.nan, 0.0, math.nan, tracked.used, "subset-simulation",
-                       bound=True, reliable=False, notes=tuple(notes))  # fmt: skip
-        return RareResult("subset", last, est, tracked.used, stages, False, notes=notes)
-    z = z_value()
-    stalled = len(thresholds) >= 2 and thresholds[-2] == thresholds[-1]
-    est = Estimate(
-        p, max(0.0, p * (1 - z * cov)), p * (1 + z * cov), tracked.used, "subset-simulation",
-        int(last["failure"].sum()) if len(last) else -1,
-        reliable=math.isfinite(cov) and not stalled, diagnostics={"cov": cov,
-        "levels": float(len(thresholds))}, notes=tuple(notes),
+    est, runs, used = subset.subset_estimate(
+        evaluate, dim, level_size=level_size, budget=budget, target_rel_ci=target_rel_ci,
+        seed=seed, initial=initial,
     )  # fmt: skip
-    if stalled:
-        est = est.with_note("unreliable: the Metropolis chains stalled (equal thresholds)")
-    return RareResult("subset", last, est, tracked.used, stages, True, notes=notes)
+    frames = [r.last for r in runs if len(r.last)]
+    last = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+    notes = list(est.notes)
+    reached = not est.bound
+    if not reached:
+        notes.append(
+            f"partial answer: no failure in {len(runs)} subset simulation run(s) within the "
+            f"budget ({budget:,} simulations): no estimate"
+        )
+    first = initial[1] if initial is not None else pd.DataFrame()
+    return RareResult("subset", last, est, used, subset.as_stages(runs), reached, notes=notes,
+                      first=first)  # fmt: skip

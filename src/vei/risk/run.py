@@ -132,7 +132,10 @@ def assess_risk(
         for p in planners
     }
     importance = {
-        p.policy: importance_factors(problem.space.names, p.proposal[0])
+        p.policy: importance_factors(
+            problem.space.names,
+            p.proposal[-1][0] if isinstance(p.proposal, list) else p.proposal[0],
+        )
         for p in planners
         if p.proposal is not None
     }

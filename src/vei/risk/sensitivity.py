@@ -74,7 +74,7 @@ def sobol_indices(problem: Any, policy: str, *, n: int = SOBOL_N, seed: int = 0)
         if np.ptp(y) == 0:
             notes.append(f"{key}: constant over the Sobol sample, no indices")
             continue
-        res = analyze.analyze(spec, y, calc_second_order=False, seed=seed)
+        res = _analyze(analyze, spec, y, seed, key, notes)
         out[key] = {
             nm: {
                 "S1": _c(res["S1"][j]),
@@ -91,6 +91,39 @@ def sobol_indices(problem: Any, policy: str, *, n: int = SOBOL_N, seed: int = 0)
             "noise; read the minimum gap's (and the importance factors)"
         )
     return out
+
+
+def _analyze(
+    analyze: Any, spec: dict[str, Any], y: np.ndarray, seed: int, key: str, notes: list[str]
+) -> Any:
+    """SALib's analysis with its warnings caught and said in vei's words (a note)."""
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = analyze.analyze(spec, y, calc_second_order=False, seed=seed)
+    said = set()
+    for w in caught:
+        text = str(w.message)
+        if "Constant values" in text:
+            msg = (
+                f"{key}: some Saltelli blocks hold one value only (too few samples reach a "
+                "change of the outcome): their indices are unreliable"
+            )
+        else:
+            msg = f"{key}: SALib warned: {text.splitlines()[0] if text else type(w).__name__}"
+        if msg not in said:
+            said.add(msg)
+            notes.append(msg)
+    return res
+
+
+def few_failures_note(sobol: dict[str, Any]) -> str | None:
+    """The note that the collision indices rest on too few collisions, or None."""
+    for n in sobol.get("notes", []):
+        if "collision indices are noise" in n:
+            return n
+    return None
 
 
 def _c(v: float) -> float | None:

@@ -72,9 +72,13 @@ _SPEC_KEYS = {
     "injury_relevant_speed_mps",
     "model",
     "reconstruction",
+    "failure",
 }
 #: The dimension of the reconstruction's posterior sample (``reconstruction: {samples: N}``).
 RECON_DIMENSION = "reconstruction.sample"
+#: ``failure: {count: ...}``: which collisions count as failures: every collision, or
+#: only those on the primary rider's recorded behaviour (vei.metrics.where).
+FAILURE_COUNTS: tuple[str, ...] = ("all", "recorded")
 
 
 @dataclass(frozen=True)
@@ -98,6 +102,9 @@ class VariationModel:
         about: ((key, text), ...): what the model is and how it was validated (the spec's
             ``model:`` mapping, e.g. name, fitted_from, validation; every risk answer
             names it).
+        failure_count: 'all' (every collision is a failure) or 'recorded' (only a
+            collision on the primary rider's recorded behaviour; spec ``failure: {count:
+            recorded}``).
         source: the file it came from (for messages).
     """
 
@@ -113,6 +120,7 @@ class VariationModel:
     injury_relevant_speed_mps: float = INJURY_RELEVANT_SPEED_MPS
     about: tuple[tuple[str, str], ...] = field(default=(), compare=False)
     reconstruction_samples: int | None = None
+    failure_count: str = "all"
     source: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -134,6 +142,11 @@ class VariationModel:
         v = self.injury_relevant_speed_mps
         if isinstance(v, bool) or not isinstance(v, int | float) or not (0 < v < math.inf):
             raise ConfigError(f"{where}: injury_relevant_speed_mps must be > 0, got {v!r}")
+        if self.failure_count not in FAILURE_COUNTS:
+            raise ConfigError(
+                f"{where}: failure.count must be one of {', '.join(FAILURE_COUNTS)}, got "
+                f"{self.failure_count!r}"
+            )
         from vei.sweep.params import check_v2x_spec
 
         check_v2x_spec([n for n, _ in (*self.distributions, *self.fixed)], self.v2x, where)
@@ -192,6 +205,8 @@ class VariationModel:
         }
         if self.reconstruction_samples:
             out["reconstruction"] = {"samples": self.reconstruction_samples}
+        if self.failure_count != "all":  # the default stays out (digests unchanged)
+            out["failure"] = {"count": self.failure_count}
         if self.perception is not None:
             out["perception"] = dataclasses.asdict(self.perception)
         if self.v2x is not None:
@@ -330,9 +345,31 @@ def parse_variation(raw: Any, where: str = "risk spec") -> VariationModel:
         injury_relevant_speed_mps=raw.get("injury_relevant_speed_mps", INJURY_RELEVANT_SPEED_MPS),
         about=parse_about(about_raw, where),
         reconstruction_samples=parse_reconstruction(raw.get("reconstruction"), where),
+        failure_count=_failure_count(raw.get("failure"), where),
         source=where,
     )
     return model
+
+
+def _failure_count(raw: Any, where: str) -> str:
+    """``failure: {count: all | recorded}`` -> the count (default 'all').
+
+    Raises:
+        ConfigError: not a mapping, an unknown key (named), an unknown value.
+    """
+    if raw is None:
+        return "all"
+    if not isinstance(raw, Mapping):
+        raise ConfigError(f"{where}: failure must be a mapping such as {{count: recorded}}")
+    unknown = sorted(set(map(str, raw)) - {"count"})
+    if unknown:
+        raise ConfigError(f"{where}: failure: unknown key(s) {', '.join(unknown)}; expected count")
+    value = raw.get("count", "all")
+    if value not in FAILURE_COUNTS:
+        raise ConfigError(
+            f"{where}: failure.count must be one of {', '.join(FAILURE_COUNTS)}, got {value!r}"
+        )
+    return str(value)
 
 
 def load_variation(path: str | Path) -> VariationModel:
