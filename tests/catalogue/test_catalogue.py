@@ -119,6 +119,12 @@ def test_small_catalogue_table(small_catalogue):
         assert r.recorded_collision_share == pytest.approx(rec[r.encounter_id])
         assert r.recorded_collision_share_lo <= r.recorded_collision_share
         assert r.recorded_collision_share <= r.recorded_collision_share_hi
+    # issue 31: P(collision on recorded behaviour) of the risk estimate, never above the total
+    both = enc["risk_p_collision"].notna() & enc["risk_p_collision_recorded"].notna()
+    assert (
+        enc.loc[both, "risk_p_collision_recorded"] <= enc.loc[both, "risk_p_collision"] + 1e-12
+    ).all()
+    assert (enc["risk_p_collision_recorded_hi"] > 0).all()
     # the paper's encounter: stadtmitte_12 cyclist_60 collides without CAP, not with it
     cs = rows[
         (rows["encounter_id"] == "stadtmitte_12_audi_geradeaus_03__cyclist_60")

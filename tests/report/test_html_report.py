@@ -98,7 +98,9 @@ def test_page_lists_every_encounter_and_recording(data):
         assert r["recording"] in page
     # issue 31: the overview says what the recorded behaviour supports
     assert {"recorded_collision_share", "recorded_share_ci", "collisions_on_recorded"} <= set(keys)
+    assert "risk_p_collision_recorded_ci" in keys  # the small catalogue has a risk estimate
     for e in data["encounters"]:
+        assert e["row"]["risk_p_collision_recorded_ci"] not in (None, "-")
         share = e["row"]["recorded_collision_share"]
         assert 0.0 <= share <= 1.0 and e["row"]["recorded_share_ci"].startswith("[")
 

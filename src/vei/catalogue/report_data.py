@@ -244,8 +244,19 @@ RISK_COLUMNS: tuple[tuple[str, str, str, str], ...] = (
      "probability of a collision under the variation ('-' with only an upper bound)"),
     ("risk_p_collision_ci", "P 95 % CI", "s",
      "95 % confidence interval of P(collision) ('< x': no collision seen, upper bound)"),
+    ("risk_p_collision_recorded_ci", "P(on recorded) 95 % CI", "s",
+     "P(collision on the rider's recorded behaviour) with its 95 % interval (the collisions "
+     "the recording itself supports; the rest happen on vei's run-in / run-out)"),
     ("risk_n_simulations", "risk sims", "d", "simulations of the risk estimate"),
 )  # fmt: skip
+
+
+def _value_ci_text(rec: dict[str, Any], name: str) -> str:
+    """'2.6e-04 [2.2e-04, 3.1e-04]', '< 1.8e-03' with only an upper bound, '-' without."""
+    v = rec.get(name)
+    if v is None or not np.isfinite(v):
+        return _ci_text(rec, name)
+    return f"{v:.2e} {_ci_text(rec, name)}"
 
 
 def _ci_text(rec: dict[str, Any], name: str) -> str:
@@ -347,6 +358,7 @@ def collect_index(
         if "risk_expected_harm" in rec:
             rec["risk_harm_ci"] = _ci_text(rec, "risk_expected_harm")
             rec["risk_p_collision_ci"] = _ci_text(rec, "risk_p_collision")
+            rec["risk_p_collision_recorded_ci"] = _value_ci_text(rec, "risk_p_collision_recorded")
     recs = [
         {"recording": k, **{f: v.get(f) for f in ("status", "reason", "n_riders")},
          "encounters": ", ".join(e.split("__", 1)[-1] for e in v.get("encounters", []))}

@@ -180,9 +180,12 @@ def _print_result(console, result, top: int) -> None:
             enc = enc.assign(
                 _harm=[_ci(r, "risk_expected_harm") for r in enc.to_dict("records")],
                 _p=[_ci(r, "risk_p_collision") for r in enc.to_dict("records")],
+                _pr=[_ci(r, "risk_p_collision_recorded") for r in enc.to_dict("records")],
             )
             cols = (*cols[:3], ("_harm", "expected harm [95 % CI]", "{}"),
                     ("_p", "P(collision) [95 % CI]", "{}"), *cols[3:])  # fmt: skip
+            if "risk_p_collision_recorded" in enc:  # issue 31: what the recording supports
+                cols = (*cols[:5], ("_pr", "P(on recorded) [95 % CI]", "{}"), *cols[5:])
         if "recorded_collision_share" in enc:  # issue 31: what the recorded behaviour supports
             enc = enc.assign(
                 _rec=[_share_ci(r, "recorded_collision_share") for r in enc.to_dict("records")]
