@@ -72,7 +72,6 @@ from vei.sim.kernel.layout import (
     P_VMAX,
     P_YDEC,
 )
-from vei.sim.kernel.riders import extra_riders_step
 from vei.sim.kernel.scalar import idx, ped_forces, rforce
 from vei.sim.kernel.sfm import (
     capped_velocity,
@@ -134,15 +133,17 @@ def step_envs(  # type: ignore[no-untyped-def]
 
     ``xr``: None (no extra riders: not compiled), or the extra social-force riders
     (vei.gym.packed.ExtraRiders.group() then XS [B, 9, R] floats, XB [B, 4, R] bools:
-    vei.sim.riders' EXTRA_FLOAT_FIELDS / EXTRA_BOOL_FIELDS, and their scratch NXS [9, R],
-    NXB [4, R]), stepped by the engine kernel's :func:`vei.sim.kernel.riders.extra_riders_step`
-    after the primary rider, which they repel (the engine kernel's order).
+    vei.sim.riders' EXTRA_FLOAT_FIELDS / EXTRA_BOOL_FIELDS, their scratch NXS [9, R],
+    NXB [4, R], and PREV [8, B]): they repel the primary rider here (their step-k state),
+    PREV keeps the ego's and the rider's step-k state, and
+    :func:`vei.gym.riders_kernel.step_riders` steps them next (the engine kernel's order).
     """
     B = A.shape[0]
     if xr is not None:
         (
             x_n, XTAB, xt0, xdt, xtend, xnr, xsfm0, XPATH, xps0, xpds, xpn, xplen, xpex, xpey,
             xL, xW, xrad, xv0, xvmax, prad, rep_on, PED, PRAD, n_ped, XDN, XDC, XS, XB, NXS, NXB,
+            PREV,
         ) = xr  # fmt: skip
     for b in range(B):
         if not run[b]:
@@ -288,48 +289,9 @@ def step_envs(  # type: ignore[no-untyped-def]
         if collided:
             r_acc = 0.0
         contacts = 0.0
-        # ---- extra riders (vei.sim.kernel.loop's order: after the primary, its step-k state)
-        if xr is not None:
-            R = x_n[sc]
-            if R > 0:
-                h0 = 0
-                for j in range(R):
-                    h0 += 1 if XB[b, 3, j] else 0
-                use_rf = rep_on[sc] and P[P_USERF, sc] > 0.5
-                xst = (
-                    XS[b, :, :R],
-                    XB[b, :, :R],
-                    NXS[:, :R],
-                    NXB[:, :R],
-                    xv0[sc, :R],
-                    xvmax[sc, :R],
-                )
-                xtrk = (XTAB[sc], xt0[sc], xdt[sc], xtend[sc], xnr[sc], xsfm0[sc])
-                xpth = (XPATH[sc], xps0[sc], xpds[sc], xpn[sc], xplen[sc], xpex[sc], xpey[sc])
-                oth = (OX[sc], OY[sc], OYAW[sc], OYAW[sc], OACT[sc])  # [3] (speeds) unread
-                dec = (
-                    0,
-                    0,
-                    0,
-                    0,
-                    0,
-                    0,
-                    XDN[sc],
-                    XDC[sc, 0],
-                    XDC[sc, 1],
-                    XDC[sc, 2],
-                    XDC[sc, 3],
-                    XDC[sc, 4],
-                )
-                extra_riders_step(
-                    k, t_new, dt, P, sc, P[P_SFM, sc] > 0.5, use_rf, P[P_ARR, sc], P[P_BRR, sc],
-                    xst, xtrk, xpth, (xL[sc], xW[sc], xrad[sc]), rx, ry, r_act, prad[sc], oth,
-                    PED[sc, : n_ped[sc]], PRAD[sc, : n_ped[sc]], (ex, ey, eyaw, v, s), Le, We,
-                    (ex_n, ey_n, eyaw_n), dec,
-                )  # fmt: skip
-                for j in range(R):
-                    contacts += 1.0 if XB[b, 3, j] else 0.0
-                contacts -= h0
+        if xr is not None:  # the step-k state the extra riders see (vei.gym.riders_kernel)
+            PREV[0, b], PREV[1, b], PREV[2, b], PREV[3, b], PREV[4, b] = ex, ey, eyaw, v, s
+            PREV[5, b], PREV[6, b], PREV[7, b] = rx, ry, 1.0 if r_act else 0.0
         # ---- collision
         impact = np.nan
         if n_act and not collided:

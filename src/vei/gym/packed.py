@@ -212,6 +212,9 @@ class ExtraRiders:
             self.XDN[s, :n] = d[6]
             for q in range(5):
                 self.XDC[s, q, :n, : d[7 + q].shape[1]] = d[7 + q]
+        for s, n in enumerate(self.n):  # padding riders: never in their span, never active
+            per["xt0"][s, n:], per["xtend"][s, n:] = np.inf, -np.inf
+            per["xdt"][s, n:] = per["xpds"][s, n:] = 1.0
         for name, arr in per.items():
             setattr(self, name, np.ascontiguousarray(arr, f))
         self.r_max = r

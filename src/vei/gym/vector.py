@@ -37,6 +37,7 @@ from vei.gym.env import action_limits, check_actions, injury_risk
 from vei.gym.features import feature_names, observation_bounds, vectorize
 from vei.gym.kernel import F_RVX, F_RVY, F_RX, F_RY, F_RYAW, N_BS, N_FS
 from vei.gym.packed import Packed
+from vei.gym.riders_kernel import N_PREV
 from vei.gym.world import AgentSeat, World, load_world
 from vei.sim.riders import EXTRA_BOOL_FIELDS, EXTRA_FLOAT_FIELDS
 from vei.sim.state import SimState
@@ -93,16 +94,17 @@ def kernel_notice() -> Any:
     import contextlib
 
     from vei.gym import kernel as gk
+    from vei.gym import riders_kernel as rk
     from vei.io.progress import activity
     from vei.sim.kernel.cache import cache_dir, drop_stale, sources_digest
 
     fns = (gk.step_envs, gk.observe_envs)
-    if all(f.signatures for f in fns):
+    if all(f.signatures for f in fns) and rk.step_riders.signatures:
         return contextlib.nullcontext()
     folder = cache_dir(gk.step_envs)
     stamp = None if folder is None else folder / "loop.sources.sha256"
     fresh = stamp is not None and stamp.is_file() and stamp.read_text().strip() == sources_digest()
-    drop_stale(*fns, gk.sat)
+    drop_stale(*fns, gk.sat, rk.step_riders)  # one folder: vei/gym/__pycache__
     if fresh and folder is not None:
         index = [folder / f"kernel.{f.__name__}-{f.py_func.__code__.co_firstlineno}.py"
                  f"{sys.version_info[0]}{sys.version_info[1]}.nbi" for f in fns]  # fmt: skip
@@ -182,7 +184,7 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         if xr is not None:
             nf = len(EXTRA_FLOAT_FIELDS)
             scratch = (np.zeros((nf, r)), np.zeros((len(EXTRA_BOOL_FIELDS), r), np.bool_))
-            self._xr = (*xr.group(), self.XS, self.XB, *scratch)
+            self._xr = (*xr.group(), self.XS, self.XB, *scratch, np.zeros((N_PREV, b)))
             self._xo = (self.XD, xr.xL, xr.xW, xr.XCAT, xr.n)
         self._needs_reset = np.ones(b, dtype=bool)
         self._rngs: list[np.random.Generator] = []
@@ -307,6 +309,11 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             pk.OX, pk.OY, pk.OYAW, pk.OACT, pk.OL, pk.OW, pk.n_o, pk.CF, pk.cf_n, self._xr,
             self.TERMS,
         )  # fmt: skip
+        if self._xr is not None:  # the extra riders (vei.gym.riders_kernel)
+            from vei.gym.riders_kernel import step_riders
+
+            step_riders(run, pk.dt, self.K, self.SC, self._xr[-1], self.FS, pk.DIM, pk.P,
+                        pk.OX, pk.OY, pk.OYAW, pk.OACT, self._xr, self.TERMS)  # fmt: skip
 
     def _groups(self, envs: np.ndarray) -> list[np.ndarray]:
         key = self.SC[envs] * (1 << 32) + self.K[envs]
@@ -369,7 +376,10 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             self.RD[:] = self.RING[0]
         else:
             self.RD[:] = self.RING[(self.K - self.delay) % h, :, cols].T
-        if self.XS.shape[2]:  # the extra riders' truth (x y yaw vx vy active), the same way
+        if self.XS.shape[2] and self.delay == 0:  # the extra riders' truth (x y yaw vx vy
+            self.XD[:, :5] = self.XS[:, :5]  # active), the same way
+            self.XD[:, 5] = self.XB[:, 0]
+        elif self.XS.shape[2]:
             self.XRING[now, cols, :5] = self.XS[:, :5]
             self.XRING[now, cols, 5] = self.XB[:, 0]
             self.XD[:] = self.XRING[(self.K - self.delay) % h, cols]
