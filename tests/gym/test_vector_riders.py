@@ -106,3 +106,33 @@ def test_extra_riders_on_a_real_recording(real_folder):
     assert env.pk.xr is not None and env.pk.xr.n[0] >= 2
     ended, _ = _compare(cfg, 3, 170, seed=4, accel=(-6.0, 3.0))
     assert ended >= 3
+
+
+@pytest.mark.slow
+def test_worlds_with_and_without_extra_riders(riders_folder, tmp_path):
+    """A folder of three scenarios with three, one and no extra riders: the environments
+    of each step their own riders (the padded columns stay inert, through autoresets from
+    one scenario to another)."""
+    import shutil
+
+    from tests.gym.test_vector import _compare
+    from vei.io.scenario import write_scenario
+    from vei.sim.testing import TrackSpec, crossing_scenario
+
+    shutil.copytree(riders_folder, tmp_path / "a_riders")
+    t = np.arange(20, 221) / 20.0  # one e-scooter crossing at x = 40 m from t = 1 s at 3 m/s
+    one = TrackSpec("escooter", t, np.full_like(t, 40.0), -15.0 + 3.0 * (t - 1.0),
+                    np.full_like(t, np.pi / 2), np.full_like(t, 3.0))  # fmt: skip
+    write_scenario(crossing_scenario(others=[("e9", one)], scenario_id="one"), tmp_path / "b_one")
+    write_scenario(crossing_scenario(), tmp_path / "c_crossing")
+    cfg = dataclasses.replace(_config(riders_folder, "normal"), path=tmp_path)
+    env = VeiVectorEnv(8, cfg)
+    assert env.pk.xr is not None and env.pk.xr.n.tolist() == [3, 1, 0]
+    env.reset(seed=4)
+    assert set(env.SC.tolist()) == {0, 1, 2}  # every scenario drawn
+    ended, _ = _compare(cfg, 8, 200, seed=4, accel=(-2.0, 3.0))
+    assert ended >= 8
+    for _ in range(150):  # through autoresets from one scenario to the other
+        env.step(np.zeros((8, 1), np.float32))
+        assert not env.XB[env.SC == 2].any()  # no riders where the scenario has none
+        assert not env.XB[env.SC == 1, :, 1:].any()  # one where it has one

@@ -228,6 +228,8 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         self.HIT[envs] = 0
         self.HIT[envs, : st.hit_other.shape[1]] = st.hit_other
         r = st.extra_x_m.shape[1]
+        self.XS[envs] = 0.0  # the columns past the scenario's R: inert padding riders
+        self.XB[envs] = False
         for f, name in enumerate(EXTRA_FLOAT_FIELDS):
             self.XS[envs, f, :r] = getattr(st, name)
         for f, name in enumerate(EXTRA_BOOL_FIELDS):
