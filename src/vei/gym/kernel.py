@@ -247,10 +247,11 @@ def step_envs(  # type: ignore[no-untyped-def]
                                 )  # fmt: skip
                                 sx += hx_
                                 sy += hy_
-                        sx, sy = ped_forces(
-                            sx, sy, rx, ry, prad[sc], k, PED[sc, : n_ped[sc]],
-                            PRAD[sc, : n_ped[sc]], OX[sc], OY[sc], OACT[sc], a_rr, b_rr,
-                        )  # fmt: skip
+                        if n_ped[sc] > 0:  # (its views cost a reference count each)
+                            sx, sy = ped_forces(
+                                sx, sy, rx, ry, prad[sc], k, PED[sc, : n_ped[sc]],
+                                PRAD[sc, : n_ped[sc]], OX[sc], OY[sc], OACT[sc], a_rr, b_rr,
+                            )  # fmt: skip
                         fx = fx + sx
                         fy = fy + sy
                 limits = math.isfinite(vmax) or math.isfinite(amax_r)
