@@ -1,7 +1,8 @@
 """Run every ``benchmarks/bench_*.py`` module in its own process (so peak memory is its own).
 
 Each module has a ``main()`` that prints its table. ``python -m benchmarks NAME ...`` runs
-only the named ones (e.g. ``reconstruct``).
+only the named ones (e.g. ``reconstruct``); arguments starting with ``--`` are passed on to
+each module (``python -m benchmarks gym --features``).
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ HERE = Path(__file__).resolve().parent
 
 def main(argv: list[str]) -> int:
     mods = sorted(p.stem for p in HERE.glob("bench_*.py"))
+    flags = [a for a in argv if a.startswith("--")]
+    argv = [a for a in argv if not a.startswith("--")]
     if argv:
         wanted = {a if a.startswith("bench_") else f"bench_{a}" for a in argv}
         unknown = wanted - set(mods)
@@ -25,7 +28,7 @@ def main(argv: list[str]) -> int:
     failed = []
     for mod in mods:
         print(f"\n=== {mod} ===", flush=True)
-        rc = subprocess.call([sys.executable, "-m", f"benchmarks.{mod}"], cwd=HERE.parent)
+        rc = subprocess.call([sys.executable, "-m", f"benchmarks.{mod}", *flags], cwd=HERE.parent)
         if rc != 0:
             failed.append(mod)
     if failed:

@@ -24,7 +24,9 @@ simulation steps per second on a GPU.
 
 ``--features`` prints only the demo's vector env at B = 10^4 with each feature set of
 issue 34 (``normal``: obstacle braking on; + the rider's decisions; + a perception delay
-of 0.3 s), best of 3 runs of 100 steps.
+of 0.3 s), best of 3 runs of 100 steps; then the extra social-force riders
+(``sim.sfm_riders``: 'primary' against 'all') on vei.sim.testing's four-rider crossing
+(3 extra e-scooters, no map) and on stadtmitte_12 (6 extra riders) when the data is found.
 
 Second table (``--learn`` prints only this one): examples/gym_cem.py, the cross-entropy
 method on a linear policy, 24 x 16 environments of the demo, 15 generations; the held-out
@@ -129,13 +131,36 @@ def features() -> None:
         for name, case in {"normal": "normal", **_feature_cases()}.items():
             rate = max(_vector_rate(folder, 10_000, STEPS // 2, "numba", case) for _ in range(3))
             print(f"{'demo':<14} {'vector ' + name:<24} {10_000:>8} {rate:>14,.0f}", flush=True)
+        from vei.config import SimConfig
+        from vei.io.scenario import write_scenario
+        from vei.sim.testing import four_rider_scenario
+
+        scenes = {"four riders": (write_scenario(four_rider_scenario(), Path(tmp) / "four"), False)}
+        real = _scenes(Path(tmp)).get("stadtmitte_12")
+        if real is not None:
+            scenes["stadtmitte_12"] = (real, True)
+        for scene, (path, road) in scenes.items():
+            for sel in ("primary", "all"):
+                sim = SimConfig(sfm_riders=sel)
+                rate = max(
+                    _vector_rate(path, 10_000, STEPS // 2, "numba", sim=sim, road=road)
+                    for _ in range(3)
+                )
+                print(f"{scene:<14} {'vector sfm_riders=' + sel:<24} {10_000:>8} {rate:>14,.0f}",
+                      flush=True)  # fmt: skip
 
 
-def _vector_rate(folder: Path, b: int, steps: int, backend: str, case: object = "normal") -> float:
+def _vector_rate(
+    folder: Path, b: int, steps: int, backend: str, case: object = "normal",
+    sim: object = None, road: bool = True,
+) -> float:  # fmt: skip
+    from vei.config import SimConfig
     from vei.gym import EnvConfig
     from vei.gym.vector import VeiVectorEnv
 
-    env = VeiVectorEnv(b, EnvConfig(source="folder", path=folder, backend=backend, case=case))
+    cfg = EnvConfig(source="folder", path=folder, backend=backend, case=case,
+                    sim=sim or SimConfig(), road_features=road)  # fmt: skip
+    env = VeiVectorEnv(b, cfg)
     rng = np.random.default_rng(0)
     env.reset(seed=0)
     lo, hi = env.action_low, env.action_high

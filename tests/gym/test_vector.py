@@ -68,7 +68,10 @@ def _compare(config: EnvConfig, b: int, steps: int, seed: int, accel: tuple[floa
         np.testing.assert_allclose(o1, o2, rtol=1e-6, atol=1e-5)
         assert np.array_equal(o2, o3)
         worst = max(worst, float(np.abs(vn.FS - vp.FS).max()))
+        if vn.XS.size:  # the extra social-force riders (sim.sfm_riders)
+            worst = max(worst, float(np.abs(vn.XS - vp.XS).max()))
         assert np.array_equal(vn.BS, vp.BS) and np.array_equal(vn.HIT, vp.HIT)
+        assert np.array_equal(vn.XB, vp.XB)
         assert np.array_equal(vn.K, vp.K)
         ended += int((te1 | tr1).sum())
         contacts += int(te1.sum())
@@ -133,10 +136,6 @@ def test_vector_bad_input(demo_config):
         envs.step(np.zeros((2, 1), np.float32))
     with pytest.raises(ConfigError, match="num_envs"):
         VeiVectorEnv(0, demo_config)
-    from vei.config import SimConfig
-
-    with pytest.raises(ConfigError, match="extra social-force riders"):
-        VeiVectorEnv(2, dataclasses.replace(demo_config, sim=SimConfig(sfm_riders="all")))
 
 
 def test_catalogue_source(demo_folder, tmp_path):

@@ -156,8 +156,8 @@ def test_refuses_what_it_does_not_model(demo_config):
     for pattern, case in cases.items():
         with pytest.raises(ConfigError, match=pattern + ".*vectorization_mode='sync'"):
             VeiVectorEnv(2, dataclasses.replace(demo_config, case=case))
-    with pytest.raises(ConfigError, match=r"extra social-force riders \(sim\.sfm_riders = 'all'\)"):
-        VeiVectorEnv(2, dataclasses.replace(demo_config, sim=SimConfig(sfm_riders="all")))
+    # extra social-force riders are modelled (tests/gym/test_vector_riders.py)
+    assert VeiVectorEnv(2, dataclasses.replace(demo_config, sim=SimConfig(sfm_riders="all")))
 
 
 def test_catalogue_one_world_per_encounter(demo_folder, tmp_path, capsys):

@@ -38,7 +38,7 @@ class RewardConfig:
     Terms (per step k -> k + 1, dt = the engine step):
 
     - ``collision``: the number of road users the ego touches for the first time at this
-      step (the primary rider, a replayed road user); a contact ends the episode.
+      step (the primary rider, an extra rider, a replayed road user); a contact ends the episode.
     - ``injury_risk``: at the step the ego touches the primary rider, the rider's injury
       probability of the impact speed |v_ego - v_rider| of the last step before contact
       (vei.metrics.severity.injury_risk_of_speed, MetricsConfig's curve: Rosen & Sander
@@ -116,8 +116,8 @@ class EnvConfig:
         max_episode_steps: truncate after this many steps (None: at the end of the
             scenario's span).
         reward: the reward weights (RewardConfig or a mapping).
-        sim: engine settings (step, span, footprints); ``sfm_riders`` must stay
-            'primary' for the vector env.
+        sim: engine settings (step, span, footprints, ``sfm_riders``: the extra
+            social-force riders, in both envs).
         backend: the vector env's step: 'numba' (compiled, the throughput path), 'numpy'
             (the engine's own step per group of environments at the same step), 'auto'
             (numba when installed). The single env always runs the engine's NumPy step.

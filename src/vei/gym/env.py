@@ -177,6 +177,7 @@ class VeiEnv(gym.Env):
         new = step(st, self._params, ws.arrays, self._flags, demand)
         contact = bool(new.collided[0] and not st.collided[0])
         hits = int(np.count_nonzero(new.hit_other[0] & ~st.hit_other[0]))
+        hits += int(np.count_nonzero(new.extra_hit[0] & ~st.extra_hit[0]))  # extra riders
         impact = np.nan
         if contact and st.rider_active[0]:
             v, yaw = st.ego_v_mps[0], st.ego_yaw_rad[0]

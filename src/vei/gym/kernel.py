@@ -41,8 +41,10 @@ from vei.sim.kernel.decision import decide_step, reference_speed
 from vei.sim.kernel.layout import (
     P_AMAX,
     P_AMAX_R,
+    P_ARR,
     P_ARRIVE,
     P_AVEH,
+    P_BRR,
     P_BVEH,
     P_CLEARM,
     P_DECIDE,
@@ -63,13 +65,14 @@ from vei.sim.kernel.layout import (
     P_SIGMA,
     P_STOPM,
     P_TC,
+    P_USERF,
     P_USEVF,
     P_V0,
     P_VD,
     P_VMAX,
     P_YDEC,
 )
-from vei.sim.kernel.scalar import idx
+from vei.sim.kernel.scalar import idx, ped_forces, rforce
 from vei.sim.kernel.sfm import (
     capped_velocity,
     destination_force,
@@ -119,16 +122,29 @@ def step_envs(  # type: ignore[no-untyped-def]
     RT, rt_t0, rt_dt, rt_tend, rt_n, rt_sfm0,
     RP, rp_s0, rp_ds, rp_n, rp_len, rp_ex, rp_ey,
     OX, OY, OYAW, OACT, OL, OW, n_o,
-    CF, cf_n,
+    CF, cf_n, xr,
     TERMS,
 ):  # fmt: skip
     """Advance the environments with ``run[b]`` by one step with demand A[b] [m/s^2].
 
-    Writes the new state in place (FS, BS, HIT, K) and TERMS[b] = (new contacts, impact
-    speed [m/s] of a new rider contact or NaN, progress [m] (up to v_d dt), a_rep^2 dt
-    [m^2/s^3]).
+    Writes the new state in place (FS, BS, HIT, K, the extra riders' XS, XB) and TERMS[b] =
+    (new contacts (the rider, the others, the extra riders), impact speed [m/s] of a new
+    rider contact or NaN, progress [m] (up to v_d dt), a_rep^2 dt [m^2/s^3]).
+
+    ``xr``: None (no extra riders: not compiled), or the extra social-force riders
+    (vei.gym.packed.ExtraRiders.group() then XS [B, 9, R] floats, XB [B, 4, R] bools:
+    vei.sim.riders' EXTRA_FLOAT_FIELDS / EXTRA_BOOL_FIELDS, their scratch NXS [9, R],
+    NXB [4, R], and PREV [8, B]): they repel the primary rider here (their step-k state),
+    PREV keeps the ego's and the rider's step-k state, and
+    :func:`vei.gym.riders_kernel.step_riders` steps them next (the engine kernel's order).
     """
     B = A.shape[0]
+    if xr is not None:
+        (
+            x_n, XTAB, xt0, xdt, xtend, xnr, xsfm0, XPATH, xps0, xpds, xpn, xplen, xpex, xpey,
+            xL, xW, xrad, xv0, xvmax, prad, rep_on, PED, PRAD, n_ped, XDN, XDC, XS, XB, NXS, NXB,
+            PREV,
+        ) = xr  # fmt: skip
     for b in range(B):
         if not run[b]:
             continue
@@ -218,6 +234,26 @@ def step_envs(  # type: ignore[no-untyped-def]
                     )  # fmt: skip
                     fx = fx + vfx
                     fy = fy + vfy
+                if xr is not None:  # repelled by the extra riders and pedestrians at step k
+                    if rep_on[sc] and P[P_USERF, sc] > 0.5:
+                        a_rr, b_rr = P[P_ARR, sc], P[P_BRR, sc]
+                        sx = 0.0
+                        sy = 0.0
+                        for mm in range(x_n[sc]):
+                            if XB[b, 0, mm]:
+                                hx_, hy_ = rforce(
+                                    rx, ry, XS[b, 0, mm], XS[b, 1, mm], prad[sc] + xrad[sc, mm],
+                                    a_rr, b_rr,
+                                )  # fmt: skip
+                                sx += hx_
+                                sy += hy_
+                        if n_ped[sc] > 0:  # (its views cost a reference count each)
+                            sx, sy = ped_forces(
+                                sx, sy, rx, ry, prad[sc], k, PED[sc, : n_ped[sc]],
+                                PRAD[sc, : n_ped[sc]], OX[sc], OY[sc], OACT[sc], a_rr, b_rr,
+                            )  # fmt: skip
+                        fx = fx + sx
+                        fy = fy + sy
                 limits = math.isfinite(vmax) or math.isfinite(amax_r)
                 x2, y2, vx2, vy2, sp2 = integrate(
                     rx, ry, rvx, rvy, fx, fy, P[P_MASS, sc], amax_r, vmax, dt, limits
@@ -253,8 +289,11 @@ def step_envs(  # type: ignore[no-untyped-def]
         r_acc = (nrsp - prev_sp) / dt if (n_act and prev_act) else 0.0
         if collided:
             r_acc = 0.0
-        # ---- collision
         contacts = 0.0
+        if xr is not None:  # the step-k state the extra riders see (vei.gym.riders_kernel)
+            PREV[0, b], PREV[1, b], PREV[2, b], PREV[3, b], PREV[4, b] = ex, ey, eyaw, v, s
+            PREV[5, b], PREV[6, b], PREV[7, b] = rx, ry, 1.0 if r_act else 0.0
+        # ---- collision
         impact = np.nan
         if n_act and not collided:
             reach = 0.5 * (math.hypot(Le, We) + math.hypot(Lr, Wr))
@@ -304,7 +343,7 @@ def _wrap(a):  # type: ignore[no-untyped-def]
 
 @numba.njit(cache=True, inline="always")
 def _slot(  # type: ignore[no-untyped-def]
-    OUT, b, base, j, k, sc, collided, ego, dims, halfw, rng, cap, RD, cat_r, geo, oth,
+    OUT, b, base, j, k, sc, collided, ego, dims, halfw, rng, cap, RD, cat_r, geo, oth, xo, nx,
 ):  # fmt: skip
     """Write the 9 entries of one road-user slot (object j: 0 the rider, j > 0 replayed
     other j - 1, -1 empty) of environment b at OUT[b, base:base + 9]. Argument groups:
@@ -312,7 +351,8 @@ def _slot(  # type: ignore[no-untyped-def]
     tables, oth = the others' tables (a call of > 30 arguments cannot be inlined), indexed
     in place: an array bound to a name costs an atomic reference count per call. The
     rider as perceived is RD[:, b] (x y yaw vx vy active), the others at step k (both
-    delayed by the perception delay)."""
+    delayed by the perception delay); with extra riders (xo not None, nx of them here)
+    objects 1..nx are they, as perceived in xo[0][b] [6, R], and the others follow."""
     ex, ey, eyaw, c, sn, evx, evy, s_e = ego
     Le, Lr, Wr = dims
     valid = False
@@ -322,8 +362,15 @@ def _slot(  # type: ignore[no-untyped-def]
         ox, oy, oyaw = RD[0, b], RD[1, b], RD[2, b]
         ovx, ovy = RD[3, b], RD[4, b]
         ol, ow, ocat = Lr, Wr, cat_r[sc]
-    elif j > 0:
-        jj = j - 1
+    elif j <= nx:
+        if xo is not None:
+            jx = j - 1
+            valid = xo[0][b, 5, jx] > 0.5
+            ox, oy, oyaw = xo[0][b, 0, jx], xo[0][b, 1, jx], xo[0][b, 2, jx]
+            ovx, ovy = xo[0][b, 3, jx], xo[0][b, 4, jx]
+            ol, ow, ocat = xo[1][sc, jx], xo[2][sc, jx], xo[3][sc, jx]
+    else:
+        jj = j - 1 - nx
         valid = oth[4][sc, k, jj]
         ox, oy, oyaw = oth[0][sc, k, jj], oth[1][sc, k, jj], oth[2][sc, k, jj]
         sp = oth[3][sc, k, jj]
@@ -376,20 +423,34 @@ def _slot(  # type: ignore[no-untyped-def]
     OUT[b, base + 8] = ocat
 
 
+@numba.njit(cache=True, inline="always")
+def _position(xo, b, jj, nx, sc, kd, OX, OY, OACT):  # type: ignore[no-untyped-def]
+    """(perceived, x, y) of candidate jj of the slots: extra rider jj < nx as perceived
+    (xo[0]), else replayed other jj - nx at step kd."""
+    if xo is not None:
+        if jj < nx:
+            return xo[0][b, 5, jj] > 0.5, xo[0][b, 0, jj], xo[0][b, 1, jj]
+    jo = jj - nx
+    return OACT[sc, kd, jo], OX[sc, kd, jo], OY[sc, kd, jo]
+
+
 @numba.njit(cache=True, nogil=True)
 def observe_envs(  # type: ignore[no-untyped-def]
     dt, FS, BS, K, SC, P, DIM, T_n, path_end, cat_r, RD, delay,
     EP, ep_s0, ep_ds, ep_n,
     OX, OY, OYAW, OSP, OACT, OL, OW, OCAT, n_o,
     ROAD, rd_x0, rd_y0, rd_cell, rd_nx, rd_ny, road_on,
-    KMAX, cap, OUT,
+    KMAX, cap, xo, OUT,
 ):  # fmt: skip
     """The observation vectors OUT [B, D] (layout: vei.gym.features) of every environment
     at its current step. The road users as perceived ``delay`` steps ago (the engine's
     vei.sim.observe.PolicyDriver: nothing before step ``delay``): the rider's state then
     is RD [6, B] (x y yaw vx vy active; the current one without a delay), the others'
     the tables' at k - delay; the ego's own state is the current one; ``rider_on_road``
-    is the rider's current position's where the rider is perceived. No sensor model."""
+    is the rider's current position's where the rider is perceived. No sensor model.
+    ``xo``: None, or the extra riders as perceived (XD [B, 6, R]: x y yaw vx vy active
+    ``delay`` steps ago) with their lengths, widths, category codes [S, R] and numbers [S]:
+    the objects after the rider, before the others (vei.sim.observe.ground_truth's order)."""
     B = FS.shape[1]
     geo = (EP, ep_s0, ep_ds, ep_n)
     oth = (OX, OY, OYAW, OSP, OACT, OL, OW, OCAT)
@@ -412,6 +473,9 @@ def observe_envs(  # type: ignore[no-untyped-def]
         # slots: 0 = the rider, then the nearest valid others (ties by index), found by
         # repeated "next after (d2, j)" scans: no per-environment allocation.
         no = n_o[sc] if kd >= 0 else 0
+        nx = 0
+        if xo is not None:
+            nx = xo[4][sc] if kd >= 0 else 0
         halfw, rng = P[P_HALFW, sc], P[P_RANGE, sc]
         ego = (ex, ey, eyaw, c, sn, evx, evy, s_e)
         dims = (Le, Lr, Wr)
@@ -423,9 +487,10 @@ def observe_envs(  # type: ignore[no-untyped-def]
                 j = 0 if kd >= 0 else -1
             else:
                 bd = np.inf
-                for jj in range(no):
-                    if OACT[sc, kd, jj]:
-                        dx, dy = OX[sc, kd, jj] - ex, OY[sc, kd, jj] - ey
+                for jj in range(nx + no):
+                    ok, px, py = _position(xo, b, jj, nx, sc, kd, OX, OY, OACT)
+                    if ok:
+                        dx, dy = px - ex, py - ey
                         rxx = dx * c + dy * sn
                         ryy = -dx * sn + dy * c
                         dd = rxx * rxx + ryy * ryy
@@ -443,7 +508,7 @@ def observe_envs(  # type: ignore[no-untyped-def]
                 OUT[b, base + 6] = cap
             else:
                 _slot(OUT, b, 6 + 9 * q, j, kd, sc, collided, ego, dims, halfw, rng, cap, RD,
-                      cat_r, geo, oth)  # fmt: skip
+                      cat_r, geo, oth, xo, nx)  # fmt: skip
         if road_on:
             on = 0.0
             if kd >= 0 and RD[5, b] > 0.5:

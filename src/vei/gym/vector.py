@@ -13,9 +13,9 @@ environment's episode ended (terminated or truncated) resets it, ignores its act
 returns its first observation with reward 0 and both flags False.
 
 The vector env models the primary rider (replayed or social-force, with obstacle braking
-and its yield / go decision) and replays every other road user, observing them with the
-configuration's perception delay: a configuration with a sensor model, extra social-force riders,
-reacting cars, walking pedestrians or V2X runs in the single env (or
+and its yield / go decision), the extra social-force riders (``sim.sfm_riders``) and
+replays every other road user, observing them with the configuration's perception delay:
+a configuration with a sensor model, reacting cars, walking pedestrians or V2X runs in the single env (or
 ``gymnasium.make_vec(..., vectorization_mode='sync')``); the vector env refuses it,
 naming the feature and that way out (:func:`unsupported_features`).
 """
@@ -36,8 +36,10 @@ from vei.gym.config import EnvConfig
 from vei.gym.env import action_limits, check_actions, injury_risk
 from vei.gym.features import feature_names, observation_bounds, vectorize
 from vei.gym.kernel import F_RVX, F_RVY, F_RX, F_RY, F_RYAW, N_BS, N_FS
+from vei.gym.packed import Packed
+from vei.gym.riders_kernel import N_PREV
 from vei.gym.world import AgentSeat, World, load_world
-from vei.policy.observation import category_code
+from vei.sim.riders import EXTRA_BOOL_FIELDS, EXTRA_FLOAT_FIELDS
 from vei.sim.state import SimState
 
 #: SimState fields of the packed float rows (vei.gym.kernel F_* order) and bool rows.
@@ -48,128 +50,6 @@ _FLOAT_STATE = (
 )  # fmt: skip
 _BOOL_STATE = ("rider_active", "rider_started", "rider_done", "collided", "rider_decision")
 assert len(_FLOAT_STATE) == N_FS and len(_BOOL_STATE) == N_BS
-
-
-def _pad(arrs: list[np.ndarray], axis: int) -> np.ndarray:
-    """Stack arrays along a new first axis, padding ``axis`` with the last value."""
-    n = max(a.shape[axis] for a in arrs)
-    out = []
-    for a in arrs:
-        pad = [(0, 0)] * a.ndim
-        pad[axis] = (0, n - a.shape[axis])
-        out.append(np.pad(a, pad, mode="edge") if a.shape[axis] else np.zeros_like(a, shape=[
-            n if d == axis else s for d, s in enumerate(a.shape)]))  # fmt: skip
-    return np.ascontiguousarray(np.stack(out))
-
-
-class Packed:
-    """The world's scenario tables as padded arrays for the compiled step (vei.gym.kernel)."""
-
-    def __init__(self, world: World) -> None:
-        from vei.models import ego_core
-        from vei.sim.kernel.layout import PARAM_FIELDS
-        from vei.sim.kernel.pack import path_rows, table_rows
-
-        f = np.float64
-        ws = world.scenarios
-        arrs = [w.arrays for w in ws]
-        self.dt = float(arrs[0].dt_s)
-        if any(abs(a.dt_s - self.dt) > 0 for a in arrs):
-            raise ConfigError("the scenarios of an environment must share the engine step")
-        self.P = np.ascontiguousarray(
-            np.stack(
-                [
-                    np.array([float(np.asarray(getattr(w.params, p))[0]) for w in ws])
-                    for p in PARAM_FIELDS
-                ]
-            )
-        )
-        self.ALPHA = np.array(
-            [
-                float(ego_core.lag_factor(np.float64(w.params.actuator_lag_s[0]), self.dt))
-                for w in ws
-            ]
-        )
-        self.DIM = np.array(
-            [[a.ego_length_m, a.ego_width_m, a.rider_length_m, a.rider_width_m] for a in arrs], f
-        )
-        self.EP = _pad([path_rows(a.ego_path) for a in arrs], 1)
-        self.ep_s0 = np.array([a.ego_path.s_start_m for a in arrs], f)
-        self.ep_ds = np.array([a.ego_path.ds_m for a in arrs], f)
-        self.ep_n = np.array([a.ego_path.x_m.shape[0] for a in arrs], np.int64)
-        cols = ("x_m", "y_m", "yaw_rad", "speed_mps", "vx_mps", "vy_mps", "arc_m")
-        self.RT = _pad([table_rows(a.rider_track, cols) for a in arrs], 1)
-        self.rt_t0 = np.array([a.rider_track.t0_s for a in arrs], f)
-        self.rt_dt = np.array([a.rider_track.dt_s for a in arrs], f)
-        self.rt_tend = np.array([a.rider_track.t_end_s for a in arrs], f)
-        self.rt_n = np.array([a.rider_track.data.shape[0] for a in arrs], np.int64)
-        # recording time from which an SFM rider is driven (vei.sim.riders.sfm_entry_s)
-        self.rt_sfm0 = np.array([a.rider_sfm_entry_s for a in arrs], f)
-        self.RP = _pad([path_rows(a.rider_path) for a in arrs], 1)
-        rp = [a.rider_path for a in arrs]
-        self.rp_s0 = np.array([p.s_start_m for p in rp], f)
-        self.rp_ds = np.array([p.ds_m for p in rp], f)
-        self.rp_n = np.array([p.x_m.shape[0] for p in rp], np.int64)
-        self.rp_len = np.array([p.length_m for p in rp], f)
-        self.rp_ex = np.array([p.end_x_m for p in rp], f)
-        self.rp_ey = np.array([p.end_y_m for p in rp], f)
-        self.T_n = np.array([a.n_steps for a in arrs], np.int64)
-        self.path_end = np.array(
-            [float(a.ego_track.data[-1, a.ego_track.col("s_m")]) for a in arrs], f
-        )
-        self.cat_r = np.array([category_code(a.rider_category) for a in arrs], f)
-        no = max(1, world.max_others)
-        tmax = int(self.T_n.max())
-
-        def others(name: str, dtype: Any) -> np.ndarray:
-            out = np.zeros((len(arrs), tmax, no), dtype=dtype)
-            for s, a in enumerate(arrs):
-                v = getattr(a, name)
-                out[s, : v.shape[0], : v.shape[1]] = v
-            return out
-
-        self.OX, self.OY = others("other_x_m", f), others("other_y_m", f)
-        self.OYAW, self.OSP = others("other_yaw_rad", f), others("other_speed_mps", f)
-        self.OACT = others("other_active", np.bool_)
-        self.OL = np.zeros((len(arrs), no))
-        self.OW = np.zeros((len(arrs), no))
-        self.OCAT = np.zeros((len(arrs), no))
-        for s, a in enumerate(arrs):
-            n = len(a.other_ids)
-            self.OL[s, :n], self.OW[s, :n] = a.other_length_m, a.other_width_m
-            self.OCAT[s, :n] = [category_code(c) for c in a.other_categories]
-        self.n_o = np.array([len(a.other_ids) for a in arrs], np.int64)
-        # the primary rider's conflicts with the ego path (its yield / go decision)
-        kc = max([a.conflicts.n for a in arrs] + [1])
-        self.CF = np.zeros((len(arrs), 5, kc))
-        for s, a in enumerate(arrs):
-            c = a.conflicts
-            for r, v in enumerate((c.exit_m, c.s_rider_m, c.s_ego_m, c.hz_rider_m, c.hz_ego_m)):
-                self.CF[s, r, : c.n] = v
-        self.cf_n = np.array([a.conflicts.n for a in arrs], np.int64)
-        roads = [w.road for w in ws]
-        self.road_on = all(r is not None for r in roads)
-        if self.road_on:
-            self.ROAD = _pad([r.on for r in roads], 0) if len(roads) == 1 else self._roads(roads)
-            self.rd_x0 = np.array([r.x0_m for r in roads], f)
-            self.rd_y0 = np.array([r.y0_m for r in roads], f)
-            self.rd_cell = np.array([r.cell_m for r in roads], f)
-            self.rd_nx = np.array([r.on.shape[1] for r in roads], np.int64)
-            self.rd_ny = np.array([r.on.shape[0] for r in roads], np.int64)
-        else:
-            self.ROAD = np.zeros((len(arrs), 1, 1), np.uint8)
-            self.rd_x0 = self.rd_y0 = np.zeros(len(arrs))
-            self.rd_cell = np.ones(len(arrs))
-            self.rd_nx = self.rd_ny = np.zeros(len(arrs), np.int64)
-
-    @staticmethod
-    def _roads(roads: list[Any]) -> np.ndarray:
-        ny = max(r.on.shape[0] for r in roads)
-        nx = max(r.on.shape[1] for r in roads)
-        out = np.zeros((len(roads), ny, nx), np.uint8)
-        for s, r in enumerate(roads):
-            out[s, : r.on.shape[0], : r.on.shape[1]] = r.on
-        return out
 
 
 #: The way out named by every refusal of a feature the vector env does not model.
@@ -184,9 +64,9 @@ def unsupported_features(world: World) -> list[str]:
     """The configuration's features the vector env does not model, named with the setting
     that turns them on (empty: it models them all). The vector env models: the agent's
     actuator, a replayed or social-force primary rider with its ego repulsion, obstacle
-    braking (sfm.obstacle_braking) and yield / go decision (decision.enabled), replayed
-    other road users, the perception delay (cap.perception_delay_s); not the features
-    listed here."""
+    braking (sfm.obstacle_braking) and yield / go decision (decision.enabled), the extra
+    social-force riders (sim.sfm_riders), replayed other road users, the perception delay
+    (cap.perception_delay_s); not the features listed here."""
     p = world.scenarios[0].params
     out = []
     if p.perception[0] is not None:
@@ -214,16 +94,17 @@ def kernel_notice() -> Any:
     import contextlib
 
     from vei.gym import kernel as gk
+    from vei.gym import riders_kernel as rk
     from vei.io.progress import activity
     from vei.sim.kernel.cache import cache_dir, drop_stale, sources_digest
 
     fns = (gk.step_envs, gk.observe_envs)
-    if all(f.signatures for f in fns):
+    if all(f.signatures for f in fns) and rk.step_riders.signatures:
         return contextlib.nullcontext()
     folder = cache_dir(gk.step_envs)
     stamp = None if folder is None else folder / "loop.sources.sha256"
     fresh = stamp is not None and stamp.is_file() and stamp.read_text().strip() == sources_digest()
-    drop_stale(*fns, gk.sat)
+    drop_stale(*fns, gk.sat, rk.step_riders)  # one folder: vei/gym/__pycache__
     if fresh and folder is not None:
         index = [folder / f"kernel.{f.__name__}-{f.py_func.__code__.co_firstlineno}.py"
                  f"{sys.version_info[0]}{sys.version_info[1]}.nbi" for f in fns]  # fmt: skip
@@ -253,10 +134,6 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
             raise ConfigError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         self.config = EnvConfig.from_mapping(config)
-        if self.config.sim.sfm_riders != "primary":
-            refuse_features(
-                [f"extra social-force riders (sim.sfm_riders = {self.config.sim.sfm_riders!r})"]
-            )
         self.seat = AgentSeat()
         self.world = load_world(self.config, self.seat)
         refuse_features(unsupported_features(self.world))
@@ -295,6 +172,20 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         self.delay = int(self.world.scenarios[0].params.delay_steps(self.pk.dt)[0])
         self.RING = np.zeros((self.delay + 1, 6, b))
         self.RD = np.zeros((6, b))
+        # the extra riders (vei.sim.riders' fields; R_max columns, a scenario uses its own R)
+        r = 0 if self.pk.xr is None else self.pk.xr.r_max
+        self.XS = np.zeros((b, len(EXTRA_FLOAT_FIELDS), r))
+        self.XB = np.zeros((b, len(EXTRA_BOOL_FIELDS), r), np.bool_)
+        self.XRING = np.zeros((self.delay + 1, b, 6, r))
+        self.XD = np.zeros((b, 6, r))
+        xr = self.pk.xr
+        self._xr: tuple[Any, ...] | None = None  # the kernel's extra-rider groups (or None)
+        self._xo: tuple[Any, ...] | None = None
+        if xr is not None:
+            nf = len(EXTRA_FLOAT_FIELDS)
+            scratch = (np.zeros((nf, r)), np.zeros((len(EXTRA_BOOL_FIELDS), r), np.bool_))
+            self._xr = (*xr.group(), self.XS, self.XB, *scratch, np.zeros((N_PREV, b)))
+            self._xo = (self.XD, xr.xL, xr.xW, xr.XCAT, xr.n)
         self._needs_reset = np.ones(b, dtype=bool)
         self._rngs: list[np.random.Generator] = []
         self.weights = np.array(
@@ -336,6 +227,13 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             self.BS[r, envs] = getattr(st, name)
         self.HIT[envs] = 0
         self.HIT[envs, : st.hit_other.shape[1]] = st.hit_other
+        r = st.extra_x_m.shape[1]
+        self.XS[envs] = 0.0  # the columns past the scenario's R: inert padding riders
+        self.XB[envs] = False
+        for f, name in enumerate(EXTRA_FLOAT_FIELDS):
+            self.XS[envs, f, :r] = getattr(st, name)
+        for f, name in enumerate(EXTRA_BOOL_FIELDS):
+            self.XB[envs, f, :r] = getattr(st, name)
 
     def state_of(self, envs: npt.ArrayLike) -> SimState:
         """The engine's SimState of environments ``envs`` (all at the same step and scenario)."""
@@ -356,12 +254,12 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             cap_state=np.zeros(n, np.int8), hit_other=self.HIT[envs, :no] > 0,
             hist=np.zeros((4, 1, n)),
         )  # fmt: skip
-        for name in ("extra_x_m", "extra_y_m", "extra_yaw_rad", "extra_vx_mps", "extra_vy_mps",
-                     "extra_speed_mps", "extra_a_mps2", "extra_prog_m"):  # fmt: skip
-            fields[name] = np.zeros((n, 0))
-        fields["extra_decision"] = np.zeros((n, 0), np.int8)
-        for name in ("extra_active", "extra_started", "extra_done", "extra_hit"):
-            fields[name] = np.zeros((n, 0), bool)
+        r = arrays.riders.n
+        for f, name in enumerate(EXTRA_FLOAT_FIELDS):
+            fields[name] = self.XS[envs, f, :r].copy()
+        fields["extra_decision"] = fields["extra_decision"].astype(np.int8)
+        for f, name in enumerate(EXTRA_BOOL_FIELDS):
+            fields[name] = self.XB[envs, f, :r].copy()
         # issue 24's state (its cars replay, no pedestrians walk: the env refuses them): as
         # at k = 0; the contact latches and secondary summaries are not kept
         from vei.sim.contacts import initial_contact_state
@@ -410,8 +308,14 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             pk.P, pk.ALPHA, pk.DIM, pk.EP, pk.ep_s0, pk.ep_ds, pk.ep_n,
             pk.RT, pk.rt_t0, pk.rt_dt, pk.rt_tend, pk.rt_n, pk.rt_sfm0,
             pk.RP, pk.rp_s0, pk.rp_ds, pk.rp_n, pk.rp_len, pk.rp_ex, pk.rp_ey,
-            pk.OX, pk.OY, pk.OYAW, pk.OACT, pk.OL, pk.OW, pk.n_o, pk.CF, pk.cf_n, self.TERMS,
+            pk.OX, pk.OY, pk.OYAW, pk.OACT, pk.OL, pk.OW, pk.n_o, pk.CF, pk.cf_n, self._xr,
+            self.TERMS,
         )  # fmt: skip
+        if self._xr is not None:  # the extra riders (vei.gym.riders_kernel)
+            from vei.gym.riders_kernel import step_riders
+
+            step_riders(run, pk.dt, self.K, self.SC, self._xr[-1], self.FS, pk.DIM, pk.P,
+                        pk.OX, pk.OY, pk.OYAW, pk.OACT, self._xr, self.TERMS)  # fmt: skip
 
     def _groups(self, envs: np.ndarray) -> list[np.ndarray]:
         key = self.SC[envs] * (1 << 32) + self.K[envs]
@@ -438,7 +342,11 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             v, yaw = st.ego_v_mps, st.ego_yaw_rad
             contact = new.collided & ~st.collided
             impact = np.hypot(v * np.cos(yaw) - st.rider_vx_mps, v * np.sin(yaw) - st.rider_vy_mps)
-            self.TERMS[sel, 0] = contact + np.count_nonzero(new.hit_other & ~st.hit_other, axis=1)
+            self.TERMS[sel, 0] = (
+                contact
+                + np.count_nonzero(new.hit_other & ~st.hit_other, axis=1)
+                + np.count_nonzero(new.extra_hit & ~st.extra_hit, axis=1)
+            )
             self.TERMS[sel, 1] = np.where(contact & st.rider_active, impact, np.nan)
             self.TERMS[sel, 2] = np.minimum(
                 new.ego_s_m - st.ego_s_m, params.cruise_speed_mps * ws.arrays.dt_s
@@ -449,6 +357,11 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             for r, name in enumerate(_BOOL_STATE):
                 self.BS[r, sel] = getattr(new, name)
             self.HIT[sel, : new.hit_other.shape[1]] = new.hit_other
+            r = new.extra_x_m.shape[1]
+            for f, name in enumerate(EXTRA_FLOAT_FIELDS):
+                self.XS[sel, f, :r] = getattr(new, name)
+            for f, name in enumerate(EXTRA_BOOL_FIELDS):
+                self.XB[sel, f, :r] = getattr(new, name)
             self.K[sel] = new.k
 
     def _perceive(self) -> None:
@@ -465,6 +378,13 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             self.RD[:] = self.RING[0]
         else:
             self.RD[:] = self.RING[(self.K - self.delay) % h, :, cols].T
+        if self.XS.shape[2] and self.delay == 0:  # the extra riders' truth (x y yaw vx vy
+            self.XD[:, :5] = self.XS[:, :5]  # active), the same way
+            self.XD[:, 5] = self.XB[:, 0]
+        elif self.XS.shape[2]:
+            self.XRING[now, cols, :5] = self.XS[:, :5]
+            self.XRING[now, cols, 5] = self.XB[:, 0]
+            self.XD[:] = self.XRING[(self.K - self.delay) % h, cols]
 
     def _observe(self) -> npt.NDArray[np.float32]:
         cfg = self.config
@@ -477,7 +397,8 @@ class VeiVectorEnv(gym.vector.VectorEnv):
                 pk.dt, self.FS, self.BS, self.K, self.SC, pk.P, pk.DIM, pk.T_n, pk.path_end,
                 pk.cat_r, self.RD, self.delay, pk.EP, pk.ep_s0, pk.ep_ds, pk.ep_n, pk.OX, pk.OY, pk.OYAW, pk.OSP,
                 pk.OACT, pk.OL, pk.OW, pk.OCAT, pk.n_o, pk.ROAD, pk.rd_x0, pk.rd_y0, pk.rd_cell,
-                pk.rd_nx, pk.rd_ny, pk.road_on, cfg.max_objects, cfg.gap_cap_m, self.OBS,
+                pk.rd_nx, pk.rd_ny, pk.road_on, cfg.max_objects, cfg.gap_cap_m, self._xo,
+                self.OBS,
             )  # fmt: skip
             return self.OBS.copy()
         from vei.sim.batch import batch_flags
@@ -495,6 +416,7 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             if self.delay:  # the truth of step k - delay (PolicyDriver's ring)
                 truth[:, :, 0] = self.RD[:, sel]
                 a, j0 = ws.arrays, 1 + ws.arrays.riders.n  # the replayed others' columns
+                truth[:, :, 1:j0] = self.XD[sel, :, : j0 - 1].transpose(1, 0, 2)
                 if kd >= 0 and len(a.other_ids):
                     yaw, sp = a.other_yaw_rad[kd], a.other_speed_mps[kd]
                     rows = (a.other_x_m[kd], a.other_y_m[kd], yaw, sp * np.cos(yaw),
