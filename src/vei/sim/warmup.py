@@ -27,7 +27,13 @@ def warmup_scene(features: Any) -> tuple[Any, Any, bool]:
         others = (("car_1", car),)
     sim = SimConfig(kernel="numba", sfm_riders="all" if features.riders else "primary")
     arrays = prepare_scenario(crossing_scenario(others=others), sim)
-    params = VariantParams.from_case(case_preset("normal-cap"), arrays, 1)
+    case = case_preset("normal-cap")
+    if features.policy:  # an ego policy the kernel runs (aeb)
+        from dataclasses import replace
+
+        c = case_preset("normal")
+        case = replace(c, name="aeb", ego=replace(c.ego, policy="aeb"))
+    params = VariantParams.from_case(case, arrays, 1)
     params = params.with_values(decide=bool(features.decisions), cars_react=bool(features.traffic))
     return arrays, params, bool(features.metrics)
 

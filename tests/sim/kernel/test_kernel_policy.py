@@ -14,10 +14,12 @@ from vei.errors import ConfigError, PolicyError
 from vei.policy.compiled import E_CRUISE, E_SPEED, E_T, O_GAP, O_VALID, CompiledPolicy
 from vei.policy.perception import PerceptionConfig
 from vei.sim.engine import _RECORDED, simulate
+from vei.sim.kernel import ALL_FEATURES, Features, features_of
 from vei.sim.kernel.policy_pack import KIND_AEB, KIND_IDM, KIND_USER, kernel_kinds
 from vei.sim.params import VariantParams
 from vei.sim.state import prepare_scenario
 from vei.sim.testing import TrackSpec, crossing_scenario
+from vei.sim.warmup import warmup_scene
 
 numba = pytest.importorskip("numba")
 
@@ -135,3 +137,9 @@ def test_check_on_load_names_what_is_wrong() -> None:
         CompiledPolicy(_writes_state, state_size=2, state0=["a", "b"])
     with pytest.raises(ConfigError, match="not a function"):
         CompiledPolicy(3.0)
+
+
+@pytest.mark.parametrize("feats", [Features(policy=True), ALL_FEATURES])
+def test_warmup_scene_compiles_the_policy_feature_set(feats) -> None:
+    arrays, params, scored = warmup_scene(feats)
+    assert features_of(arrays, params, scored) == feats
