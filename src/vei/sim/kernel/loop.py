@@ -322,10 +322,6 @@ def variant(
                 if xr is not None:
                     for j in range(R):
                         put_truth(pscr[2], slot, 1 + j, xs[0, j], xs[1, j], xs[2, j], xs[3, j], xs[4, j], xb[0, j] > 0)  # fmt: skip
-                if others is not None:
-                    for j in range(no):
-                        oy_, osp_ = oYAW[k, j], oSP[k, j]
-                        put_truth(pscr[2], slot, pol[4].shape[1] - no + j, oX[k, j], oY[k, j], oy_, osp_ * math.cos(oy_), osp_ * math.sin(oy_), oACT[k, j])  # fmt: skip
                 s_new, v_new, a_act_n, a_rep_n, u, cap = policy_ego(
                     k, dt, pol, pscr, b, ec, vd, delay, s, ex, ey, eyaw, v, a_act, a_rep, cap, collided, egeo, Le, We,
                 )  # fmt: skip

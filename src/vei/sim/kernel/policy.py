@@ -13,7 +13,9 @@ The kernel's ``pol`` group (:func:`vei.sim.kernel.policy_pack.policy_group`):
 (fns, kind [B], PP [N_PP, B], ST0 [B, S], OBJ [3, N] (the road users' lengths, widths
 [m], category codes), Hp the ring length, the ego path's length [m], BAD [B] int64 (the
 first step a user's function returned a non-finite value, -1: none), BADV [B] (that
-value)); fns is a 1-tuple of the user's function (numba first-class
+value), OTR [6, T, no] the replayed others' truth per step (x, y, yaw, vx, vy, active));
+the ring holds the truth of the primary and the extra riders, the others are read from
+OTR at the delayed step. fns is a 1-tuple of the user's function (numba first-class
 function type: one compiled kernel for every user function) or :func:`no_policy`.
 """
 
@@ -110,7 +112,7 @@ def put_truth(ring, slot, j, x, y, yaw, vx, vy, act):  # type: ignore[no-untyped
 
 @numba.njit(cache=True)
 def policy_state0(pol, b, mode):  # type: ignore[no-untyped-def]
-    """Variant b's policy scratch: (on, memory, ring [Hp, 6, N], objs [N_OBJ, N], ego
+    """Variant b's policy scratch: (on, memory, ring [Hp, 6, 1 + R], objs [N_OBJ, N], ego
     [N_EGO]); on: the variant runs a policy here (ego mode 3)."""
     kind, ST0, Hp = pol[1], pol[3], pol[5]
     n = pol[4].shape[1]
@@ -119,7 +121,8 @@ def policy_state0(pol, b, mode):  # type: ignore[no-untyped-def]
         mem = ST0[b].copy()
     else:
         mem = np.zeros(4)  # aeb: stage, PID integral, previous error, PID started
-    return on, mem, np.zeros((Hp, 6, n)), np.zeros((N_OBJ, n)), np.zeros(N_EGO)
+    nr = n - pol[9].shape[2]  # the ring: the primary and the extra riders
+    return on, mem, np.zeros((Hp, 6, nr)), np.zeros((N_OBJ, n)), np.zeros(N_EGO)
 
 
 @numba.njit(cache=True, inline="always")
@@ -167,38 +170,24 @@ def _lateral2(path, p_s0, p_ds, n_p, s, x, y):  # type: ignore[no-untyped-def]
 
 @numba.njit(cache=True, inline="always")
 def _observe(
-    k,
-    dt,
-    full,
-    OBJ,
-    ring,
-    objs,
-    Hp,
-    delay,
-    s,
-    ex,
-    ey,
-    eyaw,
-    v,
-    collided,
-    path,
-    p_s0,
-    p_ds,
-    n_p,
-    Le,
-    halfw,
-    rng,
-):  # type: ignore[no-untyped-def]
+    k, dt, full, OBJ, ring, OTR, objs, Hp, delay, s, ex, ey, eyaw, v, collided, path, p_s0,
+    p_ds, n_p, Le, halfw, rng,
+):  # type: ignore[no-untyped-def]  # fmt: skip
     """The object rows of the observation at step k (vei.sim.observe.build_observation on
-    the ring's truth of step k - delay) into objs; full: every row, else valid, rel_vx,
-    gap only (what aeb and idm read)."""
+    the truth of step k - delay: the ring's, OTR's for the replayed others) into objs;
+    full: every row, else valid, rel_vx, gap only (what aeb and idm read)."""
     lag_k = k - delay
     slot = lag_k % Hp
     ok = lag_k >= 0
     c, sn = math.cos(eyaw), math.sin(eyaw)
     evx, evy = v * c, v * sn
+    nr = OBJ.shape[1] - OTR.shape[2]  # the primary and the extra riders (in the ring)
     for j in range(OBJ.shape[1]):
-        valid = ok and ring[slot, 5, j] > 0.5
+        jo = j - nr
+        if j < nr:
+            valid = ok and ring[slot, 5, j] > 0.5
+        else:
+            valid = ok and OTR[5, lag_k, jo] > 0.5
         if full:
             objs[O_LENGTH, j] = OBJ[0, j]
             objs[O_WIDTH, j] = OBJ[1, j]
@@ -215,8 +204,12 @@ def _observe(
                 objs[O_AGE, j] = _INF
                 objs[O_LATERAL, j] = _INF
             continue
-        ox, oy, oyaw = ring[slot, 0, j], ring[slot, 1, j], ring[slot, 2, j]
-        dvx, dvy = ring[slot, 3, j] - evx, ring[slot, 4, j] - evy
+        if j < nr:
+            ox, oy, oyaw = ring[slot, 0, j], ring[slot, 1, j], ring[slot, 2, j]
+            dvx, dvy = ring[slot, 3, j] - evx, ring[slot, 4, j] - evy
+        else:
+            ox, oy, oyaw = OTR[0, lag_k, jo], OTR[1, lag_k, jo], OTR[2, lag_k, jo]
+            dvx, dvy = OTR[3, lag_k, jo] - evx, OTR[4, lag_k, jo] - evy
         objs[O_VALID, j] = 1.0
         objs[O_VX, j] = dvx * c + dvy * sn
         gap = _INF
@@ -308,7 +301,7 @@ def policy_ego(  # type: ignore[no-untyped-def]
     five and the recorded policy state (cap_state)."""
     kind = pol[1][b]
     amax, dmax, halfw, rng, alpha = ec[0], ec[1], ec[2], ec[3], ec[15]
-    _observe(k, dt, kind == KIND_USER, pol[4], scr[2], scr[3], pol[5], delay, s, ex, ey, eyaw, v,
+    _observe(k, dt, kind == KIND_USER, pol[4], scr[2], pol[9], scr[3], pol[5], delay, s, ex, ey, eyaw, v,
              collided, egeo[0], egeo[1], egeo[2], egeo[3], Le, halfw, rng)  # fmt: skip
     fsm = 0
     if kind == KIND_AEB:

@@ -94,10 +94,17 @@ def policy_group(arrays: Any, params: Any, no_policy: Any) -> tuple[Any, ...]:
     delay = params.delay_steps(arrays.dt_s)
     hp = int(delay[kinds > 0].max()) + 1 if (kinds > 0).any() else 1
     path_len = float(arrays.ego_track.data[-1, arrays.ego_track.col("s_m")])
+    # the replayed others' truth of every step, as vei.sim.observe.ground_truth computes it
+    no = len(arrays.other_ids)
+    otr = np.zeros((6, arrays.n_steps, no))
+    if no:
+        yaw, sp = arrays.other_yaw_rad, arrays.other_speed_mps
+        otr[0], otr[1], otr[2] = arrays.other_x_m, arrays.other_y_m, yaw
+        otr[3], otr[4], otr[5] = sp * np.cos(yaw), sp * np.sin(yaw), arrays.other_active
     return (
         (fn if fn is not None else no_policy,), kinds, pp, np.ascontiguousarray(st0),
         np.ascontiguousarray(np.stack([length, width, cat.astype(np.float64)])), hp, path_len,
-        np.full(b, -1, dtype=np.int64), np.zeros(b),
+        np.full(b, -1, dtype=np.int64), np.zeros(b), otr,
     )  # fmt: skip
 
 
