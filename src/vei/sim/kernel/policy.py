@@ -10,8 +10,8 @@ branch (:func:`vei.sim.step._policy_demand`, clipped demand, actuator lag, speed
 Same formulas and order of operations as the NumPy path, on scalars. SI units.
 
 The kernel's ``pol`` group (:func:`vei.sim.kernel.policy_pack.policy_group`):
-(fns, kind [B], PP [N_PP, B], ST0 [B, S], OBJ [3, N] (the road users' lengths, widths
-[m], category codes), Hp the ring length, the ego path's length [m], BAD [B] int64 (the
+(fns, kind [B], PP [N_PP, B], ST0 [B, S], OBJ [4, N] (the road users' lengths, widths
+[m], category codes, half diagonals [m]), Hp the ring length, the ego path's length [m], BAD [B] int64 (the
 first step a user's function returned a non-finite value, -1: none), BADV [B] (that
 value), OTR [6, T, no] the replayed others' truth per step (x, y, yaw, vx, vy, active));
 the ring holds the truth of the primary and the extra riders, the others are read from
@@ -65,7 +65,6 @@ from vei.sim.kernel.ego import (
     command_to_accel,
     corridor_entry,
     corridor_gap,
-    half_diagonal,
     path_foot,
     pid_core,
     reported_accel,
@@ -126,22 +125,18 @@ def policy_state0(pol, b, mode):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True, inline="always")
-def _gap2(path, p_s0, p_ds, n_p, s, px, py, pyaw, L, W, Le, halfw, rng):  # type: ignore[no-untyped-def]
-    """The path gap [m] of a box L x W at (px, py, pyaw): vei.models.ego.corridor_check
-    for one object (+inf when not ahead in the corridor)."""
-    i, w = idx(p_s0, p_ds, n_p, s)
-    qx = path[0, i] + w * path[5, i]
-    qy = path[1, i] + w * path[6, i]
-    qc = path[3, i] + w * path[8, i]
-    qs = path[4, i] + w * path[9, i]
-    s_q, _ = path_foot(s, px, py, qx, qy, qc, qs)
+def _gap(path, p_s0, p_ds, n_p, s, q, px, py, pyaw, L, W, hd, Le, halfw, rng):  # type: ignore[no-untyped-def]
+    """The path gap [m] of a box L x W (half diagonal hd [m]) at (px, py, pyaw):
+    vei.models.ego.corridor_check for one object (+inf when not ahead in the corridor);
+    q = the path's (x, y, cos, sin) at the ego's arc length s (the same for every object)."""
+    s_q, _ = path_foot(s, px, py, q[0], q[1], q[2], q[3])
     i, w = idx(p_s0, p_ds, n_p, s_q)
     fx = path[0, i] + w * path[5, i]
     fy = path[1, i] + w * path[6, i]
     pc = path[3, i] + w * path[8, i]
     ps = path[4, i] + w * path[9, i]
     s_q, lat = path_foot(s_q, px, py, fx, fy, pc, ps)
-    d_front, entry = corridor_entry(s_q, lat, s, Le, halfw, half_diagonal(L, W))
+    d_front, entry = corridor_entry(s_q, lat, s, Le, halfw, hd)
     if entry:
         ext = box_extent(math.cos(pyaw), math.sin(pyaw), pc, ps, L, W)
         ok, g = corridor_gap(d_front, ext, rng)
@@ -151,14 +146,10 @@ def _gap2(path, p_s0, p_ds, n_p, s, px, py, pyaw, L, W, Le, halfw, rng):  # type
 
 
 @numba.njit(cache=True, inline="always")
-def _lateral2(path, p_s0, p_ds, n_p, s, x, y):  # type: ignore[no-untyped-def]
-    """Signed lateral offset [m] of (x, y) from the path near s (vei.sim.observe.path_lateral)."""
-    i, w = idx(p_s0, p_ds, n_p, s)
-    ex = path[0, i] + w * path[5, i]
-    ey = path[1, i] + w * path[6, i]
-    ec = path[3, i] + w * path[8, i]
-    es = path[4, i] + w * path[9, i]
-    s_q = s + (x - ex) * ec + (y - ey) * es
+def _lateral(path, p_s0, p_ds, n_p, s, q, x, y):  # type: ignore[no-untyped-def]
+    """Signed lateral offset [m] of (x, y) from the path near s (vei.sim.observe.path_lateral);
+    q as in :func:`_gap`."""
+    s_q = s + (x - q[0]) * q[2] + (y - q[1]) * q[3]
     i, w = idx(p_s0, p_ds, n_p, s_q)
     px = path[0, i] + w * path[5, i]
     py = path[1, i] + w * path[6, i]
@@ -182,6 +173,11 @@ def _observe(
     c, sn = math.cos(eyaw), math.sin(eyaw)
     evx, evy = v * c, v * sn
     nr = OBJ.shape[1] - OTR.shape[2]  # the primary and the extra riders (in the ring)
+    i, w = idx(p_s0, p_ds, n_p, s)  # the path at the ego: the first projection of every object
+    q = (
+        path[0, i] + w * path[5, i], path[1, i] + w * path[6, i], path[3, i] + w * path[8, i],
+        path[4, i] + w * path[9, i],
+    )  # fmt: skip
     for j in range(OBJ.shape[1]):
         jo = j - nr
         if j < nr:
@@ -214,9 +210,10 @@ def _observe(
         objs[O_VX, j] = dvx * c + dvy * sn
         gap = _INF
         if not collided:
-            gap = _gap2(
-                path, p_s0, p_ds, n_p, s, ox, oy, oyaw, OBJ[0, j], OBJ[1, j], Le, halfw, rng
-            )
+            gap = _gap(
+                path, p_s0, p_ds, n_p, s, q, ox, oy, oyaw, OBJ[0, j], OBJ[1, j], OBJ[3, j], Le,
+                halfw, rng,
+            )  # fmt: skip
         objs[O_GAP, j] = gap
         if full:
             dx, dy = ox - ex, oy - ey
@@ -225,7 +222,7 @@ def _observe(
             objs[O_YAW, j] = math.pi - ((math.pi - (oyaw - eyaw)) % (2.0 * math.pi))
             objs[O_VY, j] = -dvx * sn + dvy * c
             objs[O_AGE, j] = delay * dt
-            objs[O_LATERAL, j] = _lateral2(path, p_s0, p_ds, n_p, s, ox, oy)
+            objs[O_LATERAL, j] = _lateral(path, p_s0, p_ds, n_p, s, q, ox, oy)
 
 
 @numba.njit(cache=True, inline="always")

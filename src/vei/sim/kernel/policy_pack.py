@@ -94,6 +94,8 @@ def policy_group(arrays: Any, params: Any, no_policy: Any) -> tuple[Any, ...]:
     delay = params.delay_steps(arrays.dt_s)
     hp = int(delay[kinds > 0].max()) + 1 if (kinds > 0).any() else 1
     path_len = float(arrays.ego_track.data[-1, arrays.ego_track.col("s_m")])
+    half_diag = 0.5 * np.hypot(length, width)  # vei.models.ego_core.half_diagonal_core
+    obj = np.ascontiguousarray(np.stack([length, width, cat.astype(np.float64), half_diag]))
     # the replayed others' truth of every step, as vei.sim.observe.ground_truth computes it
     no = len(arrays.other_ids)
     otr = np.zeros((6, arrays.n_steps, no))
@@ -103,7 +105,7 @@ def policy_group(arrays: Any, params: Any, no_policy: Any) -> tuple[Any, ...]:
         otr[3], otr[4], otr[5] = sp * np.cos(yaw), sp * np.sin(yaw), arrays.other_active
     return (
         (fn if fn is not None else no_policy,), kinds, pp, np.ascontiguousarray(st0),
-        np.ascontiguousarray(np.stack([length, width, cat.astype(np.float64)])), hp, path_len,
+        obj, hp, path_len,
         np.full(b, -1, dtype=np.int64), np.zeros(b), otr,
     )  # fmt: skip
 
