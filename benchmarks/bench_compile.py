@@ -37,7 +37,9 @@ SETS: dict[str, dict[str, bool]] = {
     "others+decisions+metrics": {"others": True, "decisions": True, "metrics": True},
     "others+traffic+metrics": {"others": True, "traffic": True, "metrics": True},
     "others+metrics+policy": {"others": True, "metrics": True, "policy": True},  # issue 34
-    "all": {f: True for f in ("others", "riders", "decisions", "traffic", "metrics", "policy")},
+    "all": {
+        f: True for f in ("others", "riders", "decisions", "traffic", "metrics", "policy", "user")
+    },
 }
 
 _CHILD = """

@@ -62,7 +62,7 @@ def test_feature_sets_have_their_own_stamps(tmp_path) -> None:
     need numba's index files of the kernel and its per-variant function."""
     base, full = kernel.Features(), kernel.ALL_FEATURES
     assert base.name == "base"
-    assert full.name == "others+riders+decisions+traffic+metrics+policy"
+    assert full.name == "others+riders+decisions+traffic+metrics+policy+user"
     assert kernel.Features(others=True, metrics=True).name == "others+metrics"
     cache.mark_compiled(tmp_path, base.name)
     assert cache.is_cold(tmp_path, base.name)  # no machine code (index files) yet
@@ -72,8 +72,8 @@ def test_feature_sets_have_their_own_stamps(tmp_path) -> None:
     assert cache.is_cold(tmp_path, full.name)  # never compiled
     (tmp_path / f"loop.compiled.{base.name}").write_text("another machine\n")
     assert cache.is_cold(tmp_path, base.name)
-    # a set with ego policies runs the serial shell: it needs that shell's index files
-    pol = kernel.Features(policy=True).name
+    # a set with a user's compiled policy runs the serial shell: it needs its index files
+    pol = kernel.Features(policy=True, user=True).name
     cache.mark_compiled(tmp_path, pol)
     assert cache.is_cold(tmp_path, pol)
     (tmp_path / "loop.kernel_seq-130.py311.nbi").write_bytes(b"index")

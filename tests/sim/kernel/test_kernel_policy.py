@@ -139,7 +139,9 @@ def test_check_on_load_names_what_is_wrong() -> None:
         CompiledPolicy(3.0)
 
 
-@pytest.mark.parametrize("feats", [Features(policy=True), ALL_FEATURES])
+@pytest.mark.parametrize(
+    "feats", [Features(policy=True), Features(policy=True, user=True), ALL_FEATURES]
+)
 def test_warmup_scene_compiles_the_policy_feature_set(feats) -> None:
     arrays, params, scored = warmup_scene(feats)
     assert features_of(arrays, params, scored) == feats

@@ -152,11 +152,7 @@ def run(
     xr = riders_group(arrays, state0, b, tt, record) if feats.riders else None
     dec = decisions_group(arrays) if feats.decisions else None
     traffic = traffic_group(arrays, state0, b, tt) if feats.traffic else None
-    pol = None
-    if feats.policy:
-        from vei.sim.kernel.policy import no_policy
-
-        pol = policy_group(arrays, params, no_policy)
+    pol = policy_group(arrays, params) if feats.policy else None
     m_out = np.empty((b if scored else 1, N_FUSED))
     metrics = None
     if scored:
@@ -182,7 +178,7 @@ def run(
                     ego_group(arrays), rider_group(arrays), p_mat, state_group(state0), out,
                     others, xr, dec, traffic, metrics, pol,
                 )  # fmt: skip
-                if pol is None:
+                if pol is None or pol[0] is None:  # numba's parallel loop
                     kernel(*args)
                 else:
                     _threads(_build()[2], b, args)

@@ -111,8 +111,8 @@ def is_cold(folder: Path | None, features: str) -> bool:
         return True
     # the stamp says who compiled; numba's index files that the machine code is still there
     # (a cleared __pycache__ can leave the one without the other)
-    # runs with ego policies use the serial shell (vei.sim.kernel.loop.kernel_seq)
-    fns = ("kernel_seq", "variant") if "policy" in features.split("+") else _FUNCTIONS
+    # runs with a user's compiled policy use the serial shell (vei.sim.kernel.loop.kernel_seq)
+    fns = ("kernel_seq", "variant") if "user" in features.split("+") else _FUNCTIONS
     if not all(any(stamp.parent.glob(f"loop.{f}-*.nbi")) for f in fns):
         return True
     try:

@@ -16,7 +16,8 @@ first step a user's function returned a non-finite value, -1: none), BADV [B] (t
 value), OTR [6, T, no] the replayed others' truth per step (x, y, yaw, vx, vy, active));
 the ring holds the truth of the primary and the extra riders, the others are read from
 OTR at the delayed step. fns is a 1-tuple of the user's function (numba first-class
-function type: one compiled kernel for every user function) or :func:`no_policy`.
+function type: one compiled kernel for every user function; such runs go through
+vei.sim.kernel.loop.kernel_seq) or None (built-in policies only: numba's parallel loop).
 """
 
 # ruff: noqa: N803, N806
@@ -26,6 +27,8 @@ import math
 
 import numba
 import numpy as np
+from numba import types
+from numba.extending import overload
 
 from vei.policy.aeb import AEB_FULL, AEB_PARTIAL, HOLD_SPEED_MPS, MIN_CLOSING_SPEED_MPS
 from vei.policy.compiled import (
@@ -55,7 +58,6 @@ from vei.policy.compiled import (
     O_X,
     O_Y,
     O_YAW,
-    signature,
 )  # fmt: skip
 from vei.policy.idm import MIN_GAP_M
 from vei.sim.kernel.ego import (
@@ -90,10 +92,18 @@ from vei.sim.kernel.scalar import idx
 _INF = np.inf
 
 
-@numba.njit(signature(), cache=True, nogil=True)
-def no_policy(ego, objs, state):  # type: ignore[no-untyped-def]
-    """The function slot of a run without a user policy (never called)."""
-    return 0.0
+def user_call(fns, ego, objs, state):  # type: ignore[no-untyped-def]
+    """The user's function fns[0] on (ego, objs, state) -> demanded acceleration [m/s^2];
+    0.0 when fns is None (a run of built-in policies only: no function value in the
+    kernel's arguments, so numba's parallel loop can run it). Compiled by its overload."""
+    return 0.0 if fns is None else fns[0](ego, objs, state)
+
+
+@overload(user_call, jit_options={"cache": True})
+def _user_call(fns, ego, objs, state):  # type: ignore[no-untyped-def]
+    if isinstance(fns, types.NoneType):
+        return lambda fns, ego, objs, state: 0.0
+    return lambda fns, ego, objs, state: fns[0](ego, objs, state)
 
 
 @numba.njit(cache=True, inline="always")
@@ -310,7 +320,7 @@ def policy_ego(  # type: ignore[no-untyped-def]
         scr[4][E_S], scr[4][E_PATH_LEN], scr[4][E_CRUISE] = s, pol[6], vd
         scr[4][E_MAX_ACCEL], scr[4][E_MAX_DECEL], scr[4][E_LENGTH] = amax, dmax, Le
         scr[4][E_WIDTH], scr[4][E_COLLIDED] = We, 1.0 if collided else 0.0
-        acc = pol[0][0](scr[4], scr[3], scr[1])
+        acc = user_call(pol[0], scr[4], scr[3], scr[1])
         if not math.isfinite(acc):
             if pol[7][b] < 0:
                 pol[7][b], pol[8][b] = k, acc
@@ -326,4 +336,4 @@ def policy_ego(  # type: ignore[no-untyped-def]
     return s_new, v_new, a_act_n, a_rep_n, u, fsm
 
 
-__all__ = ["no_policy", "policy_ego", "policy_state0", "put_truth"]
+__all__ = ["policy_ego", "policy_state0", "put_truth", "user_call"]

@@ -72,10 +72,8 @@ def kernel_mask(params: Any) -> npt.NDArray[np.bool_]:
     return (np.asarray(params.ego_mode) != EGO_POLICY) | (kinds > 0)
 
 
-def policy_group(arrays: Any, params: Any, no_policy: Any) -> tuple[Any, ...]:
-    """The kernel's ``pol`` group (vei.sim.kernel.policy) for ``params`` [B];
-    ``no_policy``: the compiled function in the function slot when no variant runs a
-    user's policy (vei.sim.kernel.policy.no_policy)."""
+def policy_group(arrays: Any, params: Any) -> tuple[Any, ...]:
+    """The kernel's ``pol`` group (vei.sim.kernel.policy) for ``params`` [B]."""
     from vei.sim.observe import object_table
 
     b = params.batch_size
@@ -104,7 +102,7 @@ def policy_group(arrays: Any, params: Any, no_policy: Any) -> tuple[Any, ...]:
         otr[0], otr[1], otr[2] = arrays.other_x_m, arrays.other_y_m, yaw
         otr[3], otr[4], otr[5] = sp * np.cos(yaw), sp * np.sin(yaw), arrays.other_active
     return (
-        (fn if fn is not None else no_policy,), kinds, pp, np.ascontiguousarray(st0),
+        None if fn is None else (fn,), kinds, pp, np.ascontiguousarray(st0),
         obj, hp, path_len,
         np.full(b, -1, dtype=np.int64), np.zeros(b), otr,
     )  # fmt: skip
