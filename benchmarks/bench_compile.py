@@ -36,7 +36,10 @@ SETS: dict[str, dict[str, bool]] = {
     "others+riders+metrics": {"others": True, "riders": True, "metrics": True},
     "others+decisions+metrics": {"others": True, "decisions": True, "metrics": True},
     "others+traffic+metrics": {"others": True, "traffic": True, "metrics": True},
-    "all": {f: True for f in ("others", "riders", "decisions", "traffic", "metrics")},
+    "others+metrics+policy": {"others": True, "metrics": True, "policy": True},  # issue 34
+    "all": {
+        f: True for f in ("others", "riders", "decisions", "traffic", "metrics", "policy", "user")
+    },
 }
 
 _CHILD = """

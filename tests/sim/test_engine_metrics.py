@@ -84,8 +84,9 @@ def _aeb(name: str):
 
 
 def test_policy_variants_fall_back_in_sub_batches(demo) -> None:
-    """A batch mixing paper-cap and AEB variants: the AEB ones run the NumPy step loop,
-    recorded 4 at a time, and the rows come back in the caller's order."""
+    """A batch mixing paper-cap and AEB variants (AEB with ideal perception is scored in
+    the kernel's pass too, issue 34; with kernel='numpy' recorded 4 at a time): the rows
+    come back in the caller's order and equal the recorded reference."""
     arrays, base = demo
     shifts = base + np.linspace(-2.0, 2.0, 5)
     parts = []

@@ -61,7 +61,10 @@ def test_mixed_batch_runs_the_kernel_variants_compiled(crossing) -> None:
     cap = VariantParams.from_case(
         case_preset("normal-cap"), crossing, 2, time_shift_s=np.array([4.0, 4.886])
     )
-    aeb = VariantParams.from_case(_case("aeb"), crossing, 2, time_shift_s=np.array([4.0, 4.886]))
+    # a Python policy (the NumPy step loop; aeb / idm run in the kernel: tests/sim/kernel)
+    aeb = VariantParams.from_case(
+        _case(f"{EXAMPLE}:MyPolicy"), crossing, 2, time_shift_s=np.array([4.0, 4.886])
+    )
     mixed = simulate(crossing, VariantParams.concat([aeb, cap]), kernel="numba")
     only_cap = simulate(crossing, cap, kernel="numba")
     only_aeb = simulate(crossing, aeb, kernel="numpy")

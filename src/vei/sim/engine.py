@@ -61,6 +61,7 @@ from vei.config import CASE_PRESETS, CaseConfig, SimConfig, case_preset
 from vei.errors import ConfigError
 from vei.policy.perception_random import label_keys
 from vei.sim.batch import BatchFlags, Block, batch_flags, group_keys
+from vei.sim.kernel.policy_pack import kernel_mask
 from vei.sim.observe import PolicyDriver
 from vei.sim.result import (
     _RECORDED,
@@ -128,12 +129,15 @@ def simulate(
     # the outputs are put back into the caller's order at the end.
     keys = group_keys(params)
     perm = np.argsort(keys, kind="stable")
+    # Policy variants (ego_mode 3) sort last and run the NumPy step loop, but for those the
+    # compiled kernel runs (aeb, idm, compiled policies: vei.sim.kernel.policy_pack), which
+    # sort before them with the others; all keep the requested kernel.
+    in_kernel = kernel_mask(params) if use_numba else params.ego_mode != EGO_POLICY
+    perm = perm[np.argsort(~in_kernel[perm], kind="stable")]
     sorted_already = bool(np.all(perm == np.arange(perm.size)))
     run_params = params if sorted_already else params.take(perm)
     b = params.batch_size
-    # Policy variants (ego_mode 3) sort last and always run the NumPy step loop; the
-    # others keep the requested kernel.
-    n_kernel = int(np.count_nonzero(run_params.ego_mode != EGO_POLICY))
+    n_kernel = int(np.count_nonzero(in_kernel))
     # Perception draws are keyed by each variant's label (a sweep's variant id, a run's
     # configuration name), not by its position: the same in any batch (vei run = sweep).
     vkeys = label_keys(params.labels)[perm] if n_kernel < b else None
@@ -399,7 +403,7 @@ def simulate_metrics(
     from vei.metrics.fused_layout import FUSED_METRICS, config_vector, metrics_frame
 
     if use_numba and all(n in kernel_metrics() for n in names):
-        fused = (params.ego_mode != EGO_POLICY) & ~(params.peds_sfm & bool(arrays.peds.n))
+        fused = kernel_mask(params) & ~(params.peds_sfm & bool(arrays.peds.n))
     parts: list[tuple[np.ndarray, pd.DataFrame]] = []
     idx = np.flatnonzero(fused)
     if idx.size:

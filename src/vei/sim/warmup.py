@@ -27,9 +27,24 @@ def warmup_scene(features: Any) -> tuple[Any, Any, bool]:
         others = (("car_1", car),)
     sim = SimConfig(kernel="numba", sfm_riders="all" if features.riders else "primary")
     arrays = prepare_scenario(crossing_scenario(others=others), sim)
-    params = VariantParams.from_case(case_preset("normal-cap"), arrays, 1)
+    case = case_preset("normal-cap")
+    if features.policy:  # an ego policy the kernel runs (aeb)
+        from dataclasses import replace
+
+        c = case_preset("normal")
+        case = replace(c, name="aeb", ego=replace(c.ego, policy="aeb"))
+    params = VariantParams.from_case(case, arrays, 1)
+    if features.user:  # a user's compiled policy (a function value in the kernel)
+        from vei.policy.compiled import CompiledPolicy
+
+        params = params.with_values(policy=CompiledPolicy(_cruise, name="warm-up"))
     params = params.with_values(decide=bool(features.decisions), cars_react=bool(features.traffic))
     return arrays, params, bool(features.metrics)
+
+
+def _cruise(ego, objs, state):  # type: ignore[no-untyped-def]
+    """A compiled policy of the warm-up: no demand (the signature of vei.policy.compiled)."""
+    return 0.0
 
 
 def ensure_compiled(features: Any = None) -> bool:

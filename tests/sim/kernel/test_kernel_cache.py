@@ -51,6 +51,8 @@ def test_every_kernel_module_is_in_the_digest() -> None:
     extra |= {"../../models/decision_core.py"}  # the rider's decision (issue 24)
     extra |= {"../../models/traffic_core.py"}  # reacting cars (issue 24)
     extra |= {"../../metrics/severity.py"}  # the standing car of the fused 'striking' (32)
+    # ego policies in the kernel (issue 34): aeb's / idm's constants, the observation rows
+    extra |= {"../../policy/aeb.py", "../../policy/idm.py", "../../policy/compiled.py"}
     assert compiled | extra == set(cache.KERNEL_SOURCES)
     assert all((here / n).is_file() for n in cache.KERNEL_SOURCES)
 
@@ -59,7 +61,8 @@ def test_feature_sets_have_their_own_stamps(tmp_path) -> None:
     """A compiled feature set says nothing about another: each has its stamp, and both
     need numba's index files of the kernel and its per-variant function."""
     base, full = kernel.Features(), kernel.ALL_FEATURES
-    assert base.name == "base" and full.name == "others+riders+decisions+traffic+metrics"
+    assert base.name == "base"
+    assert full.name == "others+riders+decisions+traffic+metrics+policy+user"
     assert kernel.Features(others=True, metrics=True).name == "others+metrics"
     cache.mark_compiled(tmp_path, base.name)
     assert cache.is_cold(tmp_path, base.name)  # no machine code (index files) yet
@@ -69,6 +72,12 @@ def test_feature_sets_have_their_own_stamps(tmp_path) -> None:
     assert cache.is_cold(tmp_path, full.name)  # never compiled
     (tmp_path / f"loop.compiled.{base.name}").write_text("another machine\n")
     assert cache.is_cold(tmp_path, base.name)
+    # a set with a user's compiled policy runs the serial shell: it needs its index files
+    pol = kernel.Features(policy=True, user=True).name
+    cache.mark_compiled(tmp_path, pol)
+    assert cache.is_cold(tmp_path, pol)
+    (tmp_path / "loop.kernel_seq-130.py311.nbi").write_bytes(b"index")
+    assert not cache.is_cold(tmp_path, pol)
 
 
 def _hold(folder: str, started, held_s: float) -> None:

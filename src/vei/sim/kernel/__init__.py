@@ -25,6 +25,7 @@ calling step's own progress line off a terminal: :func:`vei.io.progress.activity
 from __future__ import annotations
 
 import contextlib
+import warnings
 from typing import Any
 
 import numpy as np
@@ -47,6 +48,7 @@ from vei.sim.kernel.pack import (
     state_group,
     traffic_group,
 )
+from vei.sim.kernel.policy_pack import check_outputs, policy_group
 from vei.sim.riders import EXTRA_BOOL_FIELDS, EXTRA_FLOAT_FIELDS, EXTRA_INT_FIELDS
 
 __all__ = [
@@ -87,10 +89,10 @@ def _build() -> Any:
         return _KERNEL
     if not available():
         raise DependencyError("the compiled engine kernel needs numba (pip install numba)")
-    from vei.sim.kernel.loop import kernel, variant
+    from vei.sim.kernel.loop import kernel, kernel_seq, variant
 
-    cache.drop_stale(kernel, variant)
-    _KERNEL = (kernel, variant)
+    cache.drop_stale(kernel, variant, kernel_seq)
+    _KERNEL = (kernel, variant, kernel_seq)
     return _KERNEL
 
 
@@ -135,7 +137,7 @@ def run(
     from vei.io.progress import activity
     from vei.metrics.fused_layout import N_FUSED
 
-    kernel, _ = _build()
+    kernel = _build()[0]
     scored = metrics_cfg is not None
     feats = features_of(arrays, params, scored)
     t_n = arrays.n_steps
@@ -150,6 +152,7 @@ def run(
     xr = riders_group(arrays, state0, b, tt, record) if feats.riders else None
     dec = decisions_group(arrays) if feats.decisions else None
     traffic = traffic_group(arrays, state0, b, tt) if feats.traffic else None
+    pol = policy_group(arrays, params) if feats.policy else None
     m_out = np.empty((b if scored else 1, N_FUSED))
     metrics = None
     if scored:
@@ -167,18 +170,60 @@ def run(
         with turn:
             cold = cold and cache.is_cold(folder, feats.name)  # another process may have
             announce = activity(compile_message(feats)) if cold else contextlib.nullcontext()
-            with announce:
-                kernel(
+            with announce, warnings.catch_warnings():
+                # a user's policy is a first-class function value (numba calls it experimental)
+                warnings.simplefilter("ignore", numba.NumbaExperimentalFeatureWarning)
+                args = (
                     t_n, float(arrays.dt_s), int(hist_len), bool(record),
                     ego_group(arrays), rider_group(arrays), p_mat, state_group(state0), out,
-                    others, xr, dec, traffic, metrics,
+                    others, xr, dec, traffic, metrics, pol,
                 )  # fmt: skip
+                if pol is None or pol[0] is None:  # numba's parallel loop
+                    kernel(*args)
+                else:
+                    _threads(_build()[2], b, args)
             if cold:
                 cache.mark_compiled(folder, feats.name)
     finally:
         numba.set_parallel_chunksize(prev_chunk)
     _WARM.add(feats.name)
+    if pol is not None:
+        check_outputs(params, pol, arrays.dt_s)
     return _unpack(arrays, state0, record, tt, out, others, xr, traffic, m_out if scored else None)
+
+
+def _threads(kernel_seq: Any, b: int, args: tuple[Any, ...]) -> None:
+    """Run variants 0..b-1 by :func:`vei.sim.kernel.loop.kernel_seq` in chunks from
+    numba's number of threads (each call releases the GIL; variants are independent, so
+    the results do not depend on the chunking)."""
+    import itertools
+    import threading
+
+    import numba
+
+    n = max(1, min(numba.get_num_threads(), b))
+    chunk = max(_CHUNK, -(-b // (8 * n)))
+    if n == 1:
+        kernel_seq(0, b, *args)
+        return
+    kernel_seq(0, min(chunk, b), *args)  # compiles or loads once, before the threads
+    nxt = itertools.count(1)
+    errors: list[BaseException] = []
+
+    def work() -> None:
+        try:
+            while (lo := next(nxt) * chunk) < b:
+                kernel_seq(lo, min(lo + chunk, b), *args)
+        except BaseException as exc:  # noqa: BLE001 - re-raised in the caller
+            errors.append(exc)
+
+    pool = [threading.Thread(target=work) for _ in range(n)]
+    for t in pool:
+        t.start()
+    for t in pool:
+        t.join()
+    if errors:
+        raise errors[0]
 
 
 def _unpack(

@@ -33,7 +33,8 @@ KERNEL_SOURCES = (
     "../../boxes.py", "../../config/settings.py", "../../metrics/fused.py",
     "../../metrics/fused_layout.py", "../../metrics/fused_ops.py",
     "../../models/ego_core.py", "../../models/sfm_core.py", "../../models/decision_core.py",
-    "../../metrics/severity.py",
+    "../../metrics/severity.py", "policy.py", "policy_pack.py", "../../policy/aeb.py",
+    "../../policy/idm.py", "../../policy/compiled.py",
 )  # fmt: skip
 #: Names of the compiled functions whose caches hold the kernel's machine code.
 _FUNCTIONS = ("kernel", "variant")
@@ -110,7 +111,9 @@ def is_cold(folder: Path | None, features: str) -> bool:
         return True
     # the stamp says who compiled; numba's index files that the machine code is still there
     # (a cleared __pycache__ can leave the one without the other)
-    if not all(any(stamp.parent.glob(f"loop.{f}-*.nbi")) for f in _FUNCTIONS):
+    # runs with a user's compiled policy use the serial shell (vei.sim.kernel.loop.kernel_seq)
+    fns = ("kernel_seq", "variant") if "user" in features.split("+") else _FUNCTIONS
+    if not all(any(stamp.parent.glob(f"loop.{f}-*.nbi")) for f in fns):
         return True
     try:
         return stamp.read_text().strip() != compile_key()

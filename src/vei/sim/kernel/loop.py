@@ -100,6 +100,7 @@ from vei.sim.kernel.layout import (
     P_VMAX,
     P_YDEC,
 )
+from vei.sim.kernel.policy import policy_ego, policy_state0, put_truth
 from vei.sim.kernel.riders import extra_riders_step, riders_final, riders_record, riders_state0
 from vei.sim.kernel.scalar import idx, ped_forces, rforce, sat
 from vei.sim.kernel.sfm import (
@@ -111,26 +112,41 @@ from vei.sim.kernel.sfm import (
 )
 from vei.sim.kernel.traffic import traffic_final, traffic_state0, traffic_step
 
-__all__ = ["N_OUT", "kernel", "variant"]
+__all__ = ["N_OUT", "kernel", "kernel_seq", "variant"]
 
 
 # parallel=True: variants are independent (per-variant scratch, no reduction across them),
 # so the prange loop spreads them over the cores without changing any result. nogil: a
 # sweep's parent runs chunks itself while its pool's manager thread feeds the workers.
 @numba.njit(cache=True, parallel=True, nogil=True)
-def kernel(T, dt, hist_len, record, ego, rider, P, init, out, others, xr, dec, traffic, metrics):  # type: ignore[no-untyped-def]
+def kernel(
+    T, dt, hist_len, record, ego, rider, P, init, out, others, xr, dec, traffic, metrics, pol
+):  # type: ignore[no-untyped-def]
     """Run every variant of P [N_PARAMS, B] over T steps (see :func:`variant`)."""
     for b in numba.prange(P.shape[1]):
         # one integer type for the variant index: one specialisation of variant(), not two
         variant(
             np.int64(b), T, dt, hist_len, record, ego, rider, P, init, out,
-            others, xr, dec, traffic, metrics,
+            others, xr, dec, traffic, metrics, pol,
+        )  # fmt: skip
+
+
+# With ego policies (pol: a user's function is a first-class function value, which numba's
+# parallel loop cannot take) the variants run in chunks of this serial shell, one chunk per
+# call from a pool of threads (nogil: they run in parallel; vei.sim.kernel.run).
+@numba.njit(cache=True, nogil=True)
+def kernel_seq(lo, hi, T, dt, hist_len, record, ego, rider, P, init, out, others, xr, dec, traffic, metrics, pol):  # type: ignore[no-untyped-def]  # fmt: skip
+    """Variants lo <= b < hi of P (see :func:`variant`)."""
+    for b in range(lo, hi):
+        variant(
+            np.int64(b), T, dt, hist_len, record, ego, rider, P, init, out,
+            others, xr, dec, traffic, metrics, pol,
         )  # fmt: skip
 
 
 @numba.njit(cache=True, nogil=True)
 def variant(
-    b, T, dt, hist_len, record, ego, rider, P, init, out, others, xr, dec, traffic, metrics
+    b, T, dt, hist_len, record, ego, rider, P, init, out, others, xr, dec, traffic, metrics, pol
 ):  # type: ignore[no-untyped-def]
     """Variant b of the batch over all T steps of dt [s], written into ``out``.
 
@@ -156,6 +172,7 @@ def variant(
             (:func:`vei.sim.kernel.pack.decisions_group`).
         traffic: None, or the reacting cars (:func:`vei.sim.kernel.pack.traffic_group`).
         metrics: None, or (t [T], dt, cfg [N_CFG], M [B, N_FUSED]).
+        pol: None, or the ego policies (:func:`vei.sim.kernel.policy_pack.policy_group`).
     """
     path, p_s0, p_ds, etab, e_t0, e_dt, Le, We = ego
     rtab, r_t0, r_dt, r_tend, r_sfm0, rpath, rp_s0, rp_ds, rp_len, rp_ex, rp_ey, Lr, Wr = rider
@@ -289,14 +306,31 @@ def variant(
     if metrics is not None:
         ch = np.empty((N_CH, T))
         _channels(ch, 0, ex, ey, eyaw, v, a_rep, rx, ry, ryaw, rsp, r_act, collided)
+    pol_on = False
+    if pol is not None:  # an ego policy (vei.sim.kernel.policy), its scratch
+        pscr = policy_state0(pol, b, mode)
+        pol_on = pscr[0]
     for k in range(T - 1):
         t_new = (k + 1) * dt
         # ---------------- ego
-        s_new, v_new, a_act_n, a_rep_n, u, pid_i, pid_e, cap = ego_step_c(
-            k, t_new, dt, ec, mode, delay, vd, hist_len,
-            s, v, a_act, pid_i, pid_e, cap, collided,
-            rx, ry, ryaw, r_act, hist, egeo,
-        )  # fmt: skip
+        use_c = True
+        if pol is not None:
+            if pol_on:
+                use_c = False
+                slot = k % pol[5]
+                put_truth(pscr[2], slot, 0, rx, ry, ryaw, rvx, rvy, r_act)
+                if xr is not None:
+                    for j in range(R):
+                        put_truth(pscr[2], slot, 1 + j, xs[0, j], xs[1, j], xs[2, j], xs[3, j], xs[4, j], xb[0, j] > 0)  # fmt: skip
+                s_new, v_new, a_act_n, a_rep_n, u, cap = policy_ego(
+                    k, dt, pol, pscr, b, ec, vd, delay, s, ex, ey, eyaw, v, a_act, a_rep, cap, collided, egeo, Le, We,
+                )  # fmt: skip
+        if use_c:
+            s_new, v_new, a_act_n, a_rep_n, u, pid_i, pid_e, cap = ego_step_c(
+                k, t_new, dt, ec, mode, delay, vd, hist_len,
+                s, v, a_act, pid_i, pid_e, cap, collided,
+                rx, ry, ryaw, r_act, hist, egeo,
+            )  # fmt: skip
         i, w = idx(p_s0, p_ds, n_p, s_new)
         ex_n = path[0, i] + w * path[5, i]
         ey_n = path[1, i] + w * path[6, i]
@@ -509,26 +543,12 @@ def variant(
                     OC[b, 2, kk, j] = cfl[5, j]
                     OC[b, 3, kk, j] = cfl[1, j]
                     OCM[b, kk, j] = cmode[j]
-    FS[0, b] = s
-    FS[1, b] = ex
-    FS[2, b] = ey
-    FS[3, b] = eyaw
-    FS[4, b] = v
-    FS[5, b] = a_rep
-    FS[6, b] = a_act
-    FS[7, b] = u
-    FS[8, b] = pid_i
-    FS[9, b] = pid_e
-    FS[10, b] = cap
-    FS[11, b] = rx
-    FS[12, b] = ry
-    FS[13, b] = ryaw
-    FS[14, b] = rvx
-    FS[15, b] = rvy
-    FS[16, b] = rsp
-    FS[17, b] = r_acc
-    FS[18, b] = prog
-    FS[19, b] = rdec
+    fin = (
+        s, ex, ey, eyaw, v, a_rep, a_act, u, pid_i, pid_e, float(cap), rx, ry, ryaw, rvx, rvy,
+        rsp, r_acc, prog, float(rdec),
+    )  # fmt: skip
+    for f in range(20):
+        FS[f, b] = fin[f]
     FB[0, b] = 1 if r_act else 0
     FB[1, b] = 1 if r_started else 0
     FB[2, b] = 1 if collided else 0

@@ -29,6 +29,10 @@ class Features(NamedTuple):
         decisions: a social-force rider that decides to yield or go at its conflicts.
         traffic: recorded cars that react (IDM).
         metrics: the fused metrics scored inside the kernel (simulate_metrics).
+        policy: ego policies run in the kernel (``aeb``, ``idm``, users' compiled ones:
+            vei.sim.kernel.policy).
+        user: one of them is a user's compiled function (vei.policy.compiled): the run
+            takes it as a function value and goes through the serial shell on threads.
     """
 
     others: bool = False
@@ -36,6 +40,8 @@ class Features(NamedTuple):
     decisions: bool = False
     traffic: bool = False
     metrics: bool = False
+    policy: bool = False
+    user: bool = False
 
     @property
     def name(self) -> str:
@@ -45,7 +51,7 @@ class Features(NamedTuple):
 
 
 #: Every part on (the warm-up of a machine that will run anything; benchmarks).
-ALL_FEATURES = Features(True, True, True, True, True)
+ALL_FEATURES = Features(True, True, True, True, True, True, True)
 
 
 def features_of(arrays: Any, params: Any, scored: bool) -> Features:
@@ -58,7 +64,13 @@ def features_of(arrays: Any, params: Any, scored: bool) -> Features:
     decisions = any_conflict and bool(decide.any())
     react = np.asarray(params.cars_react, dtype=bool)
     traffic = others and arrays.traffic.n > 0 and bool(react.any())
-    return Features(others, riders, decisions, traffic, bool(scored))
+    policy = bool((np.asarray(params.ego_mode) == 3).any())  # vei.sim.state.EGO_POLICY
+    user = False
+    if policy:
+        from vei.sim.kernel.policy_pack import kernel_kinds
+
+        user = kernel_kinds(params)[1] is not None
+    return Features(others, riders, decisions, traffic, bool(scored), policy, user)
 
 
 def path_rows(path: Any) -> np.ndarray:
