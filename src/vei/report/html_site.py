@@ -5,7 +5,9 @@
 
 - ``plotly.min.js``: the plotting library (the copy in the ``plotly`` wheel);
 - ``enc/00000.js``, ``enc/00001.js``, ...: one script per encounter in rank order, each a
-  single call ``window.veiReport.receive(i, {...})`` with that encounter's data.
+  single call ``window.veiReport.receive(i, "...")`` with that encounter's data packed
+  (:mod:`vei.report.packing`: arrays quantized and delta-coded, the whole deflated, the
+  bytes as they are in the string; about 5 KB an encounter, a 20th of its JSON).
 
 The page loads an encounter's script when the encounter is opened, by adding a
 ``<script src>`` element: unlike ``fetch`` or XMLHttpRequest of a JSON file, which Chromium
@@ -35,7 +37,8 @@ from typing import Any
 import numpy as np
 
 from vei.io.atomic import atomic_path, write_text
-from vei.report.html_report import _script_json, plotly_js_path, render
+from vei.report.html_report import plotly_js_path, render
+from vei.report.packing import pack, script
 
 #: Name of an encounter's script in ``<files>/enc/``.
 ENCOUNTER_FILE = "{:05d}.js"
@@ -66,9 +69,12 @@ def files_dir(index: Path) -> Path:
     return index.parent / f"{index.stem}_files"
 
 
-def encounter_script(i: int, enc: dict[str, Any]) -> str:
-    """The text of encounter ``i``'s script: one ``window.veiReport.receive`` call."""
-    return f"window.veiReport.receive({int(i)},{_script_json(enc)});\n"
+def encounter_script(i: int, enc: dict[str, Any]) -> bytes:
+    """Encounter ``i``'s script: one ``window.veiReport.receive`` call with the encounter's
+    data packed (:mod:`vei.report.packing`: quantized, delta-coded, deflated; the page
+    loads it as ``x-user-defined`` text and unpacks it); its overview row is left out (the
+    index page holds it)."""
+    return script(i, pack({k: v for k, v in enc.items() if k != "row"}))
 
 
 def _sig(v: Any) -> Any:
@@ -118,7 +124,7 @@ def write_site(
     try:
         for i, enc in enumerate(encounters):
             name = ENCOUNTER_FILE.format(i)
-            (fresh / name).write_text(encounter_script(i, enc), encoding="utf-8")
+            (fresh / name).write_bytes(encounter_script(i, enc))
             listed.append({"id": enc["id"], "row": enc["row"]})
         fresh.chmod(0o755)
         enc_dir, old = files / "enc", files / f".enc.old.{os.getpid()}"
