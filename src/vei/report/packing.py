@@ -14,7 +14,7 @@ byte; base64 would add a third). The page inflates them with the browser's
 :func:`unpack` / :func:`read_script` here are the reference decoder (tests). A replay
 configuration's ``ttc`` (the TTC at the replay's times) is left out where it is the full
 series ``ttc_full`` at those times (``ttc_from_full``: rebuilt on unpacking); the sweep's
-variant markers are stored in order of their x.
+variant markers are stored in order of their x, their flags as 0 / 1.
 
 Payload layout (after inflating): ``uint32`` little-endian length L of the JSON text, the
 JSON text (UTF-8) ``{"data": ..., "arrays": [[n, width, scale, order, origin, nan_runs],
@@ -164,6 +164,17 @@ def _drop_ttc(cfg: dict[str, Any], t: Any) -> dict[str, Any]:
     return {**{k: v for k, v in cfg.items() if k != "ttc"}, "ttc_from_full": True}
 
 
+def _points_array(p: _Packer, name: str, v: Any) -> Any:
+    """A sweep marker array packed: x, y to 1/POINT_SCALE; the flags (collision, flagged)
+    as 0 / 1 (unpacked as 0.0 / 1.0); else as it is."""
+    if name in ("x", "y"):
+        return p.walk(v, POINT_SCALE, name)
+    a = np.asarray(v)
+    if a.ndim == 1 and a.dtype == bool:
+        return p.array(a.astype(np.float64), 1) or v
+    return v
+
+
 def _sorted_points(pts: dict[str, Any]) -> dict[str, Any]:
     """The sweep's variant markers in order of x (their order is not shown; sorted, x
     differs little from one to the next): every array of x's length reordered alike."""
@@ -190,8 +201,7 @@ def pack(enc: dict[str, Any]) -> str:
             data[key] = p.walk(v, 0, key)
         elif key == "riskmap" and isinstance(v, dict) and isinstance(v.get("points"), dict):
             pts = _sorted_points(v["points"])
-            pts = {k: p.walk(x, POINT_SCALE, k) if k in ("x", "y") else x
-                   for k, x in pts.items()}  # fmt: skip
+            pts = {k: _points_array(p, k, x) for k, x in pts.items()}
             data[key] = {**v, "points": pts}
         else:
             data[key] = v
