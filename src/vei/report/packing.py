@@ -71,6 +71,8 @@ def _numeric(v: Any) -> np.ndarray | None:
 
 
 class _Packer:
+    """Collects the packed arrays of one encounter: their bytes and specs, in order."""
+
     def __init__(self) -> None:
         self.parts: list[bytes] = []
         self.specs: list[list[Any]] = []
@@ -121,6 +123,8 @@ class _Packer:
         return {"$a": len(self.specs) - 1}
 
     def walk(self, v: Any, scale: int | None, name: str = "") -> Any:
+        """``v`` with every array named in STEPS packed (``scale`` 0: STEPS' step; None:
+        nothing packed; else that scale), the rest as it is."""
         if isinstance(v, dict):
             return {k: self.walk(x, scale, str(k)) for k, x in v.items()}
         if isinstance(v, list | tuple) and not (scale is not None and name in STEPS):
