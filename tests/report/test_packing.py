@@ -96,3 +96,32 @@ def test_every_byte_survives_the_script_literal():
     assert m is not None and m.group(1) == b"42"
     back = packing._UNESCAPE_RE.sub(lambda k: packing._UNESCAPE[k.group()], m.group(2))
     assert back == payload
+
+
+def test_map_layers_are_one_script_shared_by_the_encounters_with_those_layers(tmp_path):
+    from tests.report.synthetic_report import synthetic_site
+    from vei.report.html_site import write_site
+
+    index, encs = synthetic_site(3)
+    ring = np.array([0.0, 10.0, 10.0, 0.0, 0.0, np.nan, 20.0, 30.0, 30.0, 20.0])
+    layers = {"sidewalks": {"x": ring.tolist(), "y": (ring + 5).tolist()}, "lines": None,
+              "kerbs": None}  # fmt: skip
+    other = {**layers, "lines": {"x": list(range(10)), "y": [0.123] * 10}}
+    encounters = [
+        {**e, "road_layers": lay} for e, lay in zip(encs, (layers, other, layers), strict=True)
+    ]
+    stats = write_site(index, iter(encounters), tmp_path / "report.html")
+    enc_dir = stats.files / "enc"
+    maps = sorted(p.name for p in enc_dir.glob("map_*.js"))
+    assert len(maps) == 2  # encounters 0 and 2 share theirs
+    got = [read_script((enc_dir / f"{i:05d}.js").read_bytes())[1] for i in range(3)]
+    assert got[0]["map"] == got[2]["map"] != got[1]["map"]
+    assert "road_layers" not in got[0] and "roads" not in got[0]
+    key, m = read_script((enc_dir / f"map_{got[1]['map']}.js").read_bytes())
+    assert key == got[1]["map"] and m["roads"] is None and m["road_layers"]["kerbs"] is None
+    _close(other["lines"]["y"], m["road_layers"]["lines"]["y"], 0.01)
+    _close(ring.tolist(), read_script((enc_dir / f"map_{got[0]['map']}.js").read_bytes())[1][
+        "road_layers"]["sidewalks"]["x"], 0.01)  # fmt: skip
+    # no map geometry (only a note): no map script
+    stats = write_site(index, iter(synthetic_site(2)[1]), tmp_path / "b.html")
+    assert list((stats.files / "enc").glob("map_*.js")) == []

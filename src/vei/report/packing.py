@@ -223,7 +223,7 @@ _UNESCAPE = {v: k for k, v in _ESCAPES.items()}
 _UNESCAPE_RE = re.compile(rb'\\(?:x00|n|r|"|\\)')
 #: The call an encounter's script makes; the page loads it with ``charset =
 #: "x-user-defined"`` (each byte one character, 0x80-0xFF as U+F780-U+F7FF).
-_CALL = re.compile(rb'^window\.veiReport\.receive\((\d+),"(.*)"\);\n?$', re.S)
+_CALL = re.compile(rb'^window\.veiReport\.receive(?:Map)?\((\d+|"[0-9a-f]+"),"(.*)"\);\n?$', re.S)
 
 
 def script(i: int, payload: bytes) -> bytes:
@@ -234,13 +234,26 @@ def script(i: int, payload: bytes) -> bytes:
     return b'window.veiReport.receive(%d,"%s");\n' % (int(i), body)
 
 
-def read_script(data: bytes) -> tuple[int, dict[str, Any]]:
-    """The reference reader of :func:`script`'s bytes: (i, the encounter, :func:`unpack`)."""
+def map_script(key: str, payload: bytes) -> bytes:
+    """A map-layers script: ``window.veiReport.receiveMap("key","...");``, the packed
+    payload as in :func:`script`; ``key`` lowercase hex."""
+    if not re.fullmatch(r"[0-9a-f]+", key):
+        raise ValueError(f"map key must be lowercase hex, got {key!r}")
+    body = _ESCAPE_RE.sub(lambda m: _ESCAPES[m.group()], payload)
+    return b'window.veiReport.receiveMap("%s","%s");\n' % (key.encode("ascii"), body)
+
+
+def read_script(data: bytes) -> tuple[int | str, dict[str, Any]]:
+    """The reference reader of :func:`script`'s and :func:`map_script`'s bytes: (i or the
+    map's key, the data, :func:`unpack`)."""
     m = _CALL.match(data)
     if m is None:
-        raise ValueError('not an encounter script (window.veiReport.receive(i,"..."); expected)')
+        raise ValueError(
+            'not an encounter or map script (window.veiReport.receive(i,"..."); expected)'
+        )
     payload = _UNESCAPE_RE.sub(lambda k: _UNESCAPE[k.group()], m.group(2))
-    return int(m.group(1)), unpack(payload)
+    head = m.group(1).decode("ascii")
+    return (head.strip('"') if head.startswith('"') else int(head)), unpack(payload)
 
 
 def _decode_array(spec: list[Any], buf: bytes, base: int, offset: int) -> list[float | None]:

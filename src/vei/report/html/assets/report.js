@@ -130,34 +130,61 @@
     });
   }
   window.veiReport.unpack = unpack;
+  /* A script beside the page, read as x-user-defined (packed bytes: one character each,
+     vei.report.packing); removed once run. */
+  function addScript(src, failed) {
+    var s = document.createElement("script");
+    s.charset = "x-user-defined";
+    s.src = src;
+    s.onload = function () { s.remove(); };
+    s.onerror = function () {
+      s.remove(); failed();
+      document.getElementById("encounter-status").textContent = "could not load " + src + " (is the report_files folder beside the page?)";
+    };
+    document.head.appendChild(s);
+  }
+  function failedUnpack(what) {
+    return function (err) { document.getElementById("encounter-status").textContent = "could not unpack " + what + ": " + err; };
+  }
+  /* Map layers (drivable lanes, sidewalks, lane borders, kerbs) are a script of their own
+     (enc/map_KEY.js, veiReport.receiveMap), shared by the encounters whose layers are the
+     same (those of one recording) and loaded once. */
+  var maps = {}, mapWaiting = {};
+  function receiveMap(key, text) {
+    unpack(text).then(function (m) {
+      maps[key] = m;
+      var w = mapWaiting[key] || []; delete mapWaiting[key];
+      w.forEach(function (f) { f(m); });
+    }, failedUnpack("map " + key));
+  }
+  function withMap(e, then) {
+    var attach = function (m) { e.roads = m.roads; e.road_layers = m.road_layers; then(e); };
+    if (!e.map) { then(e); return; }
+    if (maps[e.map]) { attach(maps[e.map]); return; }
+    var first = !mapWaiting[e.map];
+    (mapWaiting[e.map] = mapWaiting[e.map] || []).push(attach);
+    if (first) { addScript(DATA.encounters.files + "map_" + e.map + ".js", function () { delete mapWaiting[e.map]; }); }
+  }
   function receive(i, e) {
     if (typeof e === "string") {
-      unpack(e).then(function (d) { receive(i, d); }, function (err) {
-        delete waiting[i];
-        document.getElementById("encounter-status").textContent = "could not unpack encounter " + i + ": " + err;
-      });
+      unpack(e).then(function (d) { receive(i, d); }, function (err) { delete waiting[i]; failedUnpack("encounter " + i)(err); });
       return;
     }
-    cache[i] = e; cached.push(i);
-    while (cached.length > CACHE) { delete cache[cached.shift()]; }
-    var then = waiting[i]; delete waiting[i];
-    if (then) { then(e); }
+    withMap(e, function (e) {
+      cache[i] = e; cached.push(i);
+      while (cached.length > CACHE) { delete cache[cached.shift()]; }
+      var then = waiting[i]; delete waiting[i];
+      if (then) { then(e); }
+    });
   }
   function load(i, then) {
     if (cache[i]) { then(cache[i]); return; }
     var first = !waiting[i];
     waiting[i] = then;
     if (!first) { return; }
-    var s = document.createElement("script");
-    s.charset = "x-user-defined";  /* packed bytes: one character each (vei.report.packing) */
-    s.src = ROWS[i].file;
-    s.onload = function () { s.remove(); };
-    s.onerror = function () {
-      s.remove(); delete waiting[i];
-      document.getElementById("encounter-status").textContent = "could not load " + ROWS[i].file + " (is the report_files folder beside the page?)";
-    };
-    document.head.appendChild(s);
+    addScript(ROWS[i].file, function () { delete waiting[i]; });
   }
+  window.veiReport.receiveMap = receiveMap;
   window.veiReport.receive = receive;
 
   /* ---------------- geometry ---------------- */
