@@ -2,7 +2,10 @@
 :func:`vei.catalogue.report_data.encounter_data`'s (same keys, array lengths of a typical
 TrafficMonitoring encounter: 4 road users over 30 s of tracks at 5 Hz, 5 case-study
 configurations replayed over 10 s at 10 Hz, a 240-variant sweep, the TTC at 20 Hz over the
-window), with made-up motion. Not measured data: for sizes and load times only."""
+window), with made-up but smooth motion (constant headings, accelerations a random walk), the
+riders' the same in every configuration as in vei's case study, the TTC and its zones
+computed from the ego's and the rider's motion. Not measured data: for sizes and load times
+only."""
 
 from __future__ import annotations
 
@@ -32,7 +35,11 @@ def _sweep_rows(rng: np.random.Generator, eid: str) -> pd.DataFrame:
 
 def _agent(rng: np.random.Generator, n: int, dt: float) -> dict[str, np.ndarray]:
     heading = rng.uniform(-np.pi, np.pi)
-    speed = np.clip(rng.normal(5.0, 1.0) + np.cumsum(rng.normal(0, 0.05, n)), 0, None)
+    # the acceleration a random walk (0.5 m/s^2 per sqrt(s), within +-3 m/s^2), the speed
+    # its integral: smooth as a vehicle's (white-noise acceleration made the synthetic ego
+    # two to three times as costly to store as a real one)
+    acc = np.clip(np.cumsum(rng.normal(0.0, 0.5 * np.sqrt(dt), n)), -3.0, 3.0)
+    speed = np.clip(rng.normal(5.0, 1.0) + np.cumsum(acc * dt), 0, None)
     s = np.cumsum(speed * dt)
     return {
         "x": 10 * rng.normal() + s * np.cos(heading),
@@ -40,6 +47,18 @@ def _agent(rng: np.random.Generator, n: int, dt: float) -> dict[str, np.ndarray]
         "yaw": np.full(n, heading),
         "speed": speed,
     }
+
+
+def _ttc(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> np.ndarray:
+    """Time to collision of two points [s] (distance / closing speed, NaN when not closing,
+    clipped at 10 s as the report's plot), from their positions and headings."""
+    dx, dy = b["x"] - a["x"], b["y"] - a["y"]
+    dist = np.hypot(dx, dy)
+    vx = b["speed"] * np.cos(b["yaw"]) - a["speed"] * np.cos(a["yaw"])
+    vy = b["speed"] * np.sin(b["yaw"]) - a["speed"] * np.sin(a["yaw"])
+    closing = -(dx * vx + dy * vy) / np.maximum(dist, 1e-9)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(closing > 0.1, np.minimum(dist / closing, 10.0), np.nan)
 
 
 def encounter(i: int, columns: list[dict[str, Any]]) -> tuple[dict[str, Any], pd.DataFrame]:
@@ -58,16 +77,25 @@ def encounter(i: int, columns: list[dict[str, Any]]) -> tuple[dict[str, Any], pd
         a = _agent(rng, t_track.size, 0.2)
         tracks[aid] = {"category": cat, "x": a["x"], "y": a["y"], "t": t_track}
     t = np.round(np.arange(10.0, 20.0, 0.1), 2)
+    t_full = np.round(np.arange(10.0, 20.0, 0.05), 2)
+    # as in vei's case study: the riders replay their recorded motion in every
+    # configuration, the ego's planner differs per configuration
+    rider = _agent(rng, t_full.size, 0.05)
+    others = {aid: {k: v[::2] for k, v in _agent(rng, t.size * 2, 0.05).items() if k in ("x", "y")}
+              for aid in ("cyclist_2", "escooter_3")}  # fmt: skip
     configs = []
     for name in CONFIGS:
-        ttc = rng.uniform(0.2, 8, t.size)
-        others = {aid: {k: v for k, v in _agent(rng, t.size, 0.1).items() if k in ("x", "y")}
-                  for aid in ("cyclist_2", "escooter_3")}  # fmt: skip
-        t_full = np.round(np.arange(10.0, 20.0, 0.05), 2)
+        ego = _agent(rng, t_full.size, 0.05)
+        ttc_full = _ttc(ego, rider)
+        ttc = ttc_full[::2]
+        zone = np.where(ttc <= 1.0, 2, np.where(ttc <= 2.0, 1, 0))
+        cap = ["CRUISE"] * t.size
+        k = int(rng.integers(0, t.size))
+        cap[k:] = ["BRAKE"] * (t.size - k)
         configs.append({
-            "name": name, "ego": _agent(rng, t.size, 0.1), "rider": _agent(rng, t.size, 0.1),
-            "others": others, "cap": ["CRUISE"] * t.size, "zone": rng.integers(0, 3, t.size),
-            "ttc": ttc, "ttc_t": t_full, "ttc_full": rng.uniform(0.2, 8, t_full.size),
+            "name": name, "ego": {a: v[::2] for a, v in ego.items()},
+            "rider": {a: v[::2] for a, v in rider.items()}, "others": others, "cap": cap,
+            "zone": zone, "ttc": ttc, "ttc_t": t_full, "ttc_full": ttc_full,
         })  # fmt: skip
     row = {c["key"]: None for c in columns}
     row.update({"rank": i + 1, "encounter_id": eid, "category": "cyclist",

@@ -107,15 +107,22 @@ def test_page_lists_every_encounter_and_recording(data):
 
 def test_site_writes_one_script_per_encounter_and_drops_stale_ones(data, tmp_path):
     from vei.report.html_site import write_site
+    from vei.report.packing import read_script
 
     index = {k: v for k, v in data.items() if k != "encounters"}
     stats = write_site(index, iter(data["encounters"]), tmp_path / "report.html")
     scripts = sorted(p.name for p in (tmp_path / "report_files" / "enc").iterdir())
     assert scripts == ["00000.js", "00001.js", "00002.js"] and stats.n_encounters == 3
-    text = (tmp_path / "report_files" / "enc" / "00001.js").read_text()
-    assert text.startswith("window.veiReport.receive(1,") and text.rstrip().endswith(");")
-    body = json.loads(text[len("window.veiReport.receive(1,") : text.rstrip().rindex(")")])
-    assert body["id"] == data["encounters"][1]["id"] and len(body["replay"]["configs"]) == 5
+    raw = (tmp_path / "report_files" / "enc" / "00001.js").read_bytes()
+    assert raw.startswith(b'window.veiReport.receive(1,"') and raw.rstrip().endswith(b");")
+    i, body = read_script(raw)  # the packed data (vei.report.packing), decoded
+    assert i == 1 and body["id"] == data["encounters"][1]["id"]
+    assert len(body["replay"]["configs"]) == 5
+    # the replay's ego to 1 cm of the collected data
+    want = np.array(data["encounters"][1]["replay"]["configs"][2]["ego"]["x"], float)
+    got = np.array([np.nan if v is None else v for v in body["replay"]["configs"][2]["ego"]["x"]])
+    assert np.array_equal(np.isnan(want), np.isnan(got))
+    assert np.nanmax(np.abs(want - got)) <= 0.005 + 1e-9
     assert (tmp_path / "report_files" / "plotly.min.js").stat().st_size > 1_000_000
     page = stats.index.read_text()
     assert '"plotly":"report_files/plotly.min.js"' in page  # loaded by the page after its table

@@ -5,7 +5,13 @@
 
 - ``plotly.min.js``: the plotting library (the copy in the ``plotly`` wheel);
 - ``enc/00000.js``, ``enc/00001.js``, ...: one script per encounter in rank order, each a
-  single call ``window.veiReport.receive(i, {...})`` with that encounter's data.
+  single call ``window.veiReport.receive(i, "...")`` with that encounter's data packed
+  (:mod:`vei.report.packing`: arrays quantized and delta-coded, the whole deflated, the
+  bytes as they are in the string; about 5 KB an encounter, a 20th of its JSON);
+- ``enc/map_KEY.js``: the map layers (drivable lanes, sidewalks, lane borders, kerbs) of
+  the encounters whose layers are the same (those of one recording), packed alike, one
+  call ``window.veiReport.receiveMap("KEY", "...")``; an encounter with a map names its
+  KEY (``map``) and the page loads that script once.
 
 The page loads an encounter's script when the encounter is opened, by adding a
 ``<script src>`` element: unlike ``fetch`` or XMLHttpRequest of a JSON file, which Chromium
@@ -24,6 +30,7 @@ index page last, atomically.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 import os
 import shutil
@@ -35,7 +42,8 @@ from typing import Any
 import numpy as np
 
 from vei.io.atomic import atomic_path, write_text
-from vei.report.html_report import _script_json, plotly_js_path, render
+from vei.report.html_report import plotly_js_path, render
+from vei.report.packing import map_script, pack, script
 
 #: Name of an encounter's script in ``<files>/enc/``.
 ENCOUNTER_FILE = "{:05d}.js"
@@ -49,7 +57,8 @@ class SiteStats:
         index: the index page; files: its folder of scripts.
         n_encounters: encounter scripts written.
         index_bytes: the index page's size [bytes]; opened_bytes: what opening the page
-            loads (index + plotly.min.js + the first encounter's script) [bytes];
+            loads (index + plotly.min.js + the first encounter's script and its map
+            layers' script) [bytes];
         total_bytes: the page and its whole folder [bytes].
     """
 
@@ -66,9 +75,36 @@ def files_dir(index: Path) -> Path:
     return index.parent / f"{index.stem}_files"
 
 
-def encounter_script(i: int, enc: dict[str, Any]) -> str:
-    """The text of encounter ``i``'s script: one ``window.veiReport.receive`` call."""
-    return f"window.veiReport.receive({int(i)},{_script_json(enc)});\n"
+#: Name of a map-layers script in ``<files>/enc/`` (named by its content: encounters whose
+#: layers are the same, those of one recording, share it).
+MAP_FILE = "map_{}.js"
+#: The encounter's keys of its map layers (vei.catalogue.report_data.encounter_data).
+MAP_KEYS = ("roads", "road_layers")
+
+
+def split_map(enc: dict[str, Any]) -> tuple[dict[str, Any], str | None, bytes | None]:
+    """(the encounter with its map layers replaced by ``map``: their key, the key, their
+    script :func:`vei.report.packing.map_script`), or (the encounter, None, None) without
+    map geometry (no map: only a note). The key is the first 16 hex digits of the SHA-1 of
+    the packed layers."""
+    layers = {k: enc.get(k) for k in MAP_KEYS}
+    geometry = layers["roads"] is not None or any(
+        v is not None for k, v in (layers["road_layers"] or {}).items() if k != "note"
+    )
+    if not geometry:
+        return enc, None, None
+    payload = pack(layers)
+    key = hashlib.sha1(payload).hexdigest()[:16]
+    rest = {k: v for k, v in enc.items() if k not in MAP_KEYS}
+    return {**rest, "map": key}, key, map_script(key, payload)
+
+
+def encounter_script(i: int, enc: dict[str, Any]) -> bytes:
+    """Encounter ``i``'s script: one ``window.veiReport.receive`` call with the encounter's
+    data packed (:mod:`vei.report.packing`: quantized, delta-coded, deflated; the page
+    loads it as ``x-user-defined`` text and unpacks it); its overview row is left out (the
+    index page holds it)."""
+    return script(i, pack({k: v for k, v in enc.items() if k != "row"}))
 
 
 def _sig(v: Any) -> Any:
@@ -115,10 +151,16 @@ def write_site(
     # rename instead of a synced rename per file: 10^4 encounters)
     fresh = Path(tempfile.mkdtemp(prefix=".enc.", dir=files))
     listed: list[dict[str, Any]] = []
+    first_map = 0  # bytes of the first encounter's map layers
     try:
         for i, enc in enumerate(encounters):
             name = ENCOUNTER_FILE.format(i)
-            (fresh / name).write_text(encounter_script(i, enc), encoding="utf-8")
+            rest, key, layers = split_map(enc)
+            if key is not None and not (fresh / MAP_FILE.format(key)).exists():
+                (fresh / MAP_FILE.format(key)).write_bytes(layers)
+            if i == 0 and layers is not None:
+                first_map = len(layers)
+            (fresh / name).write_bytes(encounter_script(i, rest))
             listed.append({"id": enc["id"], "row": enc["row"]})
         fresh.chmod(0o755)
         enc_dir, old = files / "enc", files / f".enc.old.{os.getpid()}"
@@ -139,6 +181,6 @@ def write_site(
         files=files,
         n_encounters=len(listed),
         index_bytes=size,
-        opened_bytes=size + (files / "plotly.min.js").stat().st_size + first,
+        opened_bytes=size + (files / "plotly.min.js").stat().st_size + first + first_map,
         total_bytes=total,
     )

@@ -84,26 +84,107 @@
      calls veiReport.receive(i, data): a <script src> loads from a file:// folder, where
      Chromium blocks fetch() of a JSON file. At most CACHE encounters are kept. */
   var CACHE = 20, cache = {}, cached = [], waiting = {};
+  /* An encounter's script passes its data packed (vei.report.packing): zlib-deflated
+     [uint32 JSON length][JSON {data, arrays: [[n, width, scale, order, origin, nan_runs],
+     ...]}, packed array k as {"$a": k}][the arrays' integers one after the other], the bytes as they are in the
+     script's string (loaded as x-user-defined text); inflated by the browser
+     (DecompressionStream, no fetch: works on file://), arrays rebuilt as plain arrays. */
+  function unpackArray(s, dv, off) {
+    var n = s[0], w = s[1], scale = s[2], order = s[3], o = s[4], runs = s[5];
+    var a = new Array(n), d1 = 0, q = 0, k, d;
+    for (k = 0; k < n; k++) {
+      d = w === 1 ? dv.getInt8(off + k) : (w === 2 ? dv.getInt16(off + 2 * k, true) : dv.getInt32(off + 4 * k, true));
+      if (order === 2) { d1 += d; q += d1; } else if (order === 1) { q += d; } else { q = d; }
+      a[k] = (o + q) / scale;
+    }
+    runs.forEach(function (r) { for (k = r[0]; k < r[0] + r[1]; k++) { a[k] = null; } });
+    return a;
+  }
+  function revive(v, at) {  /* at(k): packed array k */
+    if (Array.isArray(v)) { return v.map(function (x) { return revive(x, at); }); }
+    if (v === null || typeof v !== "object") { return v; }
+    if (typeof v.$a === "number" && Object.keys(v).length === 1) { return at(v.$a); }
+    var out = {};
+    Object.keys(v).forEach(function (key) { out[key] = revive(v[key], at); });
+    return out;
+  }
+  function unpack(text) {
+    /* the script is read as x-user-defined: one character per byte (0x80-0xFF as U+F780-U+F7FF) */
+    var u8 = new Uint8Array(text.length);
+    for (var k = 0; k < text.length; k++) { u8[k] = text.charCodeAt(k) & 0xFF; }
+    var stream = new Blob([u8]).stream().pipeThrough(new DecompressionStream("deflate"));
+    return new Response(stream).arrayBuffer().then(function (buf) {
+      var dv = new DataView(buf), n = dv.getUint32(0, true);
+      var doc = JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 4, n)));
+      var offsets = [4 + n];  /* the arrays' bytes one after the other */
+      doc.arrays.forEach(function (s, k) { offsets.push(offsets[k] + s[0] * s[1]); });
+      var e = revive(doc.data, function (k) { return unpackArray(doc.arrays[k], dv, offsets[k]); });
+      ((e.replay || {}).configs || []).forEach(function (c) {
+        if (!c.ttc_from_full) { return; }  /* the TTC at the replay's times: from the full series */
+        var at = {};
+        c.ttc_t.forEach(function (t, j) { at[Math.round(t * 1000)] = c.ttc_full[j]; });
+        c.ttc = e.replay.t.map(function (t) { var v = at[Math.round(t * 1000)]; return v === undefined ? null : v; });
+        delete c.ttc_from_full;
+      });
+      return e;
+    });
+  }
+  window.veiReport.unpack = unpack;
+  /* A script beside the page, read as x-user-defined (packed bytes: one character each,
+     vei.report.packing); removed once run. */
+  function addScript(src, failed) {
+    var s = document.createElement("script");
+    s.charset = "x-user-defined";
+    s.src = src;
+    s.onload = function () { s.remove(); };
+    s.onerror = function () {
+      s.remove(); failed();
+      document.getElementById("encounter-status").textContent = "could not load " + src + " (is the report_files folder beside the page?)";
+    };
+    document.head.appendChild(s);
+  }
+  function failedUnpack(what) {
+    return function (err) { document.getElementById("encounter-status").textContent = "could not unpack " + what + ": " + err; };
+  }
+  /* Map layers (drivable lanes, sidewalks, lane borders, kerbs) are a script of their own
+     (enc/map_KEY.js, veiReport.receiveMap), shared by the encounters whose layers are the
+     same (those of one recording) and loaded once. */
+  var maps = {}, mapWaiting = {};
+  function receiveMap(key, text) {
+    unpack(text).then(function (m) {
+      maps[key] = m;
+      var w = mapWaiting[key] || []; delete mapWaiting[key];
+      w.forEach(function (f) { f(m); });
+    }, failedUnpack("map " + key));
+  }
+  function withMap(e, then) {
+    var attach = function (m) { e.roads = m.roads; e.road_layers = m.road_layers; then(e); };
+    if (!e.map) { then(e); return; }
+    if (maps[e.map]) { attach(maps[e.map]); return; }
+    var first = !mapWaiting[e.map];
+    (mapWaiting[e.map] = mapWaiting[e.map] || []).push(attach);
+    if (first) { addScript(DATA.encounters.files + "map_" + e.map + ".js", function () { delete mapWaiting[e.map]; }); }
+  }
   function receive(i, e) {
-    cache[i] = e; cached.push(i);
-    while (cached.length > CACHE) { delete cache[cached.shift()]; }
-    var then = waiting[i]; delete waiting[i];
-    if (then) { then(e); }
+    if (typeof e === "string") {
+      unpack(e).then(function (d) { receive(i, d); }, function (err) { delete waiting[i]; failedUnpack("encounter " + i)(err); });
+      return;
+    }
+    withMap(e, function (e) {
+      cache[i] = e; cached.push(i);
+      while (cached.length > CACHE) { delete cache[cached.shift()]; }
+      var then = waiting[i]; delete waiting[i];
+      if (then) { then(e); }
+    });
   }
   function load(i, then) {
     if (cache[i]) { then(cache[i]); return; }
     var first = !waiting[i];
     waiting[i] = then;
     if (!first) { return; }
-    var s = document.createElement("script");
-    s.src = ROWS[i].file;
-    s.onload = function () { s.remove(); };
-    s.onerror = function () {
-      s.remove(); delete waiting[i];
-      document.getElementById("encounter-status").textContent = "could not load " + ROWS[i].file + " (is the report_files folder beside the page?)";
-    };
-    document.head.appendChild(s);
+    addScript(ROWS[i].file, function () { delete waiting[i]; });
   }
+  window.veiReport.receiveMap = receiveMap;
   window.veiReport.receive = receive;
 
   /* ---------------- geometry ---------------- */
