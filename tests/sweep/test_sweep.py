@@ -264,9 +264,11 @@ def test_most_critical_order():
     assert list(most_critical(df, 3)["variant_id"]) == ["b", "d", "c"]
 
 
-def _grid_neighbours_disagree(df: pd.DataFrame, crossings: np.ndarray, x: str, y: str) -> None:
-    xs, ys = np.sort(df[x].unique()), np.sort(df[y].unique())
-    lab = df.pivot(index=y, columns=x, values="collision").loc[ys, xs].to_numpy()
+def _grid_neighbours_disagree(binned: dict, crossings: np.ndarray) -> None:
+    """Every crossing lies on a lattice edge between two cell centres of the binned map
+    whose collision shares fall on either side of 0.5."""
+    xs, ys = np.asarray(binned["x_centres"]), np.asarray(binned["y_centres"])
+    lab = np.asarray(binned["collision_share"], float) >= 0.5  # [Ky, Kx]
     for px, py in crossings:
         i = np.searchsorted(xs, px - 1e-9)
         j = np.searchsorted(ys, py - 1e-9)
@@ -333,15 +335,21 @@ def test_ten_thousand_variants_killed_and_resumed(demo_scenario, tmp_path):
     assert len(a) == 10_000 and a["variant_id"].is_unique
     pd.testing.assert_frame_equal(a, b)
 
-    # the risk map's boundary lies between colliding and non-colliding neighbours
+    # the risk map's boundary lies between colliding and non-colliding neighbouring cells
     from vei.sweep.riskmap import sweep_risk_map
 
     drawn = sweep_risk_map(a, spec, tmp_path / "riskmap.png")
     assert (
         drawn is not None and drawn["x"] == "time_shift_s" and drawn["y"] == "ego.cruise_speed_mps"
     )
-    assert len(drawn["crossings"]) > 50 and len(drawn["segments"]) > 50
-    _grid_neighbours_disagree(a, drawn["crossings"], "time_shift_s", "ego.cruise_speed_mps")
+    # binned (issue 35.0): at most MAX_BINS_PER_AXIS cells per axis (20 x 20 here); the
+    # boundary runs across the map, so it crosses at least one cell edge per column
+    from vei.sweep.riskmap import MAX_BINS_PER_AXIS
+
+    assert drawn["binned"]["collision_share"].shape == (MAX_BINS_PER_AXIS, MAX_BINS_PER_AXIS)
+    assert len(drawn["crossings"]) >= MAX_BINS_PER_AXIS
+    assert len(drawn["segments"]) >= MAX_BINS_PER_AXIS // 2
+    _grid_neighbours_disagree(drawn["binned"], drawn["crossings"])
 
 
 @pytest.mark.slow
