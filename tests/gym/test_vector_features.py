@@ -146,9 +146,6 @@ def test_refuses_what_it_does_not_model(demo_config):
         r"a sensor model \(case\.perception\)": dataclasses.replace(
             normal, perception=PerceptionConfig(enabled=True)
         ),
-        r"reacting cars \(traffic\.cars_react\)": dataclasses.replace(
-            normal, traffic=TrafficConfig(cars_react=True)
-        ),
         r"walking pedestrians \(traffic\.pedestrians\)": dataclasses.replace(
             normal, traffic=TrafficConfig(pedestrians=True)
         ),
@@ -156,7 +153,8 @@ def test_refuses_what_it_does_not_model(demo_config):
     for pattern, case in cases.items():
         with pytest.raises(ConfigError, match=pattern + ".*vectorization_mode='sync'"):
             VeiVectorEnv(2, dataclasses.replace(demo_config, case=case))
-    # extra social-force riders are modelled (tests/gym/test_vector_riders.py)
+    # extra social-force riders are modelled (tests/gym/test_vector_riders.py), reacting
+    # cars by the NumPy backend (tests/gym/test_vector_cars.py)
     assert VeiVectorEnv(2, dataclasses.replace(demo_config, sim=SimConfig(sfm_riders="all")))
 
 

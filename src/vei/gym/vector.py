@@ -14,8 +14,9 @@ returns its first observation with reward 0 and both flags False.
 
 The vector env models the primary rider (replayed or social-force, with obstacle braking
 and its yield / go decision), the extra social-force riders (``sim.sfm_riders``) and
-replays every other road user, observing them with the configuration's perception delay:
-a configuration with a sensor model, reacting cars, walking pedestrians or V2X runs in the single env (or
+replays every other road user, observing them with the configuration's perception delay;
+reacting cars (``traffic.cars_react``) in the backend 'numpy' only (:mod:`vei.gym.cars`):
+a configuration with a sensor model, walking pedestrians or V2X runs in the single env (or
 ``gymnasium.make_vec(..., vectorization_mode='sync')``); the vector env refuses it,
 naming the feature and that way out (:func:`unsupported_features`).
 """
@@ -32,6 +33,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from vei.errors import ConfigError, InputError
+from vei.gym.cars import CARS_NUMBA, car_state_arrays, reacting_cars
 from vei.gym.config import EnvConfig
 from vei.gym.env import action_limits, check_actions, injury_risk
 from vei.gym.features import feature_names, observation_bounds, vectorize
@@ -66,13 +68,12 @@ def unsupported_features(world: World) -> list[str]:
     actuator, a replayed or social-force primary rider with its ego repulsion, obstacle
     braking (sfm.obstacle_braking) and yield / go decision (decision.enabled), the extra
     social-force riders (sim.sfm_riders), replayed other road users, the perception delay
-    (cap.perception_delay_s); not the features listed here."""
+    (cap.perception_delay_s), reacting cars (traffic.cars_react; backend 'numpy' only,
+    vei.gym.cars); not the features listed here."""
     p = world.scenarios[0].params
     out = []
     if p.perception[0] is not None:
         out.append("a sensor model (case.perception)")
-    if bool(p.cars_react[0]):
-        out.append("reacting cars (traffic.cars_react)")
     if bool(p.peds_sfm[0]):
         out.append("walking pedestrians (traffic.pedestrians)")
     if p.v2x[0] is not None:
@@ -140,9 +141,13 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         from vei.sim import kernel as compiled
 
         backend = self.config.backend
+        # reacting cars: the engine's NumPy step only (the compiled step refuses them)
+        self._cars = reacting_cars(self.world)
+        if self._cars and backend == "numba":
+            raise ConfigError(CARS_NUMBA)
         self.backend = (
             "numba"
-            if backend == "numba" or (backend == "auto" and compiled.available())
+            if backend == "numba" or (backend == "auto" and compiled.available() and not self._cars)
             else "numpy"
         )
         self.num_envs = num_envs
@@ -186,6 +191,9 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             scratch = (np.zeros((nf, r)), np.zeros((len(EXTRA_BOOL_FIELDS), r), np.bool_))
             self._xr = (*xr.group(), self.XS, self.XB, *scratch, np.zeros((N_PREV, b)))
             self._xo = (self.XD, xr.xL, xr.xW, xr.XCAT, xr.n)
+        # the reacting cars' and contact latches' SimState fields per environment (padded
+        # columns past a scenario's own cars / others: never read); empty without them
+        self.CARS: dict[str, np.ndarray] = car_state_arrays(self.world, b) if self._cars else {}
         self._needs_reset = np.ones(b, dtype=bool)
         self._rngs: list[np.random.Generator] = []
         self.weights = np.array(
@@ -234,6 +242,12 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             self.XS[envs, f, :r] = getattr(st, name)
         for f, name in enumerate(EXTRA_BOOL_FIELDS):
             self.XB[envs, f, :r] = getattr(st, name)
+        self._write_cars(envs, st)
+
+    def _write_cars(self, envs: np.ndarray, st: Any) -> None:
+        for name, arr in self.CARS.items():
+            v = np.asarray(getattr(st, name))
+            arr[(envs, *(slice(0, d) for d in v.shape[1:]))] = v
 
     def state_of(self, envs: npt.ArrayLike) -> SimState:
         """The engine's SimState of environments ``envs`` (all at the same step and scenario)."""
@@ -260,8 +274,8 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         fields["extra_decision"] = fields["extra_decision"].astype(np.int8)
         for f, name in enumerate(EXTRA_BOOL_FIELDS):
             fields[name] = self.XB[envs, f, :r].copy()
-        # issue 24's state (its cars replay, no pedestrians walk: the env refuses them): as
-        # at k = 0; the contact latches and secondary summaries are not kept
+        # issue 24's state (no pedestrians walk: the env refuses them): as at k = 0, but
+        # with reacting cars their state and the contact latches (self.CARS), kept
         from vei.sim.contacts import initial_contact_state
         from vei.sim.pedestrians import initial_pedestrian_state
         from vei.sim.traffic import initial_traffic_state
@@ -269,6 +283,9 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         fields.update(initial_traffic_state(arrays, n))
         fields.update(initial_contact_state(n, no, arrays.traffic.n))
         fields.update(initial_pedestrian_state(arrays, n))
+        for name, arr in self.CARS.items():  # reacting cars: their own state, kept
+            shape = fields[name].shape
+            fields[name] = arr[(envs, *(slice(0, d) for d in shape[1:]))].copy()
         return SimState(**fields)
 
     def reset(
@@ -362,6 +379,7 @@ class VeiVectorEnv(gym.vector.VectorEnv):
                 self.XS[sel, f, :r] = getattr(new, name)
             for f, name in enumerate(EXTRA_BOOL_FIELDS):
                 self.XB[sel, f, :r] = getattr(new, name)
+            self._write_cars(sel, new)
             self.K[sel] = new.k
 
     def _perceive(self) -> None:
