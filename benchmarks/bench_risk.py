@@ -103,7 +103,9 @@ def demo_cli(work: Path) -> bool:
     return ok
 
 
-def _real_scenario(root: Path, name: str, work: Path) -> Path:
+def real_scenario(root: Path, name: str, work: Path) -> Path:
+    """A TrafficMonitoring recording imported at 1 Hz and reconstructed without a map, in
+    work/name/scenario (its folder returned)."""
     from vei.datasets.trafficmonitoring import import_scenario
     from vei.io.interaction import read_interaction
     from vei.io.scenario import write_scenario
@@ -186,7 +188,7 @@ def main(argv: list[str] | None = None) -> int:
         ok &= demo_cli(work)
         root = Path(os.environ.get("VEI_DATA_DIR", "../shared/data")) / "trafficmonitoring"
         if (root / "data" / "measurements").is_dir():
-            scen = [_real_scenario(root, n, work) for n in REAL]
+            scen = [real_scenario(root, n, work) for n in REAL]
             ok &= rare_vs_brute_force(scen[0], args.mc)
             searches(scen, args.search_budget)
         else:

@@ -35,6 +35,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmarks.bench_risk import real_scenario
+
 AGREE = ("stadtmitte_12_audi_geradeaus_03", "audi_10_marktkauf_linksabbiegen")
 NO_FAILURE = ("audi_08_stadtmitte_geradeaus", "klinikum_01_marktkauf_geradeaus")
 
@@ -76,18 +78,6 @@ def subset_coverage(reps: int = 200) -> bool:
         print(f"{p:7.0e} {c:9.3f} {r.mean():10.3f} {np.mean(cov):8.3f} {r.std() / r.mean():8.3f} "
               f"{np.mean(sims):10.0f} {np.mean(runs):5.1f} {time.perf_counter() - t0:6.0f}")  # fmt: skip
     return ok
-
-
-def _scenario(root: Path, name: str, work: Path) -> Path:
-    from vei.datasets.trafficmonitoring import import_scenario
-    from vei.io.interaction import read_interaction
-    from vei.io.scenario import write_scenario
-    from vei.recon.pipeline import reconstruct
-
-    d = work / name
-    import_scenario(root, name, d / "interaction", rate_hz=1.0)
-    write_scenario(reconstruct(read_interaction(d / "interaction")), d / "scenario")
-    return d / "scenario"
 
 
 def methods_vs_mc(scenario: Path, n_mc: int, budget: int) -> bool:
@@ -169,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
                 work = Path(tmp)
                 if args.only in (None, "agree"):
                     for name in AGREE:
-                        ok &= methods_vs_mc(_scenario(root, name, work), args.mc, args.budget)
+                        ok &= methods_vs_mc(real_scenario(root, name, work), args.mc, args.budget)
                 if args.only in (None, "no-failure"):
                     ok &= no_failure_cli(root, work)
     print("all targets met" if ok else "a target was missed")

@@ -53,3 +53,27 @@ def build_small_catalogue(dataset: str) -> Path:
     )
     assert result.complete, result.failed_encounters
     return out
+
+
+def score_rows(eid: str, collision, flagged, safety_index=0.5, **columns):
+    """Hand-built catalogue rows of one encounter for vei.catalogue.store.encounter_scores:
+    the first row the case study, the rest sweep variants; min_gap_m 0 where a row
+    collides, else 2 m; more columns by name (e.g. collision_recorded)."""
+    import pandas as pd
+
+    n = len(collision)
+    return pd.DataFrame(
+        {
+            "encounter_id": eid,
+            "recording": eid.split("__")[0],
+            "rider_id": "r",
+            "kind": ["casestudy"] + ["sweep"] * (n - 1),
+            "config": [f"c{i}" for i in range(n)],
+            "collision": collision,
+            "safety_index": safety_index,
+            "min_gap_m": [0.0 if c else 2.0 for c in collision],
+            "min_ttc_s": 1.0,
+            "seen_too_late": flagged,
+            **columns,
+        }
+    )

@@ -5,25 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from tests.catalogue.helpers import score_rows
 from vei.catalogue.store import encounter_scores
 
 
 def _rows(eid: str, collision, flagged, si) -> pd.DataFrame:
-    n = len(collision)
-    return pd.DataFrame(
-        {
-            "encounter_id": eid,
-            "recording": eid.split("__")[0],
-            "rider_id": "r",
-            "kind": ["casestudy"] + ["sweep"] * (n - 1),
-            "config": [f"c{i}" for i in range(n)],
-            "collision": collision,
-            "safety_index": si,
-            "min_gap_m": [0.0 if c else 2.0 for c in collision],
-            "min_ttc_s": 1.0,
-            "seen_too_late": flagged,
-        }
-    )
+    return score_rows(eid, collision, flagged, safety_index=si)
 
 
 def test_flagged_runs_are_counted_apart_and_never_rank() -> None:

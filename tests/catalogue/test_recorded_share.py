@@ -9,26 +9,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from tests.catalogue.helpers import score_rows
 from vei.catalogue.store import encounter_scores
 
 
 def _rows(eid: str, collision, recorded, flagged) -> pd.DataFrame:
-    n = len(collision)
-    return pd.DataFrame(
-        {
-            "encounter_id": eid,
-            "recording": eid.split("__")[0],
-            "rider_id": "r",
-            "kind": ["casestudy"] + ["sweep"] * (n - 1),
-            "config": [f"c{i}" for i in range(n)],
-            "collision": collision,
-            "collision_recorded": recorded,
-            "safety_index": 0.5,
-            "min_gap_m": [0.0 if c else 2.0 for c in collision],
-            "min_ttc_s": 1.0,
-            "seen_too_late": flagged,
-        }
-    )
+    return score_rows(eid, collision, flagged, collision_recorded=recorded)
 
 
 def _wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:

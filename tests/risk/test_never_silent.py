@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+from benchmarks.bench_risk_methods import half_space
 from scipy.special import ndtr, ndtri
 
 from vei.risk import estimators as est
@@ -135,24 +136,13 @@ def test_chain_gamma_by_hand():
     assert abs(chain_gamma(rng.random((2000, 10)) < 0.1, 0.1)) < 0.05
 
 
-def _half_space(p: float, dim: int):
-    beta = float(-ndtri(p))
-
-    def evaluate(u: np.ndarray, stage: str) -> pd.DataFrame:
-        m = beta - u.sum(axis=1) / math.sqrt(u.shape[1])
-        f = m < 0
-        return pd.DataFrame({"margin": np.where(f, -1.0, m), "failure": f})
-
-    return evaluate
-
-
 @pytest.mark.slow
 def test_subset_uses_the_budget_and_covers():
     # P = 1e-2 on a linear limit-state in 3 dimensions, 40 repetitions (the benchmark runs
     # 200 at 1e-2 and 1e-4): coverage within the binomial spread of 0.95
     hits, used = 0, []
     for seed in range(40):
-        e, runs, n = subset_estimate(_half_space(1e-2, 3), 3, level_size=500, budget=8_000,
+        e, runs, n = subset_estimate(half_space(1e-2, 3), 3, level_size=500, budget=8_000,
                                      target_rel_ci=0.1, seed=seed)  # fmt: skip
         hits += e.lo <= 1e-2 <= e.hi
         used.append(n)

@@ -245,20 +245,17 @@ def _recorded_shares(out: pd.DataFrame, rows: pd.DataFrame) -> None:
     (``recorded_collision_share_lo`` / ``_hi``), and ``collisions_on_recorded`` = the share
     of its collisions that happen on recorded behaviour (NaN without a collision); the
     rest happen on the synthetic run-in or run-out (vei.continuation)."""
-    from vei.risk.estimators import wilson_interval
+    from vei.sweep.riskmap import wilson_intervals
 
     coll = rows["collision"].fillna(False).astype(bool)
     on_rec = rows["collision_recorded"].fillna(False).astype(bool) & coll
     frame = pd.DataFrame({"e": rows["encounter_id"], "c": coll, "r": on_rec})
     g = frame.groupby("e", sort=True)
     n, k, n_coll = g.size(), g["r"].sum().astype(int), g["c"].sum().astype(int)
-    ci = [wilson_interval(int(k[e]), int(n[e])) for e in n.index]
-    out["recorded_collision_share"] = (k / n).astype(float).reindex(out.index)
-    out["recorded_collision_share_lo"] = pd.Series([c[0] for c in ci], index=n.index).reindex(
-        out.index
-    )
-    out["recorded_collision_share_hi"] = pd.Series([c[1] for c in ci], index=n.index).reindex(
-        out.index
-    )
+    share_runs = (k / n).astype(float)
+    lo, hi = wilson_intervals(share_runs.to_numpy(), n.to_numpy())
+    out["recorded_collision_share"] = share_runs.reindex(out.index)
+    out["recorded_collision_share_lo"] = pd.Series(lo, index=n.index).reindex(out.index)
+    out["recorded_collision_share_hi"] = pd.Series(hi, index=n.index).reindex(out.index)
     share = (k / n_coll.where(n_coll > 0)).astype(float)
     out["collisions_on_recorded"] = share.reindex(out.index)
