@@ -26,7 +26,11 @@ simulation steps per second on a GPU.
 issue 34 (``normal``: obstacle braking on; + the rider's decisions; + a perception delay
 of 0.3 s), best of 3 runs of 100 steps; then the extra social-force riders
 (``sim.sfm_riders``: 'primary' against 'all') on vei.sim.testing's four-rider crossing
-(3 extra e-scooters, no map) and on stadtmitte_12 (6 extra riders) when the data is found.
+(3 extra e-scooters, no map) and on stadtmitte_12 (6 extra riders) when the data is found;
+then reacting cars (``traffic.cars_react``) on vei.sim.testing's follower scene (a car 1 s
+behind the ego, random demands in [-8, 1] m/s^2 make it react), B = 10^3 and 10^4: the
+compiled backend without reaction, with it, and the NumPy backend with it (``--cars``:
+only these rows).
 
 Second table (``--learn`` prints only this one): examples/gym_cem.py, the cross-entropy
 method on a linear policy, 24 x 16 environments of the demo, 15 generations; the held-out
@@ -148,12 +152,36 @@ def features() -> None:
                 )
                 print(f"{scene:<14} {'vector sfm_riders=' + sel:<24} {10_000:>8} {rate:>14,.0f}",
                       flush=True)  # fmt: skip
+        cars(Path(tmp))
+
+
+def cars(tmp: Path) -> None:
+    """The vector env with reacting cars on the follower scene (``--features``)."""
+    import dataclasses
+
+    from vei.config import TrafficConfig, case_preset
+    from vei.io.scenario import write_scenario
+    from vei.sim.testing import follower_scenario
+
+    folder = write_scenario(follower_scenario(), tmp / "follower")
+    n = case_preset("normal")
+    for b in (1_000, 10_000):
+        for name, react, backend in (("cars replayed", False, "numba"),
+                                     ("cars react", True, "numba"),
+                                     ("cars react (numpy)", True, "numpy")):  # fmt: skip
+            case = dataclasses.replace(n, traffic=TrafficConfig(cars_react=react))
+            steps = STEPS // 2 if backend == "numba" else NUMPY_STEPS * 3
+            rate = max(_vector_rate(folder, b, steps, backend, case, road=False, low=-8.0,
+                                    high=1.0) for _ in range(3))  # fmt: skip
+            print(f"{'follower':<14} {'vector ' + name:<24} {b:>8} {rate:>14,.0f}", flush=True)
 
 
 def _vector_rate(
     folder: Path, b: int, steps: int, backend: str, case: object = "normal",
-    sim: object = None, road: bool = True,
+    sim: object = None, road: bool = True, low: float | None = None, high: float | None = None,
 ) -> float:  # fmt: skip
+    """Env-steps/s of the vector env on ``folder`` (actions uniform in the action space, or
+    in [low, high] m/s^2 where given)."""
     from vei.config import SimConfig
     from vei.gym import EnvConfig
     from vei.gym.vector import VeiVectorEnv
@@ -163,7 +191,8 @@ def _vector_rate(
     env = VeiVectorEnv(b, cfg)
     rng = np.random.default_rng(0)
     env.reset(seed=0)
-    lo, hi = env.action_low, env.action_high
+    lo = env.action_low if low is None else low
+    hi = env.action_high if high is None else high
     env.step(rng.uniform(lo, hi, (b, 1)).astype(np.float32))  # warm-up (compiles once)
     t0 = time.perf_counter()
     for _ in range(steps):
@@ -257,7 +286,13 @@ def learn() -> bool:
 
 
 def main() -> None:
-    """Both tables (``--learn``: the second only)."""
+    """Both tables (``--learn``: the second only; ``--cars``: the reacting cars' rows of
+    ``--features`` only)."""
+    if "--cars" in sys.argv:
+        print(f"machine: {machine()}")
+        with tempfile.TemporaryDirectory() as tmp:
+            cars(Path(tmp))
+        return
     if "--features" in sys.argv:
         features()
         return

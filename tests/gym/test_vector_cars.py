@@ -1,46 +1,38 @@
-"""The vector env's reacting cars (``traffic.cars_react``, backend 'numpy'): the engine's
-step with each environment's own car state == single envs, through autoresets, on a car
-recorded 1 s behind the ego (it reacts when the agent brakes, and stops short); the
-compiled backend refuses them by name."""
+"""The vector env's reacting cars (``traffic.cars_react``): backend 'numpy' (the engine's
+step with each environment's own car state) == single envs, and the compiled backend
+(vei.gym.cars_kernel) == backend 'numpy' in every state field, through autoresets, on a
+car recorded 1 s behind the ego (it reacts when the agent brakes, and stops short)."""
 
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 import pytest
 
 from vei.config import TrafficConfig, case_preset
-from vei.errors import ConfigError
 from vei.gym import EnvConfig
 from vei.gym.env import VeiEnv
 from vei.gym.vector import VeiVectorEnv
 from vei.models import traffic_core as core
-from vei.sim.testing import TrackSpec, make_scenario
-from vei.types import EGO_ID
 
 V = 10.0  # both cars' recorded speed [m/s]
 
 
 @pytest.fixture(scope="module")
 def follower_folder(tmp_path_factory):
-    """tests/sim/test_traffic.py's scene: the ego at 10 m/s along +x, a car 1 s (10 m)
-    behind it bumper to bumper at the same speed, an e-scooter standing far away."""
+    """vei.sim.testing.follower_scenario (tests/sim/test_traffic.py's scene): the ego at
+    10 m/s along +x, a car 1 s (10 m) behind it bumper to bumper at the same speed, an
+    e-scooter standing far away."""
     from vei.io.scenario import write_scenario
+    from vei.sim.testing import follower_scenario
 
-    t = np.arange(0, 301) * 0.05
-    z = np.zeros_like(t)
-    ego = TrackSpec("ego", t, 20.0 + V * t, z, z, np.full_like(t, V))
-    fol = TrackSpec("vehicle", t, 20.0 + V * t - 4.7 - V, z, z, np.full_like(t, V))
-    rider = TrackSpec("escooter", t, np.full_like(t, 400.0), np.full_like(t, 40.0),
-                      np.full_like(t, math.pi / 2), z)  # fmt: skip
-    scn = make_scenario({EGO_ID: ego, "car1": fol, "r1": rider}, primary_threat="r1")
-    return write_scenario(scn, tmp_path_factory.mktemp("cars") / "scenario")
+    return write_scenario(follower_scenario(V), tmp_path_factory.mktemp("cars") / "scenario")
 
 
-def _config(folder, react: bool = True, backend: str = "numpy") -> EnvConfig:
-    case = dataclasses.replace(case_preset("normal"), traffic=TrafficConfig(cars_react=react))
+def _config(folder, react: bool = True, backend: str = "numpy", **traffic) -> EnvConfig:
+    tc = TrafficConfig(cars_react=react, **traffic)
+    case = dataclasses.replace(case_preset("normal"), traffic=tc)
     return EnvConfig(
         source="folder", path=folder, case=case, road_features=False, max_episode_steps=100,
         time_shift_spread_s=1.0, backend=backend,
@@ -107,13 +99,14 @@ def test_worlds_with_and_without_reacting_cars(follower_folder, tmp_path):
     assert reacted
 
 
-def test_reacting_cars_move_the_contacts(follower_folder):
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_reacting_cars_move_the_contacts(follower_folder, backend):
     """Full braking from the start: the replayed follower (cars_react off) runs into the
     ego, the reacting one notices, brakes (IDM) and never touches it: the contacts read
     each environment's own car poses."""
     hits = []
     for react in (False, True):
-        env = VeiVectorEnv(2, _config(follower_folder, react))
+        env = VeiVectorEnv(2, _config(follower_folder, react, backend))
         env.reset(seed=1)
         hit = False
         for _ in range(60):
@@ -123,8 +116,78 @@ def test_reacting_cars_move_the_contacts(follower_folder):
     assert hits == [True, False]
 
 
-def test_compiled_backend_refuses_reacting_cars(follower_folder):
-    with pytest.raises(ConfigError, match=r"reacting cars \(traffic\.cars_react\).*'numpy'"):
-        VeiVectorEnv(2, _config(follower_folder, backend="numba"))
-    assert VeiVectorEnv(2, _config(follower_folder, backend="auto")).backend == "numpy"
+def _compiled_equals_numpy(cfg: EnvConfig, b: int, steps: int, seed: int) -> dict[str, bool]:
+    """backend 'numba' == backend 'numpy' (observation, reward, flags, the float and bool
+    state, the ego's contact latches and every car / contact field), step by step through
+    autoresets, under random demands in [-8, 1] m/s^2. Returns what happened on the way."""
+    envs = [VeiVectorEnv(b, dataclasses.replace(cfg, backend=x)) for x in ("numba", "numpy")]
+    assert [e.backend for e in envs] == ["numba", "numpy"]
+    outs = [e.reset(seed=seed)[0] for e in envs]
+    assert np.array_equal(*outs)
+    rng = np.random.default_rng(seed)
+    seen = dict.fromkeys(
+        ("reacted", "driven", "contact", "terminated", "stopped", "rear_end"), False
+    )
+    for _ in range(steps):
+        a = rng.uniform(-8.0, 1.0, size=(b, 1)).astype(np.float32)
+        (oc, rc, tc, uc, _), (op, rp, tp, up, _) = (e.step(a) for e in envs)
+        nb, npy = envs
+        np.testing.assert_allclose(oc, op, rtol=0, atol=1e-5)
+        np.testing.assert_allclose(rc, rp, rtol=0, atol=1e-9)
+        assert np.array_equal(tc, tp) and np.array_equal(uc, up)
+        np.testing.assert_allclose(nb.FS, npy.FS, rtol=0, atol=1e-9)
+        assert np.array_equal(nb.BS, npy.BS) and np.array_equal(nb.HIT, npy.HIT)
+        assert np.array_equal(nb.K, npy.K)
+        for name, arr in npy.CARS.items():
+            np.testing.assert_allclose(nb.CARS[name], arr, rtol=0, atol=1e-9, err_msg=name)
+        mode = nb.CARS["car_mode"]
+        seen["reacted"] |= bool((mode >= core.REACTING).any())
+        seen["driven"] |= bool((mode >= core.IDM).any())
+        seen["contact"] |= bool(nb.HIT.any())
+        seen["terminated"] |= bool(tc.any())
+        seen["stopped"] |= bool((mode == core.STOPPED).any())
+        seen["rear_end"] |= bool(nb.CARS["rear_end"].any())
+    return seen
+
+
+def test_compiled_cars_equal_numpy(follower_folder, tmp_path):
+    """The compiled car step == the engine's NumPy step in every field, in a world of the
+    follower scene and a crossing without cars: the follower reacts and is driven by IDM;
+    a slow, weakly braking follower (1.5 s, 3 m/s^2) runs into the braking agent (a
+    rear-end contact ends the episode, the car stops)."""
+    import shutil
+
+    from vei.io.scenario import write_scenario
+    from vei.sim.testing import crossing_scenario
+
+    seen = _compiled_equals_numpy(_config(follower_folder), 8, 150, seed=11)
+    assert seen["reacted"] and seen["driven"]
+    shutil.copytree(follower_folder, tmp_path / "a_follower")
+    write_scenario(crossing_scenario(), tmp_path / "b_crossing")
+    weak = _config(tmp_path, reaction_time_s=1.5, max_decel_mps2=3.0)
+    seen = _compiled_equals_numpy(weak, 8, 150, seed=5)
+    assert all(seen.values()), seen
+
+
+@pytest.mark.slow
+def test_compiled_cars_with_extra_riders_equal_numpy(tmp_path):
+    """Reacting cars beside extra social-force riders (sim.sfm_riders='all'): the four-rider
+    crossing with a car 1 s behind the ego; the compiled backend == the NumPy backend in
+    every field (the contacts' summaries see the riders' contacts in the engine's order)."""
+    from vei.config import SimConfig
+    from vei.io.scenario import write_scenario
+    from vei.sim.testing import TrackSpec, ego_straight, four_rider_scenario
+
+    ego = ego_straight()
+    car = TrackSpec("vehicle", ego.t_s, ego.x_m - 4.7 - 5.6, ego.y_m, ego.yaw_rad, ego.speed_mps)
+    folder = write_scenario(four_rider_scenario([("car1", car)]), tmp_path / "four_car")
+    cfg = dataclasses.replace(_config(folder, reaction_time_s=1.5, max_decel_mps2=3.0),
+                              sim=SimConfig(sfm_riders="all"), max_episode_steps=200)  # fmt: skip
+    seen = _compiled_equals_numpy(cfg, 8, 200, seed=2)
+    assert seen["driven"] and seen["contact"] and seen["terminated"], seen
+
+
+def test_backend_choice_with_reacting_cars(follower_folder):
+    """'auto' picks the compiled backend where cars react; without reaction no car state."""
+    assert VeiVectorEnv(2, _config(follower_folder, backend="auto")).backend == "numba"
     assert VeiVectorEnv(2, _config(follower_folder, react=False)).CARS == {}

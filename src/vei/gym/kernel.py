@@ -100,6 +100,10 @@ N_FS = 15
 # Bool / small-integer state rows (B_DEC: the rider's decision, 0 FREE, 1 GO, 2 YIELD).
 B_ACT, B_STARTED, B_DONE, B_COLL, B_DEC = 0, 1, 2, 3, 4
 N_BS = 5
+#: Rows of PREV [N_PREV, B] (step_envs writes them, the post-passes read them): the ego's
+#: x, y, yaw [m, rad], speed [m/s], arc length [m], the primary rider's x, y [m], active
+#: (0 / 1), speed [m/s] and yaw [rad], all at step k (before the step).
+N_PREV = 10
 # Reward terms (columns of TERMS).
 T_CONTACTS, T_IMPACT, T_PROGRESS, T_COMFORT = 0, 1, 2, 3
 
@@ -122,7 +126,7 @@ def step_envs(  # type: ignore[no-untyped-def]
     RT, rt_t0, rt_dt, rt_tend, rt_n, rt_sfm0,
     RP, rp_s0, rp_ds, rp_n, rp_len, rp_ex, rp_ey,
     OX, OY, OYAW, OACT, OL, OW, n_o,
-    CF, cf_n, xr,
+    CF, cf_n, xr, PREV,
     TERMS,
 ):  # fmt: skip
     """Advance the environments with ``run[b]`` by one step with demand A[b] [m/s^2].
@@ -134,16 +138,18 @@ def step_envs(  # type: ignore[no-untyped-def]
     ``xr``: None (no extra riders: not compiled), or the extra social-force riders
     (vei.gym.packed.ExtraRiders.group() then XS [B, 9, R] floats, XB [B, 4, R] bools:
     vei.sim.riders' EXTRA_FLOAT_FIELDS / EXTRA_BOOL_FIELDS, their scratch NXS [9, R],
-    NXB [4, R], and PREV [8, B]): they repel the primary rider here (their step-k state),
-    PREV keeps the ego's and the rider's step-k state, and
+    NXB [4, R]): they repel the primary rider here (their step-k state), and
     :func:`vei.gym.riders_kernel.step_riders` steps them next (the engine kernel's order).
+    PREV [N_PREV, B] (:data:`N_PREV`) receives the ego's and the rider's step-k state, which
+    the post-passes (the extra riders, the reacting cars of :mod:`vei.gym.cars_kernel`) read.
+    OACT: the others' presence for the ego's contact test; where cars react the caller
+    blanks their columns (their poses are the post-pass's, which tests them).
     """
     B = A.shape[0]
     if xr is not None:
         (
             x_n, XTAB, xt0, xdt, xtend, xnr, xsfm0, XPATH, xps0, xpds, xpn, xplen, xpex, xpey,
             xL, xW, xrad, xv0, xvmax, prad, rep_on, PED, PRAD, n_ped, XDN, XDC, XS, XB, NXS, NXB,
-            PREV,
         ) = xr  # fmt: skip
     for b in range(B):
         if not run[b]:
@@ -290,9 +296,10 @@ def step_envs(  # type: ignore[no-untyped-def]
         if collided:
             r_acc = 0.0
         contacts = 0.0
-        if xr is not None:  # the step-k state the extra riders see (vei.gym.riders_kernel)
-            PREV[0, b], PREV[1, b], PREV[2, b], PREV[3, b], PREV[4, b] = ex, ey, eyaw, v, s
-            PREV[5, b], PREV[6, b], PREV[7, b] = rx, ry, 1.0 if r_act else 0.0
+        # the step-k state the post-passes see (vei.gym.riders_kernel, vei.gym.cars_kernel)
+        PREV[0, b], PREV[1, b], PREV[2, b], PREV[3, b], PREV[4, b] = ex, ey, eyaw, v, s
+        PREV[5, b], PREV[6, b], PREV[7, b] = rx, ry, 1.0 if r_act else 0.0
+        PREV[8, b], PREV[9, b] = rsp, ryaw
         # ---- collision
         impact = np.nan
         if n_act and not collided:
@@ -519,4 +526,4 @@ def observe_envs(  # type: ignore[no-untyped-def]
             OUT[b, OUT.shape[1] - 1] = on
 
 
-__all__ = ["N_BS", "N_FS", "observe_envs", "step_envs"]
+__all__ = ["N_BS", "N_FS", "N_PREV", "observe_envs", "step_envs"]

@@ -24,10 +24,6 @@ import numba
 from vei.sim.kernel.layout import P_ARR, P_BRR, P_SFM, P_USERF
 from vei.sim.kernel.riders import extra_riders_step
 
-#: Rows of PREV [8, B]: the ego's x, y, yaw [m, rad], speed [m/s], arc length [m] and the
-#: primary rider's x, y [m], active (0 / 1) at step k.
-N_PREV = 8
-
 
 @numba.njit(cache=True, nogil=True, _nrt=False)
 def step_riders(run, dt, K, SC, PREV, EGO_N, DIM, P, OX, OY, OYAW, OACT, xr, TERMS):  # type: ignore[no-untyped-def]
@@ -35,16 +31,15 @@ def step_riders(run, dt, K, SC, PREV, EGO_N, DIM, P, OX, OY, OYAW, OACT, xr, TER
     K[b] (step_envs has advanced K), in place (xr's XS [B, 9, R], XB [B, 4, R]), adding
     their new ego contacts to TERMS[b, 0].
 
-    Args: dt [s]; SC [B] scenario indices; PREV [8, B] (N_PREV); EGO_N the float state
+    Args: dt [s]; SC [B] scenario indices; PREV [N_PREV, B] (vei.gym.kernel.N_PREV); EGO_N the float state
     FS [15, B] of vei.gym.kernel at k + 1 (rows 1-3: the ego's x, y, yaw); DIM [S, 4]
     (ego length, width, ...) [m]; P [N_PARAMS, S]; the others' OX, OY, OYAW [S, T, O],
     OACT [S, T, O] (the pedestrians' repulsion); xr: vei.gym.packed.ExtraRiders.group()
-    then XS, XB, their scratch NXS [9, R], NXB [4, R] and PREV.
+    then XS, XB and their scratch NXS [9, R], NXB [4, R].
     """
     (
         x_n, XTAB, xt0, xdt, xtend, xnr, xsfm0, XPATH, xps0, xpds, xpn, xplen, xpex, xpey,
         xL, xW, xrad, xv0, xvmax, prad, rep_on, PED, PRAD, n_ped, XDN, XDC, XS, XB, NXS, NXB,
-        _,
     ) = xr  # fmt: skip
     B = run.shape[0]
     for sc in range(x_n.shape[0]):
@@ -83,4 +78,4 @@ def step_riders(run, dt, K, SC, PREV, EGO_N, DIM, P, OX, OY, OYAW, OACT, xr, TER
             TERMS[b, 0] += h1 - h0
 
 
-__all__ = ["N_PREV", "step_riders"]
+__all__ = ["step_riders"]

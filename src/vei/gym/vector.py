@@ -14,9 +14,8 @@ returns its first observation with reward 0 and both flags False.
 
 The vector env models the primary rider (replayed or social-force, with obstacle braking
 and its yield / go decision), the extra social-force riders (``sim.sfm_riders``) and
-replays every other road user, observing them with the configuration's perception delay;
-reacting cars (``traffic.cars_react``) in the backend 'numpy' only (:mod:`vei.gym.cars`):
-a configuration with a sensor model, walking pedestrians or V2X runs in the single env (or
+replays every other road user or drives the reacting cars (``traffic.cars_react``,
+:mod:`vei.gym.cars`), observing them with the configuration's perception delay: a configuration with a sensor model, walking pedestrians or V2X runs in the single env (or
 ``gymnasium.make_vec(..., vectorization_mode='sync')``); the vector env refuses it,
 naming the feature and that way out (:func:`unsupported_features`).
 """
@@ -33,13 +32,12 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from vei.errors import ConfigError, InputError
-from vei.gym.cars import CARS_NUMBA, car_state_arrays, reacting_cars
+from vei.gym.cars import CAR_STATE_ORDER, CarTables, car_state_arrays, reacting_cars
 from vei.gym.config import EnvConfig
 from vei.gym.env import action_limits, check_actions, injury_risk
 from vei.gym.features import feature_names, observation_bounds, vectorize
-from vei.gym.kernel import F_RVX, F_RVY, F_RX, F_RY, F_RYAW, N_BS, N_FS
+from vei.gym.kernel import F_RVX, F_RVY, F_RX, F_RY, F_RYAW, N_BS, N_FS, N_PREV
 from vei.gym.packed import Packed
-from vei.gym.riders_kernel import N_PREV
 from vei.gym.world import AgentSeat, World, load_world
 from vei.sim.riders import EXTRA_BOOL_FIELDS, EXTRA_FLOAT_FIELDS
 from vei.sim.state import SimState
@@ -68,8 +66,8 @@ def unsupported_features(world: World) -> list[str]:
     actuator, a replayed or social-force primary rider with its ego repulsion, obstacle
     braking (sfm.obstacle_braking) and yield / go decision (decision.enabled), the extra
     social-force riders (sim.sfm_riders), replayed other road users, the perception delay
-    (cap.perception_delay_s), reacting cars (traffic.cars_react; backend 'numpy' only,
-    vei.gym.cars); not the features listed here."""
+    (cap.perception_delay_s), reacting cars (traffic.cars_react, vei.gym.cars); not the
+    features listed here."""
     p = world.scenarios[0].params
     out = []
     if p.perception[0] is not None:
@@ -94,18 +92,19 @@ def kernel_notice() -> Any:
     there is no machine code for the current sources (tens of seconds to minutes)."""
     import contextlib
 
+    from vei.gym import cars_kernel as ck
     from vei.gym import kernel as gk
     from vei.gym import riders_kernel as rk
     from vei.io.progress import activity
     from vei.sim.kernel.cache import cache_dir, drop_stale, sources_digest
 
     fns = (gk.step_envs, gk.observe_envs)
-    if all(f.signatures for f in fns) and rk.step_riders.signatures:
+    if all(f.signatures for f in fns) and rk.step_riders.signatures and ck.step_cars.signatures:
         return contextlib.nullcontext()
     folder = cache_dir(gk.step_envs)
     stamp = None if folder is None else folder / "loop.sources.sha256"
     fresh = stamp is not None and stamp.is_file() and stamp.read_text().strip() == sources_digest()
-    drop_stale(*fns, gk.sat, rk.step_riders)  # one folder: vei/gym/__pycache__
+    drop_stale(*fns, gk.sat, rk.step_riders, ck.step_cars)  # one folder: vei/gym/__pycache__
     if fresh and folder is not None:
         index = [folder / f"kernel.{f.__name__}-{f.py_func.__code__.co_firstlineno}.py"
                  f"{sys.version_info[0]}{sys.version_info[1]}.nbi" for f in fns]  # fmt: skip
@@ -141,13 +140,10 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         from vei.sim import kernel as compiled
 
         backend = self.config.backend
-        # reacting cars: the engine's NumPy step only (the compiled step refuses them)
         self._cars = reacting_cars(self.world)
-        if self._cars and backend == "numba":
-            raise ConfigError(CARS_NUMBA)
         self.backend = (
             "numba"
-            if backend == "numba" or (backend == "auto" and compiled.available() and not self._cars)
+            if backend == "numba" or (backend == "auto" and compiled.available())
             else "numpy"
         )
         self.num_envs = num_envs
@@ -189,11 +185,15 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         if xr is not None:
             nf = len(EXTRA_FLOAT_FIELDS)
             scratch = (np.zeros((nf, r)), np.zeros((len(EXTRA_BOOL_FIELDS), r), np.bool_))
-            self._xr = (*xr.group(), self.XS, self.XB, *scratch, np.zeros((N_PREV, b)))
+            self._xr = (*xr.group(), self.XS, self.XB, *scratch)
             self._xo = (self.XD, xr.xL, xr.xW, xr.XCAT, xr.n)
         # the reacting cars' and contact latches' SimState fields per environment (padded
         # columns past a scenario's own cars / others: never read); empty without them
         self.CARS: dict[str, np.ndarray] = car_state_arrays(self.world, b) if self._cars else {}
+        self.PREV = np.zeros((N_PREV, b))  # the step-k state the post-passes read
+        self._oact = self.pk.OACT  # the others' presence for step_envs' ego contact test
+        if self._cars and self.backend == "numba":
+            self._car_tables(b)
         self._needs_reset = np.ones(b, dtype=bool)
         self._rngs: list[np.random.Generator] = []
         self.weights = np.array(
@@ -203,6 +203,25 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             with kernel_notice():
                 self._step_numba(np.zeros(b, dtype=bool), np.zeros(b))  # steps no env
                 self._observe()
+
+    def _car_tables(self, b: int) -> None:
+        """The compiled car step's tables, state and scratch (vei.gym.cars_kernel)."""
+        pk = self.pk
+        ct = CarTables(self.world, pk.OX.shape[2], pk.OX.shape[1])
+        self._ct = ct.group()
+        self._cs = tuple(self.CARS[name] for name in CAR_STATE_ORDER)
+        c = ct.tidx.shape[1]
+        self._cscr = (np.zeros((6, c)), np.zeros(c, np.int64), np.zeros(6))
+        self._oact = pk.OACT.copy()  # the cars' columns: tested by step_cars at their poses
+        for s, n in enumerate(ct.n):
+            self._oact[s][:, ct.tidx[s, :n]] = False
+        self.HIT0 = np.zeros_like(self.HIT)
+        self._xk: tuple[Any, ...] | None = None
+        if self._xr is not None:
+            r = self.XS.shape[2]
+            self.XV = np.zeros((b, 2, r))
+            self.XH0 = np.zeros((b, r), np.bool_)
+            self._xk = (self.XS, self.XB, self.XV, self.XH0)
 
     # ------------------------------------------------------------------ episodes
     def _draw(self, envs: np.ndarray) -> None:
@@ -320,19 +339,31 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         from vei.gym.kernel import step_envs
 
         pk = self.pk
+        cars = self._cars
+        if cars:  # the state of step k the cars' contacts read (vei.gym.cars_kernel)
+            self.HIT0[:] = self.HIT
+            if self._xk is not None:
+                self.XV[:, 0], self.XV[:, 1] = self.XS[:, 5], self.XS[:, 2]
+                self.XH0[:] = self.XB[:, 3]
         step_envs(
             run, a, pk.dt, self.FS, self.BS, self.HIT, self.K, self.SC, self.SHIFT,
             pk.P, pk.ALPHA, pk.DIM, pk.EP, pk.ep_s0, pk.ep_ds, pk.ep_n,
             pk.RT, pk.rt_t0, pk.rt_dt, pk.rt_tend, pk.rt_n, pk.rt_sfm0,
             pk.RP, pk.rp_s0, pk.rp_ds, pk.rp_n, pk.rp_len, pk.rp_ex, pk.rp_ey,
-            pk.OX, pk.OY, pk.OYAW, pk.OACT, pk.OL, pk.OW, pk.n_o, pk.CF, pk.cf_n, self._xr,
-            self.TERMS,
+            pk.OX, pk.OY, pk.OYAW, self._oact, pk.OL, pk.OW, pk.n_o, pk.CF, pk.cf_n, self._xr,
+            self.PREV, self.TERMS,
         )  # fmt: skip
         if self._xr is not None:  # the extra riders (vei.gym.riders_kernel)
             from vei.gym.riders_kernel import step_riders
 
-            step_riders(run, pk.dt, self.K, self.SC, self._xr[-1], self.FS, pk.DIM, pk.P,
+            step_riders(run, pk.dt, self.K, self.SC, self.PREV, self.FS, pk.DIM, pk.P,
                         pk.OX, pk.OY, pk.OYAW, pk.OACT, self._xr, self.TERMS)  # fmt: skip
+        if cars:  # the reacting cars (vei.gym.cars_kernel)
+            from vei.gym.cars_kernel import step_cars
+
+            step_cars(run, pk.dt, self.K, self.SC, self.PREV, self.FS, self.BS, self.HIT0,
+                      self.HIT, pk.DIM, pk.P, pk.OX, pk.OY, pk.OYAW, pk.OSP, pk.OACT, pk.OL,
+                      pk.OW, pk.n_o, self._ct, self._cs, self._xk, self._cscr, self.TERMS)  # fmt: skip
 
     def _groups(self, envs: np.ndarray) -> list[np.ndarray]:
         key = self.SC[envs] * (1 << 32) + self.K[envs]

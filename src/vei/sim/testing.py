@@ -222,11 +222,12 @@ def standing_rider_scenario(
     )
 
 
-def four_rider_scenario() -> Scenario:
+def four_rider_scenario(more: Sequence[tuple[str, TrackSpec]] = ()) -> Scenario:
     """:func:`crossing_scenario` with three more e-scooters (several-rider benchmarks and
     the kernel's regression digests): e2 crosses the ego's lane at x = 45 m from t = 1 s at
     3 m/s, e3 at x = 75 m from t = 4 s at 4 m/s (both from y = -15 m over 30 m), and e4
-    rides along y = 8 m towards -x at 1.8 m/s from x = 75 m at t = 2 s."""
+    rides along y = 8 m towards -x at 1.8 m/s from x = 75 m at t = 2 s; ``more``: further
+    road users (id, track)."""
 
     def crossing(x_m: float, t0_s: float, speed_mps: float) -> TrackSpec:
         t = np.arange(round(t0_s * 20), round((t0_s + 30.0 / speed_mps) * 20) + 1) / 20.0
@@ -238,4 +239,19 @@ def four_rider_scenario() -> Scenario:
     along = TrackSpec("escooter", t, 75.0 - 1.8 * (t - 2.0), np.full_like(t, 8.0),
                       np.full_like(t, np.pi), np.full_like(t, 1.8))  # fmt: skip
     others = [("e2", crossing(45.0, 1.0, 3.0)), ("e3", crossing(75.0, 4.0, 4.0)), ("e4", along)]
-    return crossing_scenario(others=others)
+    return crossing_scenario(others=[*others, *more])
+
+
+def follower_scenario(speed_mps: float = 10.0, headway_s: float = 1.0) -> Scenario:
+    """The ego at ``speed_mps`` along +x for 15 s (20 Hz), a car (4.7 m) ``headway_s``
+    behind it bumper to bumper at the same speed (a reacting car where traffic.cars_react
+    is on: it notices a braking ego), and an e-scooter standing far away (400, 40) m."""
+    t = np.arange(0, 301) * 0.05
+    z = np.zeros_like(t)
+    v = np.full_like(t, speed_mps)
+    x = 20.0 + speed_mps * t
+    ego = TrackSpec("ego", t, x, z, z, v)
+    fol = TrackSpec("vehicle", t, x - 4.7 - speed_mps * headway_s, z, z, v)
+    rider = TrackSpec("escooter", t, np.full_like(t, 400.0), np.full_like(t, 40.0),
+                      np.full_like(t, np.pi / 2), z)  # fmt: skip
+    return make_scenario({EGO_ID: ego, "car1": fol, "r1": rider}, primary_threat="r1")
