@@ -162,11 +162,34 @@ def test_compiled_cars_equal_numpy(follower_folder, tmp_path):
 
     seen = _compiled_equals_numpy(_config(follower_folder), 8, 150, seed=11)
     assert seen["reacted"] and seen["driven"]
+    delayed = _config(follower_folder)  # the cars as perceived 0.3 s ago
+    cap = dataclasses.replace(delayed.case.cap, perception_delay_s=0.3)
+    delayed = dataclasses.replace(delayed, case=dataclasses.replace(delayed.case, cap=cap))
+    seen = _compiled_equals_numpy(delayed, 8, 120, seed=4)
+    assert seen["reacted"] and seen["driven"]
     shutil.copytree(follower_folder, tmp_path / "a_follower")
     write_scenario(crossing_scenario(), tmp_path / "b_crossing")
     weak = _config(tmp_path, reaction_time_s=1.5, max_decel_mps2=3.0)
     seen = _compiled_equals_numpy(weak, 8, 150, seed=5)
     assert all(seen.values()), seen
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_the_agent_sees_the_reacting_car_where_it_is(follower_folder, backend):
+    """Full braking for 3 s: the agent's observation shows the reacting follower where the
+    engine stopped it, behind the ego (object slot 1, x relative < -L_ego), while its
+    recording has driven on past the ego (> 0): not the recorded pose."""
+    env = VeiVectorEnv(2, _config(follower_folder, backend=backend))
+    env.reset(seed=1)
+    for _ in range(60):
+        obs, *_ = env.step(np.full((2, 1), -8.0, np.float32))
+    base = 6 + 9  # slot 1: valid, x, y (the ego's frame) ...
+    assert (obs[:, base] == 1.0).all()
+    assert (obs[:, base + 1] < -4.7).all(), obs[:, base + 1]
+    k = int(env.K[0])
+    a = env.world.scenarios[0].arrays
+    assert a.other_x_m[k, 0] > env.FS[1, 0]  # the recording: ahead of the stopped ego
+    assert (env.CARS["car_mode"] >= core.IDM).all()
 
 
 @pytest.mark.slow

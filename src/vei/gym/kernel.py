@@ -350,7 +350,7 @@ def _wrap(a):  # type: ignore[no-untyped-def]
 
 @numba.njit(cache=True, inline="always")
 def _slot(  # type: ignore[no-untyped-def]
-    OUT, b, base, j, k, sc, collided, ego, dims, halfw, rng, cap, RD, cat_r, geo, oth, xo, nx,
+    OUT, b, base, j, k, sc, collided, ego, dims, halfw, rng, cap, RD, cat_r, geo, oth, xo, nx, co,
 ):  # fmt: skip
     """Write the 9 entries of one road-user slot (object j: 0 the rider, j > 0 replayed
     other j - 1, -1 empty) of environment b at OUT[b, base:base + 9]. Argument groups:
@@ -359,7 +359,9 @@ def _slot(  # type: ignore[no-untyped-def]
     in place: an array bound to a name costs an atomic reference count per call. The
     rider as perceived is RD[:, b] (x y yaw vx vy active), the others at step k (both
     delayed by the perception delay); with extra riders (xo not None, nx of them here)
-    objects 1..nx are they, as perceived in xo[0][b] [6, R], and the others follow."""
+    objects 1..nx are they, as perceived in xo[0][b] [6, R], and the others follow; with
+    reacting cars (co not None: each other's car index [S, O] or -1, the cars as perceived
+    CP [B, 5, C]: x y yaw vx vy) a car's pose and velocity are its environment's."""
     ex, ey, eyaw, c, sn, evx, evy, s_e = ego
     Le, Lr, Wr = dims
     valid = False
@@ -383,6 +385,11 @@ def _slot(  # type: ignore[no-untyped-def]
         sp = oth[3][sc, k, jj]
         ovx, ovy = sp * math.cos(oyaw), sp * math.sin(oyaw)
         ol, ow, ocat = oth[5][sc, jj], oth[6][sc, jj], oth[7][sc, jj]
+        if co is not None:
+            cj = co[0][sc, jj]
+            if cj >= 0:
+                ox, oy, oyaw = co[1][b, 0, cj], co[1][b, 1, cj], co[1][b, 2, cj]
+                ovx, ovy = co[1][b, 3, cj], co[1][b, 4, cj]
     if not valid:
         for f in range(9):
             OUT[b, base + f] = 0.0
@@ -431,13 +438,17 @@ def _slot(  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True, inline="always")
-def _position(xo, b, jj, nx, sc, kd, OX, OY, OACT):  # type: ignore[no-untyped-def]
+def _position(xo, co, b, jj, nx, sc, kd, OX, OY, OACT):  # type: ignore[no-untyped-def]
     """(perceived, x, y) of candidate jj of the slots: extra rider jj < nx as perceived
-    (xo[0]), else replayed other jj - nx at step kd."""
+    (xo[0]), else other jj - nx at step kd (a reacting car where co says: _slot)."""
     if xo is not None:
         if jj < nx:
             return xo[0][b, 5, jj] > 0.5, xo[0][b, 0, jj], xo[0][b, 1, jj]
     jo = jj - nx
+    if co is not None:
+        cj = co[0][sc, jo]
+        if cj >= 0:
+            return OACT[sc, kd, jo], co[1][b, 0, cj], co[1][b, 1, cj]
     return OACT[sc, kd, jo], OX[sc, kd, jo], OY[sc, kd, jo]
 
 
@@ -447,7 +458,7 @@ def observe_envs(  # type: ignore[no-untyped-def]
     EP, ep_s0, ep_ds, ep_n,
     OX, OY, OYAW, OSP, OACT, OL, OW, OCAT, n_o,
     ROAD, rd_x0, rd_y0, rd_cell, rd_nx, rd_ny, road_on,
-    KMAX, cap, xo, OUT,
+    KMAX, cap, xo, co, OUT,
 ):  # fmt: skip
     """The observation vectors OUT [B, D] (layout: vei.gym.features) of every environment
     at its current step. The road users as perceived ``delay`` steps ago (the engine's
@@ -457,7 +468,9 @@ def observe_envs(  # type: ignore[no-untyped-def]
     is the rider's current position's where the rider is perceived. No sensor model.
     ``xo``: None, or the extra riders as perceived (XD [B, 6, R]: x y yaw vx vy active
     ``delay`` steps ago) with their lengths, widths, category codes [S, R] and numbers [S]:
-    the objects after the rider, before the others (vei.sim.observe.ground_truth's order)."""
+    the objects after the rider, before the others (vei.sim.observe.ground_truth's order).
+    ``co``: None, or the reacting cars as perceived (each other's car index tci [S, O], -1:
+    not a car; CP [B, 5, C] x y yaw vx vy ``delay`` steps ago): they replace the tables'."""
     B = FS.shape[1]
     geo = (EP, ep_s0, ep_ds, ep_n)
     oth = (OX, OY, OYAW, OSP, OACT, OL, OW, OCAT)
@@ -495,7 +508,7 @@ def observe_envs(  # type: ignore[no-untyped-def]
             else:
                 bd = np.inf
                 for jj in range(nx + no):
-                    ok, px, py = _position(xo, b, jj, nx, sc, kd, OX, OY, OACT)
+                    ok, px, py = _position(xo, co, b, jj, nx, sc, kd, OX, OY, OACT)
                     if ok:
                         dx, dy = px - ex, py - ey
                         rxx = dx * c + dy * sn
@@ -515,7 +528,7 @@ def observe_envs(  # type: ignore[no-untyped-def]
                 OUT[b, base + 6] = cap
             else:
                 _slot(OUT, b, 6 + 9 * q, j, kd, sc, collided, ego, dims, halfw, rng, cap, RD,
-                      cat_r, geo, oth, xo, nx)  # fmt: skip
+                      cat_r, geo, oth, xo, nx, co)  # fmt: skip
         if road_on:
             on = 0.0
             if kd >= 0 and RD[5, b] > 0.5:

@@ -192,7 +192,8 @@ class VeiVectorEnv(gym.vector.VectorEnv):
         self.CARS: dict[str, np.ndarray] = car_state_arrays(self.world, b) if self._cars else {}
         self.PREV = np.zeros((N_PREV, b))  # the step-k state the post-passes read
         self._oact = self.pk.OACT  # the others' presence for step_envs' ego contact test
-        if self._cars and self.backend == "numba":
+        self._co: tuple[Any, ...] | None = None  # the cars as perceived (observe_envs)
+        if self._cars:
             self._car_tables(b)
         self._needs_reset = np.ones(b, dtype=bool)
         self._rngs: list[np.random.Generator] = []
@@ -205,9 +206,14 @@ class VeiVectorEnv(gym.vector.VectorEnv):
                 self._observe()
 
     def _car_tables(self, b: int) -> None:
-        """The compiled car step's tables, state and scratch (vei.gym.cars_kernel)."""
+        """The cars' tables, the compiled car step's state and scratch (vei.gym.cars_kernel)
+        and the ring of their perceived poses (the perception delay)."""
         pk = self.pk
         ct = CarTables(self.world, pk.OX.shape[2], pk.OX.shape[1])
+        self._ctab = ct
+        self.CP = np.zeros((b, 5, ct.tidx.shape[1]))  # x y yaw vx vy as perceived
+        self.CRING = np.zeros((self.delay + 1, *self.CP.shape))
+        self._co = (ct.tci, self.CP)
         self._ct = ct.group()
         self._cs = tuple(self.CARS[name] for name in CAR_STATE_ORDER)
         c = ct.tidx.shape[1]
@@ -434,6 +440,19 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             self.XRING[now, cols, :5] = self.XS[:, :5]
             self.XRING[now, cols, 5] = self.XB[:, 0]
             self.XD[:] = self.XRING[(self.K - self.delay) % h, cols]
+        if self._cars:  # the reacting cars' pose and velocity (vei.sim.contacts.others_now)
+            from vei.models.traffic_core import REACTING
+
+            c = self.CARS
+            rec = self.pk.OSP[self.SC[:, None], self.K[:, None], self._ctab.tidx[self.SC]]
+            sp = np.where(c["car_mode"] > REACTING, c["car_v_mps"], rec)
+            yaw = c["car_yaw_rad"]
+            cp = np.stack((c["car_x_m"], c["car_y_m"], yaw, sp * np.cos(yaw), sp * np.sin(yaw)), 1)
+            if self.delay:
+                self.CRING[now, cols] = cp
+                self.CP[:] = self.CRING[(self.K - self.delay) % h, cols]
+            else:
+                self.CP[:] = cp
 
     def _observe(self) -> npt.NDArray[np.float32]:
         cfg = self.config
@@ -447,7 +466,7 @@ class VeiVectorEnv(gym.vector.VectorEnv):
                 pk.cat_r, self.RD, self.delay, pk.EP, pk.ep_s0, pk.ep_ds, pk.ep_n, pk.OX, pk.OY, pk.OYAW, pk.OSP,
                 pk.OACT, pk.OL, pk.OW, pk.OCAT, pk.n_o, pk.ROAD, pk.rd_x0, pk.rd_y0, pk.rd_cell,
                 pk.rd_nx, pk.rd_ny, pk.road_on, cfg.max_objects, cfg.gap_cap_m, self._xo,
-                self.OBS,
+                self._co, self.OBS,
             )  # fmt: skip
             return self.OBS.copy()
         from vei.sim.batch import batch_flags
@@ -462,9 +481,9 @@ class VeiVectorEnv(gym.vector.VectorEnv):
             blk = batch_flags(params, ws.arrays.dt_s).blocks[0]
             truth = ground_truth(st, ws.arrays, slice(None))
             kd = st.k - self.delay
+            a, j0 = ws.arrays, 1 + ws.arrays.riders.n  # the replayed others' columns
             if self.delay:  # the truth of step k - delay (PolicyDriver's ring)
                 truth[:, :, 0] = self.RD[:, sel]
-                a, j0 = ws.arrays, 1 + ws.arrays.riders.n  # the replayed others' columns
                 truth[:, :, 1:j0] = self.XD[sel, :, : j0 - 1].transpose(1, 0, 2)
                 if kd >= 0 and len(a.other_ids):
                     yaw, sp = a.other_yaw_rad[kd], a.other_speed_mps[kd]
@@ -472,6 +491,9 @@ class VeiVectorEnv(gym.vector.VectorEnv):
                             sp * np.sin(yaw), a.other_active[kd].astype(np.float64))  # fmt: skip
                     for r, row in enumerate(rows):
                         truth[r, :, j0:] = row
+            if self._cars and a.traffic.n:  # the cars as perceived (self.CP)
+                tr = a.traffic
+                truth[:5, :, j0 + tr.idx] = self.CP[sel, :, : tr.n].transpose(1, 0, 2)
             valid = (truth[5] > 0.5) & (kd >= 0)
             age = np.full(valid.shape, self.delay * ws.arrays.dt_s)
             obs = build_observation(st, ws.arrays, blk, truth, valid, age, object_table(ws.arrays))
