@@ -15,9 +15,11 @@ returns its first observation with reward 0 and both flags False.
 The vector env models the primary rider (replayed or social-force, with obstacle braking
 and its yield / go decision), the extra social-force riders (``sim.sfm_riders``) and
 replays every other road user or drives the reacting cars (``traffic.cars_react``,
-:mod:`vei.gym.cars`), observing them with the configuration's perception delay: a configuration with a sensor model, walking pedestrians or V2X runs in the single env (or
-``gymnasium.make_vec(..., vectorization_mode='sync')``); the vector env refuses it,
-naming the feature and that way out (:func:`unsupported_features`).
+:mod:`vei.gym.cars`), observing them (the cars where the engine put them) with the
+configuration's perception delay. A configuration with a sensor model, walking
+pedestrians or V2X runs in the single env (or ``gymnasium.make_vec(...,
+vectorization_mode='sync')``); the vector env refuses it, naming the feature and that way
+out (:func:`unsupported_features`).
 """
 
 from __future__ import annotations
