@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from tests.sim.test_pedestrians import _scene as ped_scene
-from tests.sim.test_traffic import DT, _scene
+from tests.sim.test_traffic import _scene
 from vei.config import EgoConfig, SimConfig, TrafficConfig, case_preset
 from vei.models import traffic_core as core
 from vei.policy.base import PolicyAction
@@ -38,12 +38,12 @@ class Recorder:
         return PolicyAction(accel_mps2=acc), None
 
 
-def _run(arrays, traffic: TrafficConfig, rec: Recorder, cruise_mps: float):
+def _run(arrays, traffic: TrafficConfig, rec: Recorder, cruise_mps: float, **values):
     ego = EgoConfig(cruise_speed_mps=cruise_mps, run_up_m=0.0, actuator_lag_s=0.0,
                     max_decel_mps2=8.0, policy="aeb")  # fmt: skip
     case = dataclasses.replace(case_preset("replay"), ego=ego, traffic=traffic)
     p = VariantParams.from_case(case, arrays, DELAYS_S.size)
-    p = p.with_values(policy=rec, perception_delay_s=DELAYS_S)
+    p = p.with_values(policy=rec, perception_delay_s=DELAYS_S, **values)
     return simulate(arrays, p, kernel="numpy")
 
 
@@ -128,19 +128,22 @@ def test_without_reacting_cars_the_policy_sees_the_recording() -> None:
     assert dev == pytest.approx(0.0, abs=1e-9)
 
 
-def test_policy_sees_the_walking_pedestrian_where_it_walks() -> None:
+@pytest.mark.parametrize("walks", [(True, True), (True, False)])
+def test_policy_sees_the_walking_pedestrian_where_it_walks(walks) -> None:
     """The pedestrian recorded walking into the side of the passing car steps back for it;
-    the policy (holding 5 m/s) sees it where it walks, not at its recording."""
+    the policy (holding 5 m/s) sees it where it walks, not at its recording; a variant of
+    the same policy block where it does not walk (peds_sfm False) sees its recording."""
     arrays = prepare_scenario(ped_scene(), SimConfig(duration_s=10.0))
     rec = Recorder(1e9, 0.0)
-    r = _run(arrays, TrafficConfig(pedestrians=True), rec, 5.0)
+    on = np.array(walks)
+    r = _run(arrays, TrafficConfig(pedestrians=True), rec, 5.0, peds_sfm=on)
     b = DELAYS_S.size
 
     def truth(kd: int):
         peds = {"ped_x_m": r.ped_x_m[:, kd], "ped_y_m": r.ped_y_m[:, kd],
                 "ped_vx_mps": r.ped_vx_mps[:, kd], "ped_vy_mps": r.ped_vy_mps[:, kd]}  # fmt: skip
-        return np.stack(others_now(arrays, kd, b, None, peds))
+        walking = np.stack(others_now(arrays, kd, b, None, peds))
+        return np.where(on[None, :, None], walking, np.stack(others_now(arrays, kd, b)))
 
     dev = _assert_sees(r, rec, arrays, truth, arrays.peds.idx)
     assert dev > 0.5  # it stepped back: the test could fail
-    assert DT == arrays.dt_s
