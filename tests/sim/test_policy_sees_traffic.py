@@ -12,7 +12,7 @@ import pytest
 
 from tests.sim.test_pedestrians import _scene as ped_scene
 from tests.sim.test_traffic import _scene
-from vei.config import EgoConfig, SimConfig, TrafficConfig, case_preset
+from vei.config import EgoConfig, PerceptionConfig, SimConfig, TrafficConfig, case_preset
 from vei.models import traffic_core as core
 from vei.policy.base import PolicyAction
 from vei.sim.contacts import others_now
@@ -147,3 +147,26 @@ def test_policy_sees_the_walking_pedestrian_where_it_walks(walks) -> None:
 
     dev = _assert_sees(r, rec, arrays, truth, arrays.peds.idx)
     assert dev > 0.5  # it stepped back: the test could fail
+
+
+def test_the_sensor_model_sees_the_reacting_car_where_the_engine_drives_it() -> None:
+    """An ideal all-round sensor (vei.policy.perception: no noise, every detection, no
+    occlusion) reports the reacting car at its engine position, not its recording."""
+    arrays = prepare_scenario(_scene(), SimConfig(duration_s=5.0))
+    rec = Recorder(1.0, 8.0)
+    sensor = PerceptionConfig(enabled=True, range_m=200.0, fov_deg=360.0, occlusion=False)
+    r = _run(arrays, TrafficConfig(cars_react=True), rec, 10.0, perception=sensor)
+    j = int(arrays.traffic.idx[0])
+    col = 1 + arrays.riders.n + j
+    delay = np.rint(DELAYS_S / arrays.dt_s).astype(int)
+    dev = 0.0
+    for k in range(delay.max(), len(rec.seen)):
+        got = _world(r, rec, k, [col])[:2, :, 0]
+        assert rec.seen[k].valid[:, col].all()
+        kd = k - delay
+        rows = np.arange(DELAYS_S.size)
+        want = np.stack([r.car_x_m[rows, kd, 0], r.car_y_m[rows, kd, 0]])
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-9, err_msg=f"step {k}")
+        dev = max(dev, float(np.hypot(*(got - np.stack([arrays.other_x_m[kd, j],
+                                                         arrays.other_y_m[kd, j]]))).max()))  # fmt: skip
+    assert dev > 3.0
