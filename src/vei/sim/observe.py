@@ -8,7 +8,8 @@ the perception delay). Once per step, before :func:`vei.sim.step.step`::
     state = step(state, params, arrays, flags, action=action)
 
 Road users of the observation (axis N): the primary rider, the extra SFM riders, the
-replayed others (vei.policy.observation). With a perception delay of n steps the policy
+replayed others (vei.policy.observation): reacting cars and walking pedestrians where the
+engine put them (:func:`ground_truth`). With a perception delay of n steps the policy
 sees every object's ground truth of step k - n (not perceived while k < n); with an
 enabled ``CaseConfig.perception`` (vei.policy.perception: range, field of view,
 occlusion, noise, detection probability, held tracks) it sees that sensor model's output
@@ -27,6 +28,7 @@ import numpy.typing as npt
 
 from vei.errors import ConfigError, PolicyError
 from vei.models import ego as ego_model
+from vei.models import traffic_core
 from vei.policy.base import PolicyAction, check_policy
 from vei.policy.observation import (
     SOURCE_NONE,
@@ -44,9 +46,21 @@ FloatArray = npt.NDArray[np.float64]
 _TRUTH = 6
 
 
-def ground_truth(st: SimState, arrays: ScenarioArrays, sl: slice) -> FloatArray:
+def ground_truth(st: SimState, arrays: ScenarioArrays, sl: slice, peds: Any = False) -> FloatArray:
     """Ground truth of every road user at the state's step for the variants ``sl``.
 
+    The replayed others are where the engine put them (as vei.sim.contacts.others_now):
+    a reacting car (vei.sim.traffic) that the engine drives (``car_mode`` > REACTING) at
+    its engine pose (car_x_m, car_y_m, car_yaw_rad) with its engine speed along its heading
+    (car_v_mps), a replaying one at its recording; the pedestrians at their engine poses
+    where ``peds`` (vei.sim.pedestrians: ped_x_m, ped_y_m, velocity ped_vx_mps, ped_vy_mps,
+    heading along it while faster than 0.05 m/s, else the recorded heading); every other
+    at its recording. Presence (active) is the recording's.
+
+    Args:
+        st: SimState at step k; sl: the variants. peds: the block's ``peds_sfm``
+            (vei.sim.batch.Block.peds: True / False / [b] mask): where the pedestrians walk
+            (elsewhere their SimState fields are not their poses).
     Returns:
         [6, b, N] (x_m, y_m, yaw_rad, vx_mps, vy_mps, active as 0/1), N = 1 + R + n_o.
     """
@@ -78,8 +92,39 @@ def ground_truth(st: SimState, arrays: ScenarioArrays, sl: slice) -> FloatArray:
             arrays.other_x_m[k], arrays.other_y_m[k], yaw, sp * np.cos(yaw), sp * np.sin(yaw),
             arrays.other_active[k].astype(np.float64),
         ]  # fmt: skip
-        parts.append(np.stack([np.broadcast_to(r, (b, no)) for r in rows]))
+        others = np.stack([np.broadcast_to(r, (b, no)) for r in rows])
+        _engine_others(others, st, arrays, sl, peds)
+        parts.append(others)
     return np.concatenate(parts, axis=2)
+
+
+def _engine_others(
+    others: FloatArray, st: SimState, arrays: ScenarioArrays, sl: slice, peds: Any
+) -> None:
+    """Put the engine's reacting cars and walking pedestrians into ``others`` [6, b, n_o]
+    (the recording at step st.k) in place (see :func:`ground_truth`)."""
+    tr = arrays.traffic
+    if tr.n:
+        c = tr.n
+        driven = st.car_mode[sl][:, :c] > traffic_core.REACTING  # [b, C]
+        if driven.any():
+            cyaw, cv = st.car_yaw_rad[sl][:, :c], st.car_v_mps[sl][:, :c]
+            eng = (st.car_x_m[sl][:, :c], st.car_y_m[sl][:, :c], cyaw, cv * np.cos(cyaw),
+                   cv * np.sin(cyaw))  # fmt: skip
+            for r, val in enumerate(eng):
+                others[r][:, tr.idx] = np.where(driven, val, others[r][:, tr.idx])
+    pd_ = arrays.peds
+    if pd_.n and peds is not False:
+        on = np.asarray(peds, dtype=bool)
+        on = np.broadcast_to(on[:, None] if on.ndim else on, (others.shape[1], pd_.n))
+        if on.any():
+            vx, vy = st.ped_vx_mps[sl][:, : pd_.n], st.ped_vy_mps[sl][:, : pd_.n]
+            rec_yaw = others[2][:, pd_.idx]
+            walking = on & (np.hypot(vx, vy) > 0.05)
+            eng = (st.ped_x_m[sl][:, : pd_.n], st.ped_y_m[sl][:, : pd_.n],
+                   np.where(walking, np.arctan2(vy, vx), rec_yaw), vx, vy)  # fmt: skip
+            for r, val in enumerate(eng):
+                others[r][:, pd_.idx] = np.where(on, val, others[r][:, pd_.idx])
 
 
 def object_table(arrays: ScenarioArrays) -> tuple[FloatArray, FloatArray, npt.NDArray[np.int8]]:
@@ -324,7 +369,7 @@ class PolicyDriver:
         for i, blk in enumerate(self.blocks):
             sl = slice(blk.start, blk.stop)
             b = blk.stop - blk.start
-            truth = ground_truth(st, self.arrays, sl)
+            truth = ground_truth(st, self.arrays, sl, blk.peds)
             ring = self._ring[i]
             if self.hist_len > 1:
                 if ring is None:

@@ -100,7 +100,7 @@ from vei.sim.kernel.layout import (
     P_VMAX,
     P_YDEC,
 )
-from vei.sim.kernel.policy import policy_ego, policy_state0, put_truth
+from vei.sim.kernel.policy import policy_ego, policy_state0, put_cars, put_truth
 from vei.sim.kernel.riders import extra_riders_step, riders_final, riders_record, riders_state0
 from vei.sim.kernel.scalar import idx, ped_forces, rforce, sat
 from vei.sim.kernel.sfm import (
@@ -322,6 +322,9 @@ def variant(
                 if xr is not None:
                     for j in range(R):
                         put_truth(pscr[2], slot, 1 + j, xs[0, j], xs[1, j], xs[2, j], xs[3, j], xs[4, j], xb[0, j] > 0)  # fmt: skip
+                if traffic is not None:  # the reacting cars where the engine drives them
+                    if react_on:
+                        put_cars(pscr[2], pscr[5], slot, k, pol[9], tidx, cfl, cmode)
                 s_new, v_new, a_act_n, a_rep_n, u, cap = policy_ego(
                     k, dt, pol, pscr, b, ec, vd, delay, s, ex, ey, eyaw, v, a_act, a_rep, cap, collided, egeo, Le, We,
                 )  # fmt: skip

@@ -14,8 +14,10 @@ The kernel's ``pol`` group (:func:`vei.sim.kernel.policy_pack.policy_group`):
 [m], category codes, half diagonals [m]), Hp the ring length, the ego path's length [m], BAD [B] int64 (the
 first step a user's function returned a non-finite value, -1: none), BADV [B] (that
 value), OTR [6, T, no] the replayed others' truth per step (x, y, yaw, vx, vy, active));
-the ring holds the truth of the primary and the extra riders, the others are read from
-OTR at the delayed step. fns is a 1-tuple of the user's function (numba first-class
+the ring [Hp, 6, N] holds the truth of the primary and the extra riders and, where the
+variant's cars react, of the reacting cars (:func:`put_cars`: a driven car at its engine
+pose, as vei.sim.observe.ground_truth); the other others are read from OTR at the delayed
+step. fns is a 1-tuple of the user's function (numba first-class
 function type: one compiled kernel for every user function; such runs go through
 vei.sim.kernel.loop.kernel_seq) or None (built-in policies only: numba's parallel loop).
 """
@@ -30,6 +32,7 @@ import numpy as np
 from numba import types
 from numba.extending import overload
 
+from vei.models import traffic_core
 from vei.policy.aeb import AEB_FULL, AEB_PARTIAL, HOLD_SPEED_MPS, MIN_CLOSING_SPEED_MPS
 from vei.policy.compiled import (
     E_ACCEL,
@@ -119,10 +122,31 @@ def put_truth(ring, slot, j, x, y, yaw, vx, vy, act):  # type: ignore[no-untyped
     ring[slot, 5, j] = 1.0 if act else 0.0
 
 
+@numba.njit(cache=True, inline="always")
+def put_cars(ring, eng, slot, k, OTR, tidx, cfl, cmode):  # type: ignore[no-untyped-def]
+    """The reacting cars' ground truth of step k into slot ``slot`` of the ring [Hp, 6, N]
+    (vei.sim.observe.ground_truth): a car the engine drives (cmode > REACTING) at its pose
+    (cfl rows 3-5) with its speed (cfl row 1) along its heading, a replaying one as its
+    recording OTR [6, T, no]; presence is the recording's. tidx [C]: the cars' indices
+    among the others; eng [no]: marks their columns as read from the ring."""
+    nr = ring.shape[2] - OTR.shape[2]
+    for c in range(tidx.shape[0]):
+        jo = tidx[c]
+        eng[jo] = True
+        if cmode[c] > traffic_core.REACTING:
+            yaw, sp = cfl[5, c], cfl[1, c]
+            put_truth(ring, slot, nr + jo, cfl[3, c], cfl[4, c], yaw, sp * math.cos(yaw),
+                      sp * math.sin(yaw), OTR[5, k, jo] > 0.5)  # fmt: skip
+        else:
+            for r in range(6):
+                ring[slot, r, nr + jo] = OTR[r, k, jo]
+
+
 @numba.njit(cache=True)
 def policy_state0(pol, b, mode):  # type: ignore[no-untyped-def]
-    """Variant b's policy scratch: (on, memory, ring [Hp, 6, 1 + R], objs [N_OBJ, N], ego
-    [N_EGO]); on: the variant runs a policy here (ego mode 3)."""
+    """Variant b's policy scratch: (on, memory, ring [Hp, 6, N], objs [N_OBJ, N], ego
+    [N_EGO], eng [no]); on: the variant runs a policy here (ego mode 3); eng: the replayed
+    others the ring holds (reacting cars, :func:`put_cars`), the rest read from OTR."""
     kind, ST0, Hp = pol[1], pol[3], pol[5]
     n = pol[4].shape[1]
     on = mode == 3 and kind[b] > 0
@@ -130,8 +154,9 @@ def policy_state0(pol, b, mode):  # type: ignore[no-untyped-def]
         mem = ST0[b].copy()
     else:
         mem = np.zeros(4)  # aeb: stage, PID integral, previous error, PID started
-    nr = n - pol[9].shape[2]  # the ring: the primary and the extra riders
-    return on, mem, np.zeros((Hp, 6, nr)), np.zeros((N_OBJ, n)), np.zeros(N_EGO)
+    no = pol[9].shape[2]
+    eng = np.zeros(no, dtype=np.bool_)
+    return on, mem, np.zeros((Hp, 6, n)), np.zeros((N_OBJ, n)), np.zeros(N_EGO), eng
 
 
 @numba.njit(cache=True, inline="always")
@@ -171,12 +196,13 @@ def _lateral(path, p_s0, p_ds, n_p, s, q, x, y):  # type: ignore[no-untyped-def]
 
 @numba.njit(cache=True, inline="always")
 def _observe(
-    k, dt, full, OBJ, ring, OTR, objs, Hp, delay, s, ex, ey, eyaw, v, collided, path, p_s0,
+    k, dt, full, OBJ, ring, OTR, eng, objs, Hp, delay, s, ex, ey, eyaw, v, collided, path, p_s0,
     p_ds, n_p, Le, halfw, rng,
 ):  # type: ignore[no-untyped-def]  # fmt: skip
     """The object rows of the observation at step k (vei.sim.observe.build_observation on
-    the truth of step k - delay: the ring's, OTR's for the replayed others) into objs;
-    full: every row, else valid, rel_vx, gap only (what aeb and idm read)."""
+    the truth of step k - delay: the ring's, OTR's for the replayed others the ring does
+    not hold (eng [no] False)) into objs; full: every row, else valid, rel_vx, gap only
+    (what aeb and idm read)."""
     lag_k = k - delay
     slot = lag_k % Hp
     ok = lag_k >= 0
@@ -190,7 +216,8 @@ def _observe(
     )  # fmt: skip
     for j in range(OBJ.shape[1]):
         jo = j - nr
-        if j < nr:
+        in_ring = j < nr or eng[jo]
+        if in_ring:
             valid = ok and ring[slot, 5, j] > 0.5
         else:
             valid = ok and OTR[5, lag_k, jo] > 0.5
@@ -210,7 +237,7 @@ def _observe(
                 objs[O_AGE, j] = _INF
                 objs[O_LATERAL, j] = _INF
             continue
-        if j < nr:
+        if in_ring:
             ox, oy, oyaw = ring[slot, 0, j], ring[slot, 1, j], ring[slot, 2, j]
             dvx, dvy = ring[slot, 3, j] - evx, ring[slot, 4, j] - evy
         else:
@@ -304,12 +331,12 @@ def policy_ego(  # type: ignore[no-untyped-def]
 ):  # fmt: skip
     """The ego of a policy variant from step k to k + 1: observe, the policy's demand, the
     ego's response (vei.sim.step's policy branch). scr = policy_state0's (on, mem, ring,
-    objs, ego). Returns (s_new, v_new, a_act_n, a_rep_n, u, cap) like ego_step_c's first
+    objs, ego, eng). Returns (s_new, v_new, a_act_n, a_rep_n, u, cap) like ego_step_c's first
     five and the recorded policy state (cap_state)."""
     kind = pol[1][b]
     amax, dmax, halfw, rng, alpha = ec[0], ec[1], ec[2], ec[3], ec[15]
-    _observe(k, dt, kind == KIND_USER, pol[4], scr[2], pol[9], scr[3], pol[5], delay, s, ex, ey, eyaw, v,
-             collided, egeo[0], egeo[1], egeo[2], egeo[3], Le, halfw, rng)  # fmt: skip
+    _observe(k, dt, kind == KIND_USER, pol[4], scr[2], pol[9], scr[5], scr[3], pol[5], delay, s, ex, ey,
+             eyaw, v, collided, egeo[0], egeo[1], egeo[2], egeo[3], Le, halfw, rng)  # fmt: skip
     fsm = 0
     if kind == KIND_AEB:
         acc, fsm = _aeb(scr[3], scr[1], pol[2], pol[4].shape[1], b, v, vd, dt, ec)
@@ -336,4 +363,4 @@ def policy_ego(  # type: ignore[no-untyped-def]
     return s_new, v_new, a_act_n, a_rep_n, u, fsm
 
 
-__all__ = ["policy_ego", "policy_state0", "put_truth", "user_call"]
+__all__ = ["policy_ego", "policy_state0", "put_cars", "put_truth", "user_call"]
