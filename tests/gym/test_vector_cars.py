@@ -39,6 +39,12 @@ def _config(folder, react: bool = True, backend: str = "numpy", **traffic) -> En
     )  # fmt: skip
 
 
+def _delayed(cfg: EnvConfig, delay_s: float = 0.3) -> EnvConfig:
+    """``cfg`` with the perception delay ``delay_s`` [s]."""
+    cap = dataclasses.replace(cfg.case.cap, perception_delay_s=delay_s)
+    return dataclasses.replace(cfg, case=dataclasses.replace(cfg.case, cap=cap))
+
+
 def _against_singles(cfg: EnvConfig, b: int, steps: int, seed: int) -> tuple[bool, bool]:
     """The vector env (backend 'numpy') == b single envs of seed + i, observation, reward
     and flags, step by step through autoresets, under random demands in [-8, 1] m/s^2.
@@ -77,6 +83,8 @@ def test_reacting_cars_equal_single_envs(follower_folder):
     cfg = _config(follower_folder)
     assert VeiVectorEnv(4, cfg).CARS["car_mode"].shape == (4, 1)
     assert _against_singles(cfg, 4, 260, seed=7) == (True, True)
+    # with a perception delay: the agent sees the cars' engine poses of 0.3 s ago
+    assert _against_singles(_delayed(cfg), 4, 200, seed=8)[0]
 
 
 @pytest.mark.slow
@@ -162,10 +170,7 @@ def test_compiled_cars_equal_numpy(follower_folder, tmp_path):
 
     seen = _compiled_equals_numpy(_config(follower_folder), 8, 150, seed=11)
     assert seen["reacted"] and seen["driven"]
-    delayed = _config(follower_folder)  # the cars as perceived 0.3 s ago
-    cap = dataclasses.replace(delayed.case.cap, perception_delay_s=0.3)
-    delayed = dataclasses.replace(delayed, case=dataclasses.replace(delayed.case, cap=cap))
-    seen = _compiled_equals_numpy(delayed, 8, 120, seed=4)
+    seen = _compiled_equals_numpy(_delayed(_config(follower_folder)), 8, 120, seed=4)
     assert seen["reacted"] and seen["driven"]
     shutil.copytree(follower_folder, tmp_path / "a_follower")
     write_scenario(crossing_scenario(), tmp_path / "b_crossing")
