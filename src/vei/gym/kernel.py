@@ -10,8 +10,8 @@ actuator, speed and reported acceleration are :mod:`vei.models.ego_core`'s funct
 the rider's social force, obstacle braking, integration and limits
 :mod:`vei.sim.kernel.sfm`'s and its decision :mod:`vei.sim.kernel.decision`'s (the
 engine's compiled kernel's), compiled here on scalars; the box overlap is
-:mod:`vei.boxes`'s; the observation's corridor gap and lateral offset are the cores of
-:func:`vei.models.ego.corridor_check` and :func:`vei.sim.observe.path_lateral`. A test
+:mod:`vei.boxes`'s; the observation's corridor gap and lateral offset are
+:mod:`vei.sim.kernel.corridor`'s (the engine kernel's CAP and policies use them too). A test
 checks every state field and observation entry against the engine's NumPy step.
 
 Packed arrays (:mod:`vei.gym.core` builds them), S scenarios, B environments:
@@ -37,6 +37,7 @@ import numpy as np
 
 from vei.boxes import overlap_core
 from vei.models import ego_core as core
+from vei.sim.kernel.corridor import corridor_at, half_diagonal, lateral_at, path_point
 from vei.sim.kernel.decision import decide_step, reference_speed
 from vei.sim.kernel.layout import (
     P_AMAX,
@@ -86,11 +87,6 @@ _inline = numba.njit(cache=True, inline="always")
 actuator = _inline(core.actuator_core)
 speed = _inline(core.speed_core)
 reported_accel = _inline(core.reported_accel_core)
-path_foot = _inline(core.path_foot_core)
-half_diagonal = _inline(core.half_diagonal_core)
-corridor_entry = _inline(core.corridor_entry_core)
-box_extent = _inline(core.box_extent_core)
-corridor_gap = _inline(core.corridor_gap_core)
 sat = numba.njit(cache=True)(overlap_core)
 
 # Float state rows.
@@ -354,8 +350,8 @@ def _slot(  # type: ignore[no-untyped-def]
 ):  # fmt: skip
     """Write the 9 entries of one road-user slot (object j: 0 the rider, j > 0 replayed
     other j - 1, -1 empty) of environment b at OUT[b, base:base + 9]. Argument groups:
-    ego = (x, y, yaw, cos, sin, vx, vy, s), dims = (Le, Lr, Wr), geo = the ego path
-    tables, oth = the others' tables (a call of > 30 arguments cannot be inlined), indexed
+    ego = (x, y, yaw, cos, sin, vx, vy, s), dims = (Le, Lr, Wr), geo = this scenario's
+    ego path (rows [10, N], grid start, step, size, its point at s), oth = the others' tables (a call of > 30 arguments cannot be inlined), indexed
     in place: an array bound to a name costs an atomic reference count per call. The
     rider as perceived is RD[:, b] (x y yaw vx vy active), the others at step k (both
     delayed by the perception delay); with extra riders (xo not None, nx of them here)
@@ -403,36 +399,18 @@ def _slot(  # type: ignore[no-untyped-def]
     OUT[b, base + 3] = dvx * c + dvy * sn
     OUT[b, base + 4] = -dvx * sn + dvy * c
     OUT[b, base + 5] = _wrap(oyaw - eyaw)
-    # the corridor gap (vei.models.ego.corridor_check), not while collided
+    # the corridor gap (vei.models.ego.corridor_check), not while collided, and the
+    # lateral offset (vei.sim.observe.path_lateral): vei.sim.kernel.corridor on geo =
+    # (this scenario's path rows [10, N], grid start, step, size) and q = its point at s_e
+    path, p_s0, p_ds, n_p, q = geo
     gap = np.inf
-    i, w = idx(geo[1][sc], geo[2][sc], geo[3][sc], s_e)
-    qx = geo[0][sc, 0, i] + w * geo[0][sc, 5, i]
-    qy = geo[0][sc, 1, i] + w * geo[0][sc, 6, i]
-    qc = geo[0][sc, 3, i] + w * geo[0][sc, 8, i]
-    qs = geo[0][sc, 4, i] + w * geo[0][sc, 9, i]
     if not collided:
-        s_q, _ = path_foot(s_e, ox, oy, qx, qy, qc, qs)
-        i2, w2 = idx(geo[1][sc], geo[2][sc], geo[3][sc], s_q)
-        fx_ = geo[0][sc, 0, i2] + w2 * geo[0][sc, 5, i2]
-        fy_ = geo[0][sc, 1, i2] + w2 * geo[0][sc, 6, i2]
-        pc = geo[0][sc, 3, i2] + w2 * geo[0][sc, 8, i2]
-        ps = geo[0][sc, 4, i2] + w2 * geo[0][sc, 9, i2]
-        s_q, lat = path_foot(s_q, ox, oy, fx_, fy_, pc, ps)
-        d_front, entry = corridor_entry(s_q, lat, s_e, Le, halfw, half_diagonal(ol, ow))
-        if entry:
-            ext = box_extent(math.cos(oyaw), math.sin(oyaw), pc, ps, ol, ow)
-            ahead, g = corridor_gap(d_front, ext, rng)
-            if ahead:
-                gap = g
+        ahead, g = corridor_at(path, p_s0, p_ds, n_p, s_e, q, ox, oy, oyaw, ol, ow,
+                               half_diagonal(ol, ow), Le, halfw, rng)  # fmt: skip
+        if ahead:
+            gap = g
     OUT[b, base + 6] = min(gap, cap)
-    # the lateral offset (vei.sim.observe.path_lateral)
-    s_q2 = s_e + (ox - qx) * qc + (oy - qy) * qs
-    i3, w3 = idx(geo[1][sc], geo[2][sc], geo[3][sc], s_q2)
-    px = geo[0][sc, 0, i3] + w3 * geo[0][sc, 5, i3]
-    py = geo[0][sc, 1, i3] + w3 * geo[0][sc, 6, i3]
-    pc3 = geo[0][sc, 3, i3] + w3 * geo[0][sc, 8, i3]
-    ps3 = geo[0][sc, 4, i3] + w3 * geo[0][sc, 9, i3]
-    lat2 = (oy - py) * pc3 - (ox - px) * ps3
+    lat2 = lateral_at(path, p_s0, p_ds, n_p, s_e, q, ox, oy)
     OUT[b, base + 7] = min(max(lat2, -cap), cap)
     OUT[b, base + 8] = ocat
 
@@ -472,7 +450,6 @@ def observe_envs(  # type: ignore[no-untyped-def]
     ``co``: None, or the reacting cars as perceived (each other's car index tci [S, O], -1:
     not a car; CP [B, 5, C] x y yaw vx vy ``delay`` steps ago): they replace the tables'."""
     B = FS.shape[1]
-    geo = (EP, ep_s0, ep_ds, ep_n)
     oth = (OX, OY, OYAW, OSP, OACT, OL, OW, OCAT)
     for b in range(B):
         sc = SC[b]
@@ -498,6 +475,14 @@ def observe_envs(  # type: ignore[no-untyped-def]
             nx = xo[4][sc] if kd >= 0 else 0
         halfw, rng = P[P_HALFW, sc], P[P_RANGE, sc]
         ego = (ex, ey, eyaw, c, sn, evx, evy, s_e)
+        path = EP[sc]  # one view per environment (each costs a reference count)
+        geo = (
+            path,
+            ep_s0[sc],
+            ep_ds[sc],
+            ep_n[sc],
+            path_point(path, ep_s0[sc], ep_ds[sc], ep_n[sc], s_e),
+        )
         dims = (Le, Lr, Wr)
         prev_d2 = -1.0
         prev_j = -1

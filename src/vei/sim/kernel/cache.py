@@ -28,7 +28,8 @@ from typing import Any
 #: vei.boxes (the box-overlap test), vei.config.settings (the order of P's rows: layout's
 #: P_* constants), the fused metrics and the model cores it compiles on scalars.
 KERNEL_SOURCES = (
-    "loop.py", "scalar.py", "ego.py", "sfm.py", "riders.py", "layout.py", "decision.py",
+    "loop.py", "scalar.py", "ego.py", "corridor.py", "sfm.py", "riders.py", "layout.py",
+    "decision.py",
     "traffic.py", "contacts.py", "../../models/traffic_core.py",
     "../../boxes.py", "../../config/settings.py", "../../metrics/fused.py",
     "../../metrics/fused_layout.py", "../../metrics/fused_ops.py",

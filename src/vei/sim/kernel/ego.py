@@ -2,21 +2,19 @@
 
 Imported only when numba is used. The PID, actuator, CAP laws and CAP state machine are
 :mod:`vei.models.ego_core`'s functions, compiled here on scalars (the NumPy reference step
-runs the same functions on arrays through :mod:`vei.models.ego`), and so is the geometry
-of the CAP's corridor test; this module adds the per-variant control flow and the
-corridor's lookups on the packed path table, for one variant, inlined into the kernel's
-loop (``inline="always"``: no call per variant and step). SI units (m, s, m/s, m/s^2).
+runs the same functions on arrays through :mod:`vei.models.ego`), and the CAP's corridor
+test is :mod:`vei.sim.kernel.corridor`'s; this module adds the per-variant control flow,
+for one variant, inlined into the kernel's loop (``inline="always"``: no call per variant and step). SI units (m, s, m/s, m/s^2).
 """
 
 # ruff: noqa: N803
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 
 from vei.models import ego_core as core
+from vei.sim.kernel.corridor import corridor_at, half_diagonal, path_point
 from vei.sim.kernel.layout import (
     P_AMAX,
     P_AMIN,
@@ -51,11 +49,6 @@ safe_distance = _inline(core.safe_distance_core)
 gap_braking = _inline(core.gap_braking_core)
 paper_braking = _inline(core.paper_braking_core)
 cap_transition = _inline(core.cap_transition_core)
-path_foot = _inline(core.path_foot_core)
-half_diagonal = _inline(core.half_diagonal_core)
-corridor_entry = _inline(core.corridor_entry_core)
-box_extent = _inline(core.box_extent_core)
-corridor_gap = _inline(core.corridor_gap_core)
 
 
 @numba.njit(cache=True, inline="always")
@@ -143,24 +136,11 @@ def ego_step_c(  # type: ignore[no-untyped-def]
             ahead = False
             gap = np.inf
             if pact and not collided:
-                i, w = idx(p_s0, p_ds, n_p, s)
-                qx = egeo[0][0, i] + w * egeo[0][5, i]
-                qy = egeo[0][1, i] + w * egeo[0][6, i]
-                qc = egeo[0][3, i] + w * egeo[0][8, i]
-                qs = egeo[0][4, i] + w * egeo[0][9, i]
-                s_q, _ = path_foot(s, px, py, qx, qy, qc, qs)
-                i, w = idx(p_s0, p_ds, n_p, s_q)
-                fx_ = egeo[0][0, i] + w * egeo[0][5, i]
-                fy_ = egeo[0][1, i] + w * egeo[0][6, i]
-                pc = egeo[0][3, i] + w * egeo[0][8, i]
-                ps = egeo[0][4, i] + w * egeo[0][9, i]
-                s_q, lat = path_foot(s_q, px, py, fx_, fy_, pc, ps)
-                d_front, entry = corridor_entry(s_q, lat, s, Le, halfw, half_diag_r)
-                if entry:
-                    ext = box_extent(math.cos(pyaw), math.sin(pyaw), pc, ps, Lr, Wr)
-                    ahead, g = corridor_gap(d_front, ext, rng)
-                    if ahead:
-                        gap = g
+                q = path_point(egeo[0], p_s0, p_ds, n_p, s)
+                ahead, g = corridor_at(egeo[0], p_s0, p_ds, n_p, s, q, px, py, pyaw, Lr, Wr,
+                                       half_diag_r, Le, halfw, rng)  # fmt: skip
+                if ahead:
+                    gap = g
             d_safe = safe_distance(v, tsafe, d_buf, a_min)
             new, release = cap_transition(cap, v, vd, ahead, gap, d_safe, rel_m, rectol)
             braking = new == core.BRAKE

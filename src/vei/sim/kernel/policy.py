@@ -63,14 +63,11 @@ from vei.policy.compiled import (
     O_YAW,
 )  # fmt: skip
 from vei.policy.idm import MIN_GAP_M
+from vei.sim.kernel.corridor import corridor_at, lateral_at, path_point
 from vei.sim.kernel.ego import (
     accel_to_command,
     actuator,
-    box_extent,
     command_to_accel,
-    corridor_entry,
-    corridor_gap,
-    path_foot,
     pid_core,
     reported_accel,
     speed,
@@ -90,7 +87,6 @@ from vei.sim.kernel.policy_pack import (
     PP_PARTIAL,
     PP_WARN,
 )  # fmt: skip
-from vei.sim.kernel.scalar import idx
 
 _INF = np.inf
 
@@ -160,41 +156,6 @@ def policy_state0(pol, b, mode):  # type: ignore[no-untyped-def]
 
 
 @numba.njit(cache=True, inline="always")
-def _gap(path, p_s0, p_ds, n_p, s, q, px, py, pyaw, L, W, hd, Le, halfw, rng):  # type: ignore[no-untyped-def]
-    """The path gap [m] of a box L x W (half diagonal hd [m]) at (px, py, pyaw):
-    vei.models.ego.corridor_check for one object (+inf when not ahead in the corridor);
-    q = the path's (x, y, cos, sin) at the ego's arc length s (the same for every object)."""
-    s_q, _ = path_foot(s, px, py, q[0], q[1], q[2], q[3])
-    i, w = idx(p_s0, p_ds, n_p, s_q)
-    fx = path[0, i] + w * path[5, i]
-    fy = path[1, i] + w * path[6, i]
-    pc = path[3, i] + w * path[8, i]
-    ps = path[4, i] + w * path[9, i]
-    s_q, lat = path_foot(s_q, px, py, fx, fy, pc, ps)
-    d_front, entry = corridor_entry(s_q, lat, s, Le, halfw, hd)
-    if entry:
-        ext = box_extent(math.cos(pyaw), math.sin(pyaw), pc, ps, L, W)
-        ok, g = corridor_gap(d_front, ext, rng)
-        if ok:
-            return g
-    return _INF
-
-
-@numba.njit(cache=True, inline="always")
-def _lateral(path, p_s0, p_ds, n_p, s, q, x, y):  # type: ignore[no-untyped-def]
-    """Signed lateral offset [m] of (x, y) from the path near s (vei.sim.observe.path_lateral);
-    q as in :func:`_gap`."""
-    s_q = s + (x - q[0]) * q[2] + (y - q[1]) * q[3]
-    i, w = idx(p_s0, p_ds, n_p, s_q)
-    px = path[0, i] + w * path[5, i]
-    py = path[1, i] + w * path[6, i]
-    pc = path[3, i] + w * path[8, i]
-    ps = path[4, i] + w * path[9, i]
-    ddx, ddy = x - px, y - py
-    return ddy * pc - ddx * ps
-
-
-@numba.njit(cache=True, inline="always")
 def _observe(
     k, dt, full, OBJ, ring, OTR, eng, objs, Hp, delay, s, ex, ey, eyaw, v, collided, path, p_s0,
     p_ds, n_p, Le, halfw, rng,
@@ -209,11 +170,7 @@ def _observe(
     c, sn = math.cos(eyaw), math.sin(eyaw)
     evx, evy = v * c, v * sn
     nr = OBJ.shape[1] - OTR.shape[2]  # the primary and the extra riders (in the ring)
-    i, w = idx(p_s0, p_ds, n_p, s)  # the path at the ego: the first projection of every object
-    q = (
-        path[0, i] + w * path[5, i], path[1, i] + w * path[6, i], path[3, i] + w * path[8, i],
-        path[4, i] + w * path[9, i],
-    )  # fmt: skip
+    q = path_point(path, p_s0, p_ds, n_p, s)  # the first projection of every object
     for j in range(OBJ.shape[1]):
         jo = j - nr
         in_ring = j < nr or eng[jo]
@@ -246,11 +203,13 @@ def _observe(
         objs[O_VALID, j] = 1.0
         objs[O_VX, j] = dvx * c + dvy * sn
         gap = _INF
-        if not collided:
-            gap = _gap(
+        if not collided:  # vei.models.ego.corridor_check for one object
+            ahead, g = corridor_at(
                 path, p_s0, p_ds, n_p, s, q, ox, oy, oyaw, OBJ[0, j], OBJ[1, j], OBJ[3, j], Le,
                 halfw, rng,
             )  # fmt: skip
+            if ahead:
+                gap = g
         objs[O_GAP, j] = gap
         if full:
             dx, dy = ox - ex, oy - ey
@@ -259,7 +218,7 @@ def _observe(
             objs[O_YAW, j] = math.pi - ((math.pi - (oyaw - eyaw)) % (2.0 * math.pi))
             objs[O_VY, j] = -dvx * sn + dvy * c
             objs[O_AGE, j] = delay * dt
-            objs[O_LATERAL, j] = _lateral(path, p_s0, p_ds, n_p, s, q, ox, oy)
+            objs[O_LATERAL, j] = lateral_at(path, p_s0, p_ds, n_p, s, q, ox, oy)
 
 
 @numba.njit(cache=True, inline="always")
