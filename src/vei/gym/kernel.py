@@ -114,7 +114,7 @@ def _path_xyyaw(EP, sc, s0, ds, n, s):  # type: ignore[no-untyped-def]
     )
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, _nrt=False)
 def step_envs(  # type: ignore[no-untyped-def]
     run, A, dt, FS, BS, HIT, K, SC, SHIFT,
     P, ALPHA, DIM,
@@ -430,7 +430,7 @@ def _position(xo, co, b, jj, nx, sc, kd, OX, OY, OACT):  # type: ignore[no-untyp
     return OACT[sc, kd, jo], OX[sc, kd, jo], OY[sc, kd, jo]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, _nrt=False)
 def observe_envs(  # type: ignore[no-untyped-def]
     dt, FS, BS, K, SC, P, DIM, T_n, path_end, cat_r, RD, delay,
     EP, ep_s0, ep_ds, ep_n,
