@@ -9,59 +9,19 @@ Gaussian noise of 0.2 m per axis (the camera tracks of the shared recordings jit
 
 from __future__ import annotations
 
-import json
 import warnings
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from tests.helpers_interaction import CURVE_SPEED_MPS, make_curve_interaction
 from vei.errors import ConfigError
-from vei.geo.frame import LocalFrame
-from vei.io.interaction import read_interaction
 from vei.recon import auto_interp
 from vei.recon.auto_interp import ImplausibleSpeedWarning, choose_method
 from vei.recon.pipeline import ReconstructionConfig, reconstruct
 
-ORIGIN = (48.7665, 11.4345)
-SPEED_MPS = 4.0
-RADIUS_M = 15.0
-DURATION_S = 10.0
-NOISE_M = 0.2
-
-
-def _curve(t: np.ndarray) -> np.ndarray:
-    ang = SPEED_MPS * t / RADIUS_M
-    return RADIUS_M * np.column_stack([np.sin(ang), 1.0 - np.cos(ang)])
-
-
-def _write(folder, rate_hz: float, noise_m: float = NOISE_M, seed: int = 0):
-    """A world-frame interaction (declared plane origin ORIGIN): the ego drives straight
-    east at 5 m/s 20 m south of the rider's curve; the rider (cyclist, track 7) rides the
-    curve at SPEED_MPS, sampled at rate_hz with Gaussian noise noise_m per axis."""
-    frame = LocalFrame(*ORIGIN)
-    folder.mkdir(parents=True)
-    meta = {
-        "format": "vei.interaction/1",
-        "id": f"curve_{rate_hz:g}hz",
-        "source": "vei tests (synthetic)",
-        "start_time_utc": "2021-02-09T12:40:35Z",
-        "y_axis": "left",
-        "frame": "world",
-        "origin_lat_deg": ORIGIN[0],
-        "origin_lon_deg": ORIGIN[1],
-    }
-    (folder / "interaction.json").write_text(json.dumps(meta), encoding="utf-8")
-    te = np.round(np.arange(0.0, DURATION_S + 1e-9, 0.1), 6)
-    lat, lon = frame.to_latlon(-20.0 + 5.0 * te, np.full(te.size, -20.0))
-    ego = {"t_s": te, "lat_deg": lat, "lon_deg": lon, "heading_deg": 90.0, "speed_mps": 5.0}
-    pd.DataFrame(ego).to_csv(folder / "ego.csv", index=False)
-    tk = np.round(np.arange(0.0, DURATION_S + 1e-9, 1.0 / rate_hz), 6)
-    xy = _curve(tk) + np.random.default_rng(seed).normal(0.0, noise_m, (tk.size, 2))
-    lat, lon = frame.to_latlon(xy[:, 0], xy[:, 1])
-    ann = {"t_s": tk, "track_id": "7", "category": "cyclist", "lat_deg": lat, "lon_deg": lon}
-    pd.DataFrame(ann).to_csv(folder / "annotations.csv", index=False)
-    return read_interaction(folder)
+SPEED_MPS = CURVE_SPEED_MPS
 
 
 def _speed_rmse(scenario) -> float:
@@ -71,12 +31,12 @@ def _speed_rmse(scenario) -> float:
 
 @pytest.fixture(scope="module")
 def dense(tmp_path_factory):
-    return _write(tmp_path_factory.mktemp("dense") / "i", 30.0)
+    return make_curve_interaction(tmp_path_factory.mktemp("dense") / "i", 30.0)
 
 
 @pytest.fixture(scope="module")
 def sparse(tmp_path_factory):
-    return _write(tmp_path_factory.mktemp("sparse") / "i", 1.0)
+    return make_curve_interaction(tmp_path_factory.mktemp("sparse") / "i", 1.0)
 
 
 def test_rule_by_median_keyframe_spacing():
