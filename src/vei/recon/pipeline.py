@@ -286,10 +286,15 @@ def reconstruct(
         Scenario with trajectories (TRAJECTORY_COLUMNS; ego first, then every annotated
         track as '<category>_<track_id>') on t_s = k / rate_hz, keyframes (t_s, agent_id,
         source_track_id, category, x_m, y_m, yaw_rad, yaw_source), primary_threat, and extra:
-        'reconstruction' (settings, origin rule, sync, ego heading source, per-track method
-        and peak kinematics (peak_speed_mps / peak_accel_mps2 by finite differences of the
-        rate_hz samples, what a simulator replaying them sees), active riders), 'threat' (criterion + per-rider figures) and,
-        with ground truth, 'reconstruction_error'.
+        'reconstruction' (settings, origin rule, sync, ego heading source, per-track method,
+        median keyframe spacing [s] and peak kinematics (peak_speed_mps / peak_accel_mps2 by
+        finite differences of the rate_hz samples, what a simulator replaying them sees),
+        active riders, 'auto_interp' (what interp='auto' chose; None otherwise),
+        'speed_warnings' (riders above max_speed_mps)), 'threat' (criterion + per-rider
+        figures) and, with ground truth, 'reconstruction_error'.
+    Warns:
+        ImplausibleSpeedWarning (vei.recon.auto_interp): per rider whose reconstructed
+        speed exceeds max_speed_mps, naming it, the speed and the way out.
     Raises:
         InputError: annotations outside the GPS span, an unusable ego track.
     """
