@@ -126,3 +126,11 @@ def test_speed_check_is_per_rider_category():
         0.05,
         None,
     )
+
+
+def test_the_way_out_depends_on_the_method():
+    w = auto_interp.SpeedWarning("escooter_3", "escooter", "smoothing", 14.0, 2.0, 12.0, 0.04)
+    assert "--noise-m" in w.message() and "--interp auto" not in w.message()
+    assert "keyframes 0.04 s apart" in w.message()
+    w = auto_interp.SpeedWarning("escooter_3", "escooter", "linear", 14.0, 2.0, 12.0, None)
+    assert "--interp auto" in w.message() and "apart" not in w.message()
