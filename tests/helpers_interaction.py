@@ -149,3 +149,51 @@ def make_interaction(tmp_path: Path, **overrides: object) -> Path:
     if gt is not None:
         gt.to_csv(folder / "ground_truth.csv", index=False)
     return folder
+
+
+#: make_curve_interaction: the rider's speed [m/s], curve radius [m], duration [s].
+CURVE_SPEED_MPS = 4.0
+CURVE_RADIUS_M = 15.0
+CURVE_DURATION_S = 10.0
+CURVE_ORIGIN = (48.7665, 11.4345)
+
+
+def curve_xy(t_s: np.ndarray) -> np.ndarray:
+    """Plane positions [N, 2] (m) of the curve rider at t_s [N]: a circle of CURVE_RADIUS_M
+    from (0, 0) heading east, turning left, at CURVE_SPEED_MPS."""
+    ang = CURVE_SPEED_MPS * np.asarray(t_s, dtype=np.float64) / CURVE_RADIUS_M
+    return CURVE_RADIUS_M * np.column_stack([np.sin(ang), 1.0 - np.cos(ang)])
+
+
+def make_curve_interaction(folder: Path, rate_hz: float, noise_m: float = 0.2, seed: int = 0):
+    """Write and read a world-frame interaction (declared plane origin CURVE_ORIGIN) of
+    CURVE_DURATION_S: the ego drives straight east at 5 m/s 20 m south of the curve; the
+    rider (cyclist, track 7) rides :func:`curve_xy`, sampled at rate_hz [Hz] with Gaussian
+    noise noise_m [m] per axis (seeded)."""
+    from vei.geo.frame import LocalFrame
+    from vei.io.interaction import read_interaction
+
+    frame = LocalFrame(*CURVE_ORIGIN)
+    folder = Path(folder)
+    folder.mkdir(parents=True)
+    meta = {
+        "format": "vei.interaction/1",
+        "id": f"curve_{rate_hz:g}hz",
+        "source": "vei tests (synthetic)",
+        "start_time_utc": "2021-02-09T12:40:35Z",
+        "y_axis": "left",
+        "frame": "world",
+        "origin_lat_deg": CURVE_ORIGIN[0],
+        "origin_lon_deg": CURVE_ORIGIN[1],
+    }
+    (folder / "interaction.json").write_text(json.dumps(meta), encoding="utf-8")
+    te = np.round(np.arange(0.0, CURVE_DURATION_S + 1e-9, 0.1), 6)
+    lat, lon = frame.to_latlon(-20.0 + 5.0 * te, np.full(te.size, -20.0))
+    ego = {"t_s": te, "lat_deg": lat, "lon_deg": lon, "heading_deg": 90.0, "speed_mps": 5.0}
+    pd.DataFrame(ego).to_csv(folder / "ego.csv", index=False)
+    tk = np.round(np.arange(0.0, CURVE_DURATION_S + 1e-9, 1.0 / rate_hz), 6)
+    xy = curve_xy(tk) + np.random.default_rng(seed).normal(0.0, noise_m, (tk.size, 2))
+    lat, lon = frame.to_latlon(xy[:, 0], xy[:, 1])
+    ann = {"t_s": tk, "track_id": "7", "category": "cyclist", "lat_deg": lat, "lon_deg": lon}
+    pd.DataFrame(ann).to_csv(folder / "annotations.csv", index=False)
+    return read_interaction(folder)

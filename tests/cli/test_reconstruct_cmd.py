@@ -109,3 +109,35 @@ def test_kalman_coverage_is_labelled_in_sample_with_the_factor_used(tmp_path, ca
     assert "python -m benchmarks recon_accuracy" in text and "posterior std x 2.000" in text
     noise = read_scenario(out).extra["reconstruction"]["noise"]
     assert noise["std_inflation"] == 2.0
+
+
+def test_default_auto_reports_its_choice_and_cubic_warns_on_dense_tracks(tmp_path, capsys):
+    from tests.helpers_interaction import make_curve_interaction
+
+    src = tmp_path / "curve"
+    make_curve_interaction(src, 30.0)  # one cyclist at 4 m/s, 30 Hz, 0.2 m noise
+    assert main(["reconstruct", str(src), "--out", str(tmp_path / "a"), "--no-figure"]) == 0
+    cap = capsys.readouterr()
+    assert (
+        "interpolation auto" in cap.out and "smoothing for 1 dense track(s) (cyclist_7)" in cap.out
+    )
+    assert "warning" not in cap.err
+    sc = read_scenario(tmp_path / "a")
+    rec = sc.extra["reconstruction"]
+    assert rec["config"]["interp"] == "auto" and rec["tracks"][0]["method"] == "smoothing"
+    assert rec["auto_interp"]["smoothing"] == ["cyclist_7"]
+    args = [
+        "reconstruct",
+        str(src),
+        "--out",
+        str(tmp_path / "c"),
+        "--no-figure",
+        "--interp",
+        "cubic",
+    ]
+    assert main(args) == 0  # a warning, not an error
+    cap = capsys.readouterr()
+    assert "interpolation auto" not in cap.out
+    (line,) = [x for x in cap.err.splitlines() if x.startswith("warning:")]
+    assert "cyclist_7 (cyclist): reconstructed speed" in line and "--interp auto" in line
+    assert len(read_scenario(tmp_path / "c").extra["reconstruction"]["speed_warnings"]) == 1

@@ -36,11 +36,23 @@ What "the same" means (docs/datasets.md, "Two doors"):
   A: none below 0.5 m/s, the direction of motion then; door B: the inD layout's heading,
   held through slow samples), together ~1.2 m = 0.2 s of TTC at the case study's 5.6 m/s,
   and the social-force riders react to the car, which amplifies small differences (they take
-  over at their first recorded sample with its recorded speed, and at 30 Hz a cubic
-  spline through the camera's jittery frames differentiates that jitter: the speed of
-  audi_08_klinikum_rechtsabbiegen_02's cyclist reads 1-31 m/s in door A and 0.7-49 m/s
-  in door B, where its positions move at about 4 m/s; its normal rider collides through
-  door A and misses by a TTC of 0.20 s through door B).
+  over at their first recorded sample with its recorded speed). Where neither door's run
+  collides, the minimum TTCs agree within TTC_TOL_S = 0.2 s: the same ~1.2 m of position
+  and box difference over the case study's 5.6 m/s.
+  Both doors reconstruct with the default interp='auto' (vei.recon.auto_interp), which
+  smooths these 30 Hz tracks. Before it (issue 36) the default cubic spline through the
+  camera's jittery frames differentiated that jitter into the recorded speed (the speed of
+  audi_08_klinikum_rechtsabbiegen_02's cyclist read 1-31 m/s in door A and 0.7-49 m/s in
+  door B, where its positions move at about 4 m/s): its normal rider collided through door
+  A and missed by a TTC of 0.20 s through door B, and stadtmitte_11's aggressive rider's
+  minimum TTC read 4.86 s through one door and 0.52 s through the other. With 'auto' every
+  configuration of every recording collides through both doors or neither, and the
+  minimum TTCs of the runs without a collision differ by at most 0.11 s (measured; hence
+  the TTC check, which the cubic reconstructions fail).
+  The automatic time shifts agree within two steps inclusive (FLOAT_TOL_S for rounding):
+  klinikum_01's primary e-scooter stands (0.09 m/s smoothed; the cubic spline gave it up
+  to 3.3 m/s of jitter), its span differs by one 20 Hz step at each end between the doors,
+  and the two shifts differ by exactly two steps (4.113 vs 4.213 s).
 """
 
 from __future__ import annotations
@@ -72,6 +84,9 @@ RECORDINGS = (
 DIST_TOL_M = 0.1
 SIM_STEP_S = 0.05
 MARGIN_TTC_S = 0.3
+TTC_TOL_S = 0.2
+#: Float rounding of shift differences that are whole steps [s].
+FLOAT_TOL_S = 1e-9
 #: PET is compared where both move at least this fast [m/s] (else it is ill-conditioned).
 MIN_PET_SPEED_MPS = 1.0
 RULE = EncounterRule()
@@ -175,7 +190,9 @@ def test_same_case_study_outcome_with_the_ins_as_ego(doors, name):
         )
     auto_a = run_casestudy(a, time_shift="auto")
     auto_b = run_casestudy(scen_b, time_shift="auto")
-    assert auto_b.time_shift_s == pytest.approx(auto_a.time_shift_s, abs=2 * SIM_STEP_S)
+    assert auto_b.time_shift_s == pytest.approx(
+        auto_a.time_shift_s, abs=2 * SIM_STEP_S + FLOAT_TOL_S
+    )
     same_b = run_casestudy(scen_b, time_shift=auto_a.time_shift_s)
     sa = auto_a.summary.set_index("name")
     sb = same_b.summary.set_index("name")
@@ -190,3 +207,7 @@ def test_same_case_study_outcome_with_the_ins_as_ego(doors, name):
                 name,
                 config,
             )
+        if not (sa.loc[config, "collision"] or sb.loc[config, "collision"]):
+            assert sb.loc[config, "min_ttc_s"] == pytest.approx(
+                sa.loc[config, "min_ttc_s"], abs=TTC_TOL_S
+            ), (name, config)

@@ -76,8 +76,8 @@ def catalogue(
         str | None,
         typer.Option(
             "--interp",
-            help="Reconstruction interpolation (cubic, linear, smoothing, kalman), as "
-            "vei reconstruct --interp (overrides the settings' recon.interp).",
+            help="Reconstruction interpolation (auto, cubic, linear, smoothing, kalman), as "
+            "vei reconstruct --interp (overrides the settings' recon.interp; default auto).",
         ),
     ] = None,
 ) -> None:

@@ -409,9 +409,10 @@ def register(app: typer.Typer) -> None:
             str,
             typer.Option(
                 "--interp",
-                help="Reconstruction interpolation: cubic (the paper's), linear or smoothing.",
+                help="Reconstruction interpolation: auto (default: the paper's cubic for its "
+                "1 FPS annotations, smoothing for dense tracks), cubic, linear or smoothing.",
             ),
-        ] = "cubic",
+        ] = "auto",
     ) -> None:
         """The whole pipeline on a built-in SYNTHETIC example shaped like the paper's case study (or --real data)."""
         run_demo(out=out, real=real, data_dir=data_dir, time_shift=time_shift, interp=interp)
@@ -469,7 +470,7 @@ def run_demo(
     real: bool = False,
     data_dir: Path | None = None,
     time_shift: str = "auto",
-    interp: str = "cubic",
+    interp: str = "auto",
     console=None,
 ):
     """What ``vei demo`` does; returns the CaseStudyResult.

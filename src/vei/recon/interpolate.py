@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 from scipy.interpolate import CubicSpline
+from scipy.linalg import solveh_banded
 from scipy.spatial.transform import Rotation, Slerp
 
 from vei.recon.smoother import KalmanInterpolant, NoiseEstimate
@@ -214,25 +215,32 @@ def _smooth(t: FloatArray, xy: FloatArray, lam: float) -> CubicSpline:
     with unit weights, which needs K >= 5). With h_i = t_{i+1} - t_i, Q [K, K-2] and
     R [K-2, K-2] of Green & Silverman (1994, Sec. 2.3): (R + lam Q^T Q) gamma = Q^T y,
     fitted values g = y - lam Q gamma, and f is the natural cubic spline through (t, g).
+    Q is tridiagonal by columns and R tridiagonal, so R + lam Q^T Q is a symmetric
+    positive definite band of half-width 2: solved in O(K) time and memory
+    (scipy solveh_banded), so a track of 10^4 dense keyframes takes milliseconds.
 
     Args:
         t: [K] strictly increasing times [s]; xy: [K, 2] positions [m]; lam: >= 0 [s^3].
     Returns:
         CubicSpline (natural ends) of the fitted curve.
     """
-    k = t.size
     h = np.diff(t)
-    q = np.zeros((k, k - 2))
-    r = np.zeros((k - 2, k - 2))
-    j = np.arange(k - 2)
-    q[j, j] = 1.0 / h[j]
-    q[j + 1, j] = -1.0 / h[j] - 1.0 / h[j + 1]
-    q[j + 2, j] = 1.0 / h[j + 1]
-    r[j, j] = (h[j] + h[j + 1]) / 3.0
-    r[j[:-1], j[:-1] + 1] = h[j[:-1] + 1] / 6.0
-    r[j[:-1] + 1, j[:-1]] = h[j[:-1] + 1] / 6.0
-    gamma = np.linalg.solve(r + lam * q.T @ q, q.T @ xy)
-    fitted = xy - lam * q @ gamma
+    # Column j of Q holds (a_j, b_j, c_j) in rows j, j+1, j+2.
+    a = 1.0 / h[:-1]
+    c = 1.0 / h[1:]
+    b = -a - c
+    m = a.size  # K - 2
+    ab = np.zeros((3, m))  # upper band form: ab[2 + i - j, j] = A[i, j]
+    ab[2] = (h[:-1] + h[1:]) / 3.0 + lam * (a * a + b * b + c * c)
+    ab[1, 1:] = h[1:-1] / 6.0 + lam * (b[:-1] * a[1:] + c[:-1] * b[1:])
+    ab[0, 2:] = lam * (c[:-2] * a[2:])
+    rhs = a[:, None] * xy[:-2] + b[:, None] * xy[1:-1] + c[:, None] * xy[2:]
+    gamma = solveh_banded(ab, rhs)
+    q_gamma = np.zeros_like(xy)
+    q_gamma[:-2] += a[:, None] * gamma
+    q_gamma[1:-1] += b[:, None] * gamma
+    q_gamma[2:] += c[:, None] * gamma
+    fitted = xy - lam * q_gamma
     return CubicSpline(t, fitted, axis=0, bc_type="natural")
 
 

@@ -13,7 +13,8 @@ The paper's Section III-B, steps 1 and 4-8 (steps 2-3, the map, are attached lat
    (``meta.origin_lat_deg/_lon_deg``) replaces the centre of the bounds.
 6. **Keyframes** per track (:mod:`vei.recon.keyframes`).
 7. **Interpolation** to the grid k / rate_hz over each agent's own span (never past its
-   first/last keyframe): positions by ``interp`` (:mod:`vei.recon.interpolate`), yaw by
+   first/last keyframe): positions by ``interp`` (:mod:`vei.recon.interpolate`; ``'auto'``
+   chooses per track by its keyframe spacing, :mod:`vei.recon.auto_interp`), yaw by
    SLERP of the keyframe yaws. The ego: its GPS track by cubic spline, yaw from its
    heading, speed from the GPS speed field (else the spline's).
 8. **Primary threat** among e-scooters and cyclists (:mod:`vei.recon.threat`).
@@ -27,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +37,7 @@ from pyproj import Geod
 
 from vei.errors import ConfigError
 from vei.geo.frame import Bounds, LocalFrame
+from vei.recon import auto_interp
 from vei.recon import smoother as smoother_mod
 from vei.recon import threat as threat_mod
 from vei.recon.accuracy import evaluate as _evaluate_accuracy
@@ -62,6 +65,8 @@ from vei.types import (
 )
 
 _GEOD = Geod(ellps="WGS84")
+#: Values of ReconstructionConfig.interp: 'auto' (chosen per track) and INTERP_METHODS.
+RECON_INTERP: tuple[str, ...] = ("auto", *INTERP_METHODS)
 
 
 @dataclass(frozen=True)
@@ -70,9 +75,14 @@ class ReconstructionConfig:
 
     Attributes:
         rate_hz: simulation rate [Hz] of the output trajectories (paper: CARLA at 20 Hz).
-        interp: position interpolation, one of INTERP_METHODS: 'cubic' (the paper's),
-            'linear', 'smoothing' (noise-aware smoothing spline), 'kalman' (RTS smoother
-            of the same motion model with its posterior uncertainty; see noise_estimate).
+        interp: position interpolation, one of RECON_INTERP: 'auto' (default: per track
+            'cubic' where its median keyframe spacing is >= auto_dense_spacing_s, the
+            paper's ~1 FPS, else 'smoothing'; vei.recon.auto_interp), 'cubic' (the
+            paper's), 'linear', 'smoothing' (noise-aware smoothing spline), 'kalman' (RTS
+            smoother of the same motion model with its posterior uncertainty; see
+            noise_estimate).
+        auto_dense_spacing_s: 'auto' only: median keyframe spacing [s] below which a track
+            is dense and smoothed (default 0.5 s: 2 Hz or sparser keeps the cubic).
         noise_estimate: 'kalman' only: 'ml' (default) estimates the keyframe noise sigma and
             the acceleration density q by maximum likelihood over the recording's own
             keyframes (:func:`vei.recon.smoother.estimate_noise`); 'fixed' uses noise_m and
@@ -109,7 +119,8 @@ class ReconstructionConfig:
     """
 
     rate_hz: float = 20.0
-    interp: str = "cubic"
+    interp: str = "auto"
+    auto_dense_spacing_s: float = auto_interp.DENSE_SPACING_S
     noise_estimate: str = "ml"
     ego_path: str = "spline"
     margin_m: float = 50.0
@@ -123,9 +134,9 @@ class ReconstructionConfig:
     posterior_std_inflation: float | str = "calibrated"
 
     def __post_init__(self) -> None:
-        if self.interp not in INTERP_METHODS:
+        if self.interp not in RECON_INTERP:
             raise ConfigError(
-                f"interp must be one of {', '.join(INTERP_METHODS)}; got {self.interp!r}"
+                f"interp must be one of {', '.join(RECON_INTERP)}; got {self.interp!r}"
             )
         if self.noise_estimate not in ("ml", "fixed"):
             raise ConfigError(
@@ -140,6 +151,7 @@ class ReconstructionConfig:
             "max_speed_mps",
             "max_accel_mps2",
             "max_gap_s",
+            "auto_dense_spacing_s",
         )
         for name in positive:
             v = getattr(self, name)
@@ -195,7 +207,7 @@ class ReconstructionConfig:
 
 #: Named presets.
 PRESETS: dict[str, ReconstructionConfig] = {
-    "paper": ReconstructionConfig(),
+    "paper": ReconstructionConfig(interp="cubic"),
     "linear": ReconstructionConfig(interp="linear"),
     "noise-aware": ReconstructionConfig(interp="smoothing"),
     "probabilistic": ReconstructionConfig(interp="kalman", ego_path="kalman"),
@@ -274,10 +286,15 @@ def reconstruct(
         Scenario with trajectories (TRAJECTORY_COLUMNS; ego first, then every annotated
         track as '<category>_<track_id>') on t_s = k / rate_hz, keyframes (t_s, agent_id,
         source_track_id, category, x_m, y_m, yaw_rad, yaw_source), primary_threat, and extra:
-        'reconstruction' (settings, origin rule, sync, ego heading source, per-track method
-        and peak kinematics (peak_speed_mps / peak_accel_mps2 by finite differences of the
-        rate_hz samples, what a simulator replaying them sees), active riders), 'threat' (criterion + per-rider figures) and,
-        with ground truth, 'reconstruction_error'.
+        'reconstruction' (settings, origin rule, sync, ego heading source, per-track method,
+        median keyframe spacing [s] and peak kinematics (peak_speed_mps / peak_accel_mps2 by
+        finite differences of the rate_hz samples, what a simulator replaying them sees),
+        active riders, 'auto_interp' (what interp='auto' chose; None otherwise),
+        'speed_warnings' (riders above max_speed_mps)), 'threat' (criterion + per-rider
+        figures) and, with ground truth, 'reconstruction_error'.
+    Warns:
+        ImplausibleSpeedWarning (vei.recon.auto_interp): per rider whose reconstructed
+        speed exceeds max_speed_mps, naming it, the speed and the way out.
     Raises:
         InputError: annotations outside the GPS span, an unusable ego track.
     """
@@ -338,8 +355,9 @@ def reconstruct(
         if grid.size == 0:
             dropped.append(str(agent_id))
             continue
+        method, spacing = auto_interp.resolve(cfg.interp, tk, cfg.auto_dense_spacing_s)
         interp = primed.get(str(agent_id)) or fit_track_segmented(
-            tk, xyk, cfg.interp, cfg.smoothing, cfg.max_gap_s, noise
+            tk, xyk, method, cfg.smoothing, cfg.max_gap_s, noise
         )
         interpolants[str(agent_id)] = interp
         xy = interp.position(grid)
@@ -370,6 +388,7 @@ def reconstruct(
                 "agent_id": str(agent_id),
                 "category": category,
                 "n_keyframes": int(tk.size),
+                "median_keyframe_spacing_s": spacing,
                 "t_start_s": float(tk[0]),
                 "t_end_s": float(tk[-1]),
                 "method": interp.method,
@@ -382,6 +401,9 @@ def reconstruct(
             std = interp.std(grid)
             track_info[-1]["std_m"] = {"mean": float(std.mean()), "max": float(std.max())}
     trajectories = pd.concat(frames, ignore_index=True)[list(TRAJECTORY_COLUMNS)]
+    implausible = auto_interp.implausible_speeds(trajectories, track_info, cfg.max_speed_mps)
+    for w in implausible:
+        warnings.warn(w.message(), auto_interp.ImplausibleSpeedWarning, stacklevel=2)
     # A track with no sample on the simulation grid is not an agent of the scenario.
     keyframes = keyframes[~keyframes["agent_id"].isin(dropped)].reset_index(drop=True)
 
@@ -429,6 +451,8 @@ def reconstruct(
             "dropped_tracks": dropped,
             "noise": None if noise is None else noise.as_dict(),
             "ego_path": ego_path_info,
+            "auto_interp": auto_interp.summary(cfg.interp, cfg.auto_dense_spacing_s, track_info),
+            "speed_warnings": [w.as_dict() for w in implausible],
         },
         "threat": {
             "criterion": (
