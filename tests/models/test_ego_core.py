@@ -95,6 +95,7 @@ DT = 0.05
 
 def _compiled(name: str):
     kernel_ego = pytest.importorskip("vei.sim.kernel.ego")  # needs numba
+    corridor = pytest.importorskip("vei.sim.kernel.corridor")  # the corridor test's cores
     table = {
         "pid_core": kernel_ego.pid_core, "pid_limit": kernel_ego.pid_limit,
         "pid_decay": kernel_ego.pid_decay, "lag_factor": kernel_ego.lag_factor,
@@ -105,9 +106,9 @@ def _compiled(name: str):
         "safe_distance_core": kernel_ego.safe_distance,
         "gap_braking_core": kernel_ego.gap_braking, "paper_braking_core": kernel_ego.paper_braking,
         "cap_transition_core": kernel_ego.cap_transition,
-        "path_foot_core": kernel_ego.path_foot, "half_diagonal_core": kernel_ego.half_diagonal,
-        "corridor_entry_core": kernel_ego.corridor_entry, "box_extent_core": kernel_ego.box_extent,
-        "corridor_gap_core": kernel_ego.corridor_gap,
+        "path_foot_core": corridor.path_foot, "half_diagonal_core": corridor.half_diagonal,
+        "corridor_entry_core": corridor.corridor_entry, "box_extent_core": corridor.box_extent,
+        "corridor_gap_core": corridor.corridor_gap,
     }  # fmt: skip
     return table[name]
 
