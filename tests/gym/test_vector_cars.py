@@ -124,20 +124,27 @@ def test_reacting_cars_move_the_contacts(follower_folder, backend):
     assert hits == [True, False]
 
 
-def _compiled_equals_numpy(cfg: EnvConfig, b: int, steps: int, seed: int) -> dict[str, bool]:
+def _compiled_equals_numpy(
+    cfg: EnvConfig, b: int, steps: int, seed: int, demand=None
+) -> dict[str, bool]:
     """backend 'numba' == backend 'numpy' (observation, reward, flags, the float and bool
     state, the ego's contact latches and every car / contact field), step by step through
-    autoresets, under random demands in [-8, 1] m/s^2. Returns what happened on the way."""
+    autoresets, under random demands in [-8, 1] m/s^2 (or ``demand(rng, step)`` -> [b, 1]
+    m/s^2). Returns what happened on the way."""
     envs = [VeiVectorEnv(b, dataclasses.replace(cfg, backend=x)) for x in ("numba", "numpy")]
     assert [e.backend for e in envs] == ["numba", "numpy"]
     outs = [e.reset(seed=seed)[0] for e in envs]
     assert np.array_equal(*outs)
     rng = np.random.default_rng(seed)
-    seen = dict.fromkeys(
-        ("reacted", "driven", "contact", "terminated", "stopped", "rear_end"), False
-    )
-    for _ in range(steps):
-        a = rng.uniform(-8.0, 1.0, size=(b, 1)).astype(np.float32)
+    keys = ("reacted", "driven", "contact", "terminated", "stopped", "rear_end",
+            "rider_hit_other", "car_hit", "summaries_without_cars")  # fmt: skip
+    seen = dict.fromkeys(keys, False)
+    carless = np.array([ws.arrays.traffic.n == 0 for ws in envs[0].world.scenarios])
+    for step in range(steps):
+        if demand is None:
+            a = rng.uniform(-8.0, 1.0, size=(b, 1)).astype(np.float32)
+        else:
+            a = np.asarray(demand(rng, step), np.float32)
         (oc, rc, tc, uc, _), (op, rp, tp, up, _) = (e.step(a) for e in envs)
         nb, npy = envs
         np.testing.assert_allclose(oc, op, rtol=0, atol=1e-5)
@@ -155,27 +162,35 @@ def _compiled_equals_numpy(cfg: EnvConfig, b: int, steps: int, seed: int) -> dic
         seen["terminated"] |= bool(tc.any())
         seen["stopped"] |= bool((mode == core.STOPPED).any())
         seen["rear_end"] |= bool(nb.CARS["rear_end"].any())
+        seen["rider_hit_other"] |= bool(nb.CARS["rider_hit_other"].any())
+        seen["car_hit"] |= bool(nb.CARS["car_hit"].any())
+        seen["summaries_without_cars"] |= bool((nb.CARS["sec_count"][carless[nb.SC]] > 0).any())
     return seen
 
 
 def test_compiled_cars_equal_numpy(follower_folder, tmp_path):
     """The compiled car step == the engine's NumPy step in every field, in a world of the
-    follower scene and a crossing without cars: the follower reacts and is driven by IDM;
-    a slow, weakly braking follower (1.5 s, 3 m/s^2) runs into the braking agent (a
-    rear-end contact ends the episode, the car stops)."""
+    follower scene and a crossing without cars (an e-scooter stands in the ego's lane: the
+    contact summaries of a scenario without cars are kept too): the follower reacts and is
+    driven by IDM; a slow, weakly braking follower (1.5 s, 3 m/s^2) runs into the braking
+    agent (a rear-end contact ends the episode, the car stops)."""
     import shutil
 
     from vei.io.scenario import write_scenario
-    from vei.sim.testing import crossing_scenario
+    from vei.sim.testing import TrackSpec, crossing_scenario
 
     seen = _compiled_equals_numpy(_config(follower_folder), 8, 150, seed=11)
     assert seen["reacted"] and seen["driven"]
     seen = _compiled_equals_numpy(_delayed(_config(follower_folder)), 8, 120, seed=4)
     assert seen["reacted"] and seen["driven"]
     shutil.copytree(follower_folder, tmp_path / "a_follower")
-    write_scenario(crossing_scenario(), tmp_path / "b_crossing")
+    t = np.arange(0, 501) * 0.05
+    z = np.zeros_like(t)
+    standing = TrackSpec("escooter", t, np.full_like(t, 4.0), z, z, z)  # 0.75 m ahead
+    write_scenario(crossing_scenario(others=[("s1", standing)]), tmp_path / "b_crossing")
     weak = _config(tmp_path, reaction_time_s=1.5, max_decel_mps2=3.0)
     seen = _compiled_equals_numpy(weak, 8, 150, seed=5)
+    assert seen.pop("rider_hit_other") is False and seen.pop("car_hit") is False
     assert all(seen.values()), seen
 
 
@@ -213,6 +228,57 @@ def test_compiled_cars_with_extra_riders_equal_numpy(tmp_path):
                               sim=SimConfig(sfm_riders="all"), max_episode_steps=200)  # fmt: skip
     seen = _compiled_equals_numpy(cfg, 8, 200, seed=2)
     assert seen["driven"] and seen["contact"] and seen["terminated"], seen
+
+
+@pytest.mark.slow
+def test_compiled_cars_rider_and_car_contacts_equal_numpy(tmp_path):
+    """The rider's contacts with a reacting car and a driven car's with another road user
+    (the order of vei.sim.contacts.contact_step: a car the rider hits stops at once): the
+    crossing with a car 1 s behind the ego and an e-scooter crossing at x = 40 m, the
+    replayed rider starting 7-10 s in, agents cruising or braking mildly."""
+    from vei.io.scenario import write_scenario
+    from vei.sim.testing import TrackSpec, crossing_scenario, ego_straight
+
+    ego = ego_straight()
+    car = TrackSpec("vehicle", ego.t_s, ego.x_m - 4.7 - 5.6, ego.y_m, ego.yaw_rad, ego.speed_mps)
+    for t0 in (7.0, 8.0, 9.0, 10.0):
+        tt = np.arange(int(t0 * 20) - 40, int(t0 * 20) + 120) / 20.0
+        cr = TrackSpec("escooter", tt, np.full_like(tt, 40.0), -10.0 + 2.5 * (tt - tt[0]),
+                       np.full_like(tt, np.pi / 2), np.full_like(tt, 2.5))  # fmt: skip
+        scn = crossing_scenario(rider_t0_s=t0, others=[("car1", car), ("x1", cr)],
+                                scenario_id=f"c{t0:g}")  # fmt: skip
+        write_scenario(scn, tmp_path / f"s{int(t0)}")
+    case = dataclasses.replace(
+        case_preset("replay"), traffic=TrafficConfig(cars_react=True, reaction_time_s=0.5)
+    )
+    cfg = EnvConfig(source="folder", path=tmp_path, case=case, road_features=False,
+                    max_episode_steps=400, time_shift_spread_s=3.0)  # fmt: skip
+    b = 32
+    cruising = np.arange(b)[:, None] < b // 4
+    level = np.zeros((b, 1))
+
+    def demand(rng, step):
+        if step % 50 == 0:
+            level[:] = np.where(np.arange(b)[:, None] < b // 2, 0.0, rng.uniform(-1.0, 0.0, (b, 1)))
+        return np.where(cruising, 0.0, level + rng.normal(0.0, 0.3, (b, 1)))
+
+    seen = _compiled_equals_numpy(cfg, b, 300, seed=5, demand=demand)
+    assert seen["rider_hit_other"] and seen["car_hit"] and seen["driven"], seen
+
+
+@pytest.mark.slow
+def test_a_replaying_car_is_seen_with_its_recorded_speed(tmp_path):
+    """A follower whose recorded speed varies (10 + 2 sin(t / 2) m/s): while it replays the
+    agent sees its recorded speed (not its arc-length rate), as single envs, also with a
+    perception delay."""
+    from vei.io.scenario import write_scenario
+    from vei.sim.testing import follower_scenario
+
+    folder = write_scenario(follower_scenario(V, wave_mps=2.0), tmp_path / "wave")
+    cfg = _config(folder)
+    assert _against_singles(cfg, 2, 120, seed=3)[0]
+    assert _against_singles(_delayed(cfg), 2, 120, seed=4)[0]
+    assert _compiled_equals_numpy(cfg, 4, 120, seed=6)["reacted"]
 
 
 def test_backend_choice_with_reacting_cars(follower_folder):

@@ -37,7 +37,9 @@ def step_cars(  # type: ignore[no-untyped-def]
 ):  # fmt: skip
     """Advance the reacting cars of the environments with ``run[b]`` from step K[b] - 1 to
     K[b] (step_envs has advanced K), in place, adding the ego's new contacts with them to
-    TERMS[b, 0].
+    TERMS[b, 0]; the contact latches and secondary summaries of every environment, also
+    in a world's scenarios without cars (the NumPy step keeps them wherever the world has
+    reacting cars).
 
     Args: dt [s]; K, SC [B]; PREV [N_PREV, B] (vei.gym.kernel: the ego's and the rider's
     step-k state); FS [15, B], BS [5, B] the state at k + 1; HIT0, HIT [B, O] uint8 the
@@ -58,10 +60,8 @@ def step_cars(  # type: ignore[no-untyped-def]
     ) = cs  # fmt: skip
     F, CM, sec = scr
     B = run.shape[0]
-    for sc in range(c_n.shape[0]):
+    for sc in range(c_n.shape[0]):  # a scenario without cars: its contacts all the same
         C = c_n[sc]
-        if C == 0:
-            continue
         no = n_o[sc]
         Le, We, Lr, Wr = DIM[sc, 0], DIM[sc, 1], DIM[sc, 2], DIM[sc, 3]
         tg = (C, tL[sc, :C], tW[sc, :C], mtab[sc], m0[sc], mn[sc], pair[sc])
@@ -83,7 +83,9 @@ def step_cars(  # type: ignore[no-untyped-def]
                 cv0[j], cyaw0[j], cm0[j] = CV[b, j], CYAW[b, j], cmode[j]
             cst = (CS[b, :C], CV[b, :C], CTM[b, :C], cx, cy, cyaw, cmode,
                    F[2, :C], F[3, :C], F[4, :C], F[5, :C])  # fmt: skip
-            traffic_step(k, dt, P, sc, True, tg, trec, tpath, cst, PREV[4, b], PREV[3, b], We)
+            if C > 0:  # (traffic_step reads kn = k + 1 <= T_n - 1 of the padded tables:
+                # an environment at its scenario's last step is truncated, never stepped)
+                traffic_step(k, dt, P, sc, True, tg, trec, tpath, cst, PREV[4, b], PREV[3, b], We)
             # the ego's contacts with the cars at their new poses (vei.sim.kernel.loop)
             ex, ey, eyaw = FS[_F_X, b], FS[_F_Y, b], FS[_F_YAW, b]
             h1 = HIT[b, :no]

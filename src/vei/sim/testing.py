@@ -242,14 +242,18 @@ def four_rider_scenario(more: Sequence[tuple[str, TrackSpec]] = ()) -> Scenario:
     return crossing_scenario(others=[*others, *more])
 
 
-def follower_scenario(speed_mps: float = 10.0, headway_s: float = 1.0) -> Scenario:
+def follower_scenario(
+    speed_mps: float = 10.0, headway_s: float = 1.0, wave_mps: float = 0.0
+) -> Scenario:
     """The ego at ``speed_mps`` along +x for 15 s (20 Hz), a car (4.7 m) ``headway_s``
     behind it bumper to bumper at the same speed (a reacting car where traffic.cars_react
-    is on: it notices a braking ego), and an e-scooter standing far away (400, 40) m."""
+    is on: it notices a braking ego), and an e-scooter standing far away (400, 40) m.
+    ``wave_mps``: both drive speed_mps + wave_mps sin(0.5 t) [m/s] instead (the same
+    distance apart), a recorded speed that varies."""
     t = np.arange(0, 301) * 0.05
     z = np.zeros_like(t)
-    v = np.full_like(t, speed_mps)
-    x = 20.0 + speed_mps * t
+    v = speed_mps + wave_mps * np.sin(0.5 * t)
+    x = 20.0 + speed_mps * t + wave_mps * (1.0 - np.cos(0.5 * t)) / 0.5
     ego = TrackSpec("ego", t, x, z, z, v)
     fol = TrackSpec("vehicle", t, x - 4.7 - speed_mps * headway_s, z, z, v)
     rider = TrackSpec("escooter", t, np.full_like(t, 400.0), np.full_like(t, 40.0),
