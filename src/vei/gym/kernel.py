@@ -351,8 +351,8 @@ def _slot(  # type: ignore[no-untyped-def]
     """Write the 9 entries of one road-user slot (object j: 0 the rider, j > 0 replayed
     other j - 1, -1 empty) of environment b at OUT[b, base:base + 9]. Argument groups:
     ego = (x, y, yaw, cos, sin, vx, vy, s), dims = (Le, Lr, Wr), geo = this scenario's
-    ego path (rows [10, N], grid start, step, size, its point at s), oth = the others' tables (a call of > 30 arguments cannot be inlined), indexed
-    in place: an array bound to a name costs an atomic reference count per call. The
+    ego path (rows [10, N], grid start, step, size, its point at s), oth = the others'
+    tables (a call of > 30 arguments cannot be inlined), indexed in place. The
     rider as perceived is RD[:, b] (x y yaw vx vy active), the others at step k (both
     delayed by the perception delay); with extra riders (xo not None, nx of them here)
     objects 1..nx are they, as perceived in xo[0][b] [6, R], and the others follow; with
