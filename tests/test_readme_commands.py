@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers_data import REAL_WITH_RIDER
 from vei.cli.main import main
 
 # the slow tier (docs/testing.md): minutes of real data, players or browsers
@@ -20,15 +21,7 @@ REPO = Path(__file__).resolve().parents[1]
 README = REPO / "README.md"
 #: the recording the README names, replaced by each shared one
 README_RECORDING = "stadtmitte_12_audi_geradeaus_03"
-RECORDINGS = [
-    "audi_08_klinikum_rechtsabbiegen",
-    "audi_08_klinikum_rechtsabbiegen_02",
-    "audi_08_stadtmitte_geradeaus",
-    "audi_10_marktkauf_linksabbiegen",
-    "klinikum_01_marktkauf_geradeaus",
-    "stadtmitte_11_marktkauf_rechtsabbiegen_02",
-    "stadtmitte_12_audi_geradeaus_03",
-]
+RECORDINGS = list(REAL_WITH_RIDER)
 #: what each command must leave behind, by its --out name in the README
 PROMISED = {
     "inter": ["interaction.json", "ego.csv", "annotations.csv"],

@@ -62,6 +62,7 @@ import math
 
 import pytest
 
+from tests.helpers_data import REAL_WITH_RIDER
 from vei.catalogue.encounters import EncounterRule, rider_figures
 from vei.datasets import ind
 from vei.datasets.trafficmonitoring import import_scenario_with_summary
@@ -72,15 +73,7 @@ from vei.recon.pipeline import reconstruct
 
 pytestmark = pytest.mark.slow
 
-RECORDINGS = (
-    "audi_08_klinikum_rechtsabbiegen",
-    "audi_08_klinikum_rechtsabbiegen_02",
-    "audi_08_stadtmitte_geradeaus",
-    "audi_10_marktkauf_linksabbiegen",
-    "klinikum_01_marktkauf_geradeaus",
-    "stadtmitte_11_marktkauf_rechtsabbiegen_02",
-    "stadtmitte_12_audi_geradeaus_03",
-)
+RECORDINGS = REAL_WITH_RIDER
 DIST_TOL_M = 0.1
 SIM_STEP_S = 0.05
 MARGIN_TTC_S = 0.3

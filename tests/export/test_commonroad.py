@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tests.export.conftest import REAL_WITH_RIDER
+from tests.helpers_data import REAL_WITH_RIDER
 from vei.errors import InputError
 
 pytest.importorskip("commonroad")

@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tests.export.conftest import REAL_WITH_RIDER
+from tests.helpers_data import REAL_WITH_RIDER
 from vei.boxes import boxes_overlap
 from vei.config import PAPER_CASES
 from vei.export.openscenario import export_openscenario, timeseries_to_trajectories

@@ -26,20 +26,13 @@ import pandas as pd
 import pytest
 from benchmarks.recon_research.dense import windowed_speed
 
+from tests.helpers_data import REAL_WITH_RIDER
 from vei.datasets.trafficmonitoring import import_scenario
 from vei.io.interaction import read_interaction
 from vei.recon.pipeline import ReconstructionConfig, reconstruct
 from vei.types import RIDER_CATEGORIES
 
-RECORDINGS = (
-    "audi_08_klinikum_rechtsabbiegen",
-    "audi_08_klinikum_rechtsabbiegen_02",
-    "audi_08_stadtmitte_geradeaus",
-    "audi_10_marktkauf_linksabbiegen",
-    "klinikum_01_marktkauf_geradeaus",
-    "stadtmitte_11_marktkauf_rechtsabbiegen_02",
-    "stadtmitte_12_audi_geradeaus_03",
-)
+RECORDINGS = REAL_WITH_RIDER
 ENVELOPE_FACTOR = 1.5
 ENVELOPE_SLACK_MPS = 1.0
 

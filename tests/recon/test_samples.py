@@ -7,6 +7,7 @@ import pandas as pd
 import pytest
 from benchmarks.recon_research.compare import leave_one_recording_out
 
+from tests.helpers_data import REAL_WITH_RIDER
 from vei.errors import ConfigError, InputError
 from vei.io.interaction import read_interaction
 from vei.recon.calibration import POSTERIOR_STD_INFLATION
@@ -15,15 +16,7 @@ from vei.recon.samples import rider_band, sample_rider, scenario_with_sample
 from vei.sweep.spec import SAMPLE_COLUMN, spec_from_dict, variants_table
 
 #: The seven shared recordings with riders (the other two have none and are refused).
-RECORDINGS = (
-    "audi_08_klinikum_rechtsabbiegen",
-    "audi_08_klinikum_rechtsabbiegen_02",
-    "audi_08_stadtmitte_geradeaus",
-    "audi_10_marktkauf_linksabbiegen",
-    "klinikum_01_marktkauf_geradeaus",
-    "stadtmitte_11_marktkauf_rechtsabbiegen_02",
-    "stadtmitte_12_audi_geradeaus_03",
-)
+RECORDINGS = REAL_WITH_RIDER
 STADTMITTE = "stadtmitte_12_audi_geradeaus_03"
 
 
