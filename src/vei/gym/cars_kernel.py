@@ -21,13 +21,11 @@ import math
 
 import numba
 
+from vei.gym.kernel import B_ACT, F_RX, F_RY, F_RYAW, F_X, F_Y, F_YAW
 from vei.models import traffic_core as core
 from vei.sim.kernel.contacts import car_contacts, ego_contacts, extra_contacts, rider_contacts
 from vei.sim.kernel.scalar import sat
 from vei.sim.kernel.traffic import traffic_step
-
-# Rows of vei.gym.kernel's float state FS and bool state BS read here.
-_F_X, _F_Y, _F_YAW, _F_RX, _F_RY, _F_RYAW, _B_ACT = 1, 2, 3, 7, 8, 9, 0
 
 
 @numba.njit(cache=True, nogil=True, _nrt=False)
@@ -87,7 +85,7 @@ def step_cars(  # type: ignore[no-untyped-def]
                 # an environment at its scenario's last step is truncated, never stepped)
                 traffic_step(k, dt, P, sc, True, tg, trec, tpath, cst, PREV[4, b], PREV[3, b], We)
             # the ego's contacts with the cars at their new poses (vei.sim.kernel.loop)
-            ex, ey, eyaw = FS[_F_X, b], FS[_F_Y, b], FS[_F_YAW, b]
+            ex, ey, eyaw = FS[F_X, b], FS[F_Y, b], FS[F_YAW, b]
             h1 = HIT[b, :no]
             for j in range(C):
                 oj = tidx[sc, j]
@@ -110,8 +108,8 @@ def step_cars(  # type: ignore[no-untyped-def]
                 extra_contacts(t_new, ego_now, XS[b], (XV[b, 0], XV[b, 1]), XH0[b],
                                XB[b, 3, :R], sec, no)  # fmt: skip
             rsp, ryaw = PREV[8, b], PREV[9, b]
-            rider_now = (FS[_F_RX, b], FS[_F_RY, b], FS[_F_RYAW, b], rsp * math.cos(ryaw),
-                         rsp * math.sin(ryaw), BS[_B_ACT, b] > 0)  # fmt: skip
+            rider_now = (FS[F_RX, b], FS[F_RY, b], FS[F_RYAW, b], rsp * math.cos(ryaw),
+                         rsp * math.sin(ryaw), BS[B_ACT, b] > 0)  # fmt: skip
             rhit = RHIT[b, :no]
             rider_contacts(k + 1, t_new, others, rhit, cars, rider_now, sec, Lr, Wr)
             carg = (cmode, CHIT[b, :C], CHW[b, :C], tidx[sc, :C], tL[sc, :C], tW[sc, :C])

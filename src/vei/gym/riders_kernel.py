@@ -31,8 +31,9 @@ def step_riders(run, dt, K, SC, PREV, EGO_N, DIM, P, OX, OY, OYAW, OACT, xr, TER
     K[b] (step_envs has advanced K), in place (xr's XS [B, 9, R], XB [B, 4, R]), adding
     their new ego contacts to TERMS[b, 0].
 
-    Args: dt [s]; SC [B] scenario indices; PREV [N_PREV, B] (vei.gym.kernel.N_PREV); EGO_N the float state
-    FS [15, B] of vei.gym.kernel at k + 1 (rows 1-3: the ego's x, y, yaw); DIM [S, 4]
+    Args: dt [s]; SC [B] scenario indices; PREV [N_PREV, B] (vei.gym.kernel.N_PREV: the
+    ego's and the primary rider's state at step k); EGO_N the float state FS [15, B] of
+    vei.gym.kernel at k + 1 (rows 1-3: the ego's x, y, yaw); DIM [S, 4]
     (ego length, width, ...) [m]; P [N_PARAMS, S]; the others' OX, OY, OYAW [S, T, O],
     OACT [S, T, O] (the pedestrians' repulsion); xr: vei.gym.packed.ExtraRiders.group()
     then XS, XB and their scratch NXS [9, R], NXB [4, R].
