@@ -208,14 +208,17 @@ class VeiVectorEnv(gym.vector.VectorEnv):
                 self._observe()
 
     def _car_tables(self, b: int) -> None:
-        """The cars' tables, the compiled car step's state and scratch (vei.gym.cars_kernel)
-        and the ring of their perceived poses (the perception delay)."""
+        """The cars' tables and the ring of their perceived poses (the perception delay);
+        for the compiled backend the car step's state, scratch and the others' presence
+        without the cars (vei.gym.cars_kernel)."""
         pk = self.pk
         ct = CarTables(self.world, pk.OX.shape[2], pk.OX.shape[1])
         self._ctab = ct
         self.CP = np.zeros((b, 5, ct.tidx.shape[1]))  # x y yaw vx vy as perceived
         self.CRING = np.zeros((self.delay + 1, *self.CP.shape))
         self._co = (ct.tci, self.CP)
+        if self.backend != "numba":  # the NumPy step keeps its own (self.CARS)
+            return
         self._ct = ct.group()
         self._cs = tuple(self.CARS[name] for name in CAR_STATE_ORDER)
         c = ct.tidx.shape[1]
